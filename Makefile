@@ -1,0 +1,31 @@
+# Two commands do everything on a fresh machine: `make demo` and `make test`.
+PYTHON ?= python3
+VENV := .venv
+BIN := $(VENV)/bin
+STAMP := $(VENV)/.installed
+
+.PHONY: venv test lint demo paper clean
+
+venv: $(STAMP)
+
+$(STAMP): requirements.txt requirements-dev.txt setup.py
+	$(PYTHON) -m venv $(VENV)
+	$(BIN)/pip install --quiet --upgrade pip
+	$(BIN)/pip install --quiet -r requirements-dev.txt
+	$(BIN)/pip install --quiet --no-deps --no-build-isolation -e .
+	# The ament entry point `node` (for `ros2 run`) would shadow Node.js on PATH inside the venv.
+	rm -f $(BIN)/node
+	touch $(STAMP)
+
+lint: venv
+	$(BIN)/ruff check physics_mapper msg_adapters test benchmarks
+	$(BIN)/mypy
+
+test: venv lint
+	$(BIN)/pytest
+
+demo: venv
+	$(BIN)/physics-mapper solve config/problems/pyramid.yaml --tree
+
+clean:
+	rm -rf $(VENV) build install log .pytest_cache .mypy_cache .ruff_cache

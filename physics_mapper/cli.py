@@ -1,0 +1,57 @@
+"""``physics-mapper``: one entry point, one module per subcommand (SPEC section 5).
+
+Exit codes: 0 success, 1 a run-time failure, 2 bad arguments or input files.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+from collections.abc import Sequence
+from types import ModuleType
+
+from physics_mapper.scene import SceneError
+
+#: Subcommand name -> module under ``physics_mapper.commands``.
+COMMANDS = ("solve",)
+
+EXIT_FAILURE = 1
+EXIT_BAD_INPUT = 2
+
+
+class InputError(Exception):
+    """A user-facing error about an input (file, bag, argument): printed without a traceback."""
+
+
+def _command(name: str) -> ModuleType:
+    return importlib.import_module(f"physics_mapper.commands.{name}")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="physics-mapper",
+        description="Physically consistent multi-object maps from weighted pose hypotheses (Wagle & Correll 2010).",
+    )
+    subparsers = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    for name in COMMANDS:
+        module = _command(name)
+        sub = subparsers.add_parser(name, help=module.HELP, description=module.HELP)
+        module.add_arguments(sub)
+        sub.set_defaults(run=module.run)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        return int(args.run(args))
+    except (SceneError, InputError) as error:
+        print(f"physics-mapper {args.command}: error: {error}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except KeyboardInterrupt:
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

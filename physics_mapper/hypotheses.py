@@ -1,0 +1,70 @@
+"""Weighted pose hypotheses of one object, ranked as the search needs them."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+from physics_mapper.geometry import Pose
+
+
+@dataclass(frozen=True)
+class Hypothesis:
+    """One pose hypothesis and its (unnormalised or normalised) weight."""
+
+    pose: Pose
+    weight: float
+
+
+def weights_problem(weights: Sequence[float], expected_count: int) -> str | None:
+    """Say what makes a weight vector unusable for ``expected_count`` poses, or return None.
+
+    Refused: wrong length, a non-finite or negative weight, or weights that sum to zero.
+    """
+    if len(weights) != expected_count:
+        return f"{len(weights)} weights for {expected_count} poses"
+    if not all(math.isfinite(w) for w in weights):
+        return "non-finite weight (NaN or Inf)"
+    if any(w < 0.0 for w in weights):
+        return "negative weight"
+    if sum(weights) <= 0.0:
+        return "weights sum to zero"
+    return None
+
+
+@dataclass(frozen=True)
+class RankedHypotheses:
+    """An object's hypotheses, weights normalised to sum 1, ranked by decreasing weight.
+
+    Ties keep their input order (a stable sort), so with uniform weights the
+    published order is the ranking. Rank r (1-based) is ``hypotheses[r - 1]``.
+    """
+
+    hypotheses: tuple[Hypothesis, ...]
+
+    @classmethod
+    def from_weighted(cls, hypotheses: Sequence[Hypothesis], keep_at_most: int | None = None) -> RankedHypotheses:
+        """Normalise and rank; keep only the ``keep_at_most`` heaviest (renormalised).
+
+        Raises ValueError when there are no hypotheses or the weights are unusable.
+        """
+        if not hypotheses:
+            raise ValueError("no hypotheses")
+        problem = weights_problem([h.weight for h in hypotheses], len(hypotheses))
+        if problem is not None:
+            raise ValueError(problem)
+        ranked = sorted(hypotheses, key=lambda h: -h.weight)[:keep_at_most]
+        total = sum(h.weight for h in ranked)
+        return cls(tuple(Hypothesis(h.pose, h.weight / total) for h in ranked))
+
+    def __len__(self) -> int:
+        return len(self.hypotheses)
+
+    def weight(self, rank: int) -> float:
+        """Normalised weight of the hypothesis of 1-based ``rank``."""
+        return self.hypotheses[rank - 1].weight
+
+    def pose(self, rank: int) -> Pose:
+        """Pose of the hypothesis of 1-based ``rank``."""
+        return self.hypotheses[rank - 1].pose

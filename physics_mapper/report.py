@@ -1,0 +1,111 @@
+"""Search results as plain data (for JSON) and as text for people."""
+
+from __future__ import annotations
+
+from dataclasses import asdict
+from typing import Any
+
+from physics_mapper.geometry import Pose
+from physics_mapper.search import Code, SearchResult, TraceEntry
+
+
+def code_text(code: Code | None) -> str:
+    """The paper's notation: ``(2, 1, 1)`` -> ``C211``; ranks above 9 are comma-separated."""
+    if code is None:
+        return "none"
+    if all(rank < 10 for rank in code):
+        return "C" + "".join(str(rank) for rank in code)
+    return "C(" + ",".join(str(rank) for rank in code) + ")"
+
+
+def pose_dict(pose: Pose) -> dict[str, list[float]]:
+    return {"position": list(pose.position), "orientation": list(pose.orientation)}
+
+
+def _poses(poses: tuple[Pose, ...] | None, names: tuple[str, ...]) -> dict[str, Any] | None:
+    if poses is None:
+        return None
+    return {name: pose_dict(pose) for name, pose in zip(names, poses, strict=True)}
+
+
+def trace_entry_dict(entry: TraceEntry) -> dict[str, Any]:
+    """A trace entry with only the fields that apply to its outcome."""
+    data = {key: value for key, value in asdict(entry).items() if value is not None}
+    data["code"] = list(entry.code)
+    if entry.parent is not None:
+        data["parent"] = list(entry.parent)
+    if entry.pair is not None:
+        data["pair"] = list(entry.pair)
+    return data
+
+
+def result_dict(result: SearchResult, names: tuple[str, ...]) -> dict[str, Any]:
+    """Machine-readable result (SPEC section 5): poses keyed by object name."""
+    stats = asdict(result.stats)
+    stats["configurations_per_second"] = result.stats.configurations_per_second
+    return {
+        "valid": result.valid,
+        "code": None if result.code is None else list(result.code),
+        "probability": result.probability,
+        "jitter": result.jitter,
+        "fallback_used": result.fallback_used,
+        "poses": _poses(result.poses, names),
+        "settled_poses": _poses(result.settled_poses, names),
+        "stats": stats,
+        "trace": [trace_entry_dict(entry) for entry in result.trace],
+    }
+
+
+def describe_entry(entry: TraceEntry) -> str:
+    """One line: outcome and its evidence, e.g. ``collision cube_a-cube_b 3.1 cm``."""
+    if entry.outcome == "collision":
+        assert entry.pair is not None and entry.depth is not None
+        text = f"collision {entry.pair[0]}-{entry.pair[1]} {entry.depth * 100:.1f} cm"
+    elif entry.outcome == "unstable":
+        text = f"unstable ({entry.moved} moved) J={entry.jitter:.4f}"
+    else:
+        text = f"valid J={entry.jitter:.4f}"
+    return text + (" [bounded]" if entry.bounded else "")
+
+
+def trace_tree(trace: tuple[TraceEntry, ...]) -> str:
+    """The search tree: each node under the node that queued it, in visiting order."""
+    children: dict[Code | None, list[tuple[int, TraceEntry]]] = {}
+    for index, entry in enumerate(trace, start=1):
+        children.setdefault(entry.parent, []).append((index, entry))
+    lines: list[str] = []
+
+    def walk(parent: Code | None, prefix: str) -> None:
+        kids = children.get(parent, [])
+        for position, (index, entry) in enumerate(kids):
+            last = position == len(kids) - 1
+            branch = "" if parent is None else ("└─ " if last else "├─ ")
+            lines.append(
+                f"{prefix}{branch}{code_text(entry.code)}  #{index}  p={entry.probability:.4g}  {describe_entry(entry)}"
+            )
+            walk(entry.code, prefix + ("" if parent is None else ("   " if last else "│  ")))
+
+    walk(None, "")
+    return "\n".join(lines)
+
+
+def summary(result: SearchResult) -> str:
+    """A few lines: chosen code, p(C), J, validity, and how the search went."""
+    stats = result.stats
+    if result.code is None:
+        head = "no valid configuration (fallback: none)"
+    elif result.valid:
+        head = f"valid {code_text(result.code)}  p={result.probability:.4g}  J={result.jitter:.4f}"
+    else:
+        head = f"no valid configuration; fallback settled {code_text(result.code)}  p={result.probability:.4g}"
+    if stats.stopped_at_deadline:
+        ending = "stopped at the deadline"
+    else:
+        ending = "all nodes visited" if stats.exhausted else "paused"
+    return (
+        f"{head}\n"
+        f"visited {stats.visited} (expanded {stats.expanded}, bounded {stats.bounded}); "
+        f"rejected: {stats.collisions} collision, {stats.unstable} unstable; valid {stats.valid}\n"
+        f"search time {stats.search_time * 1000:.1f} ms "
+        f"({stats.configurations_per_second:.0f} configurations/s), {ending}"
+    )

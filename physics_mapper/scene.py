@@ -1,0 +1,382 @@
+"""Scene and problem model, loaded from YAML and validated (SPEC section 3).
+
+A *scene* is the fixed environment, the movable objects (in the order used for
+configuration codes and output arrays) and the search parameters. A *problem* is a
+scene plus weighted hypotheses for every object. Lengths are metres, masses
+kilograms, times seconds.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field, fields, replace
+from pathlib import Path
+from typing import Any, Literal
+
+import yaml
+
+from physics_mapper.geometry import IDENTITY, ORIGIN, Pose, make_pose
+from physics_mapper.hypotheses import Hypothesis, RankedHypotheses, weights_problem
+
+Fallback = Literal["none", "settled"]
+FALLBACKS: tuple[Fallback, ...] = ("none", "settled")
+
+
+@dataclass(frozen=True)
+class Box:
+    """Box with full edge lengths ``size`` (x, y, z) in metres, centred on its pose."""
+
+    size: tuple[float, float, float]
+
+
+@dataclass(frozen=True)
+class Sphere:
+    """Sphere of ``radius`` metres, centred on its pose."""
+
+    radius: float
+
+
+@dataclass(frozen=True)
+class Cylinder:
+    """Cylinder of ``radius`` and ``length`` metres along its local z axis, centred on its pose."""
+
+    radius: float
+    length: float
+
+
+@dataclass(frozen=True)
+class Plane:
+    """Infinite plane through its pose, normal along its local +z (static bodies only)."""
+
+
+Shape = Box | Sphere | Cylinder | Plane
+OBJECT_SHAPES = ("box", "sphere", "cylinder")
+STATIC_SHAPES = ("plane", "box", "sphere", "cylinder")
+
+
+@dataclass(frozen=True)
+class StaticBody:
+    """A fixed body of the environment (floor, wall, groove side)."""
+
+    name: str
+    shape: Shape
+    pose: Pose = ORIGIN
+    friction: float = 0.8
+
+
+@dataclass(frozen=True)
+class ObjectModel:
+    """A movable rigid body; ``mass`` in kg, Coulomb ``friction`` coefficient.
+
+    ``rolling_friction`` (Bullet's, in metres) lets round objects come to rest.
+    """
+
+    name: str
+    shape: Box | Sphere | Cylinder
+    mass: float = 0.5
+    friction: float = 0.8
+    rolling_friction: float = 0.0
+
+
+@dataclass(frozen=True)
+class SearchParams:
+    """Thresholds and budgets of the search (SPEC section 2).
+
+    probability_threshold: T; nodes with p(C) < T are not expanded.
+    penetration_threshold: deepest allowed overlap between two bodies, metres.
+    jitter_threshold: largest allowed per-object jitter J_i (metres + weighted radians).
+    angular_weight: metres per radian of rotation in J_i.
+    settle_time: simulated seconds under gravity for the stability test.
+    deadline: wall-clock seconds a search may run.
+    fallback: what to report when no configuration is valid.
+    """
+
+    probability_threshold: float = 0.0002
+    penetration_threshold: float = 0.005
+    jitter_threshold: float = 0.01
+    angular_weight: float = 0.1
+    settle_time: float = 0.5
+    deadline: float = 0.2
+    fallback: Fallback = "none"
+
+
+@dataclass(frozen=True)
+class Scene:
+    """Environment, objects in code order, and default search parameters."""
+
+    objects: tuple[ObjectModel, ...]
+    static: tuple[StaticBody, ...] = ()
+    search: SearchParams = field(default_factory=SearchParams)
+    frame_id: str = "world"
+
+    @property
+    def object_names(self) -> tuple[str, ...]:
+        return tuple(o.name for o in self.objects)
+
+
+@dataclass(frozen=True)
+class Problem:
+    """A scene and, for each of its objects in order, ranked hypotheses."""
+
+    scene: Scene
+    hypotheses: tuple[RankedHypotheses, ...]
+
+
+class SceneError(ValueError):
+    """A scene or problem file is invalid: names the file, the key and the problem."""
+
+    def __init__(self, source: str, key: str, problem: str) -> None:
+        super().__init__(f"{source}: {key}: {problem}" if key else f"{source}: {problem}")
+        self.source = source
+        self.key = key
+        self.problem = problem
+
+
+class _Reader:
+    """Typed access to YAML values that raises :class:`SceneError` naming the key path."""
+
+    def __init__(self, source: str) -> None:
+        self.source = source
+
+    def fail(self, key: str, problem: str) -> SceneError:
+        return SceneError(self.source, key, problem)
+
+    def mapping(self, value: Any, key: str) -> Mapping[str, Any]:
+        if not isinstance(value, Mapping):
+            raise self.fail(key, f"must be a mapping, got {_show(value)}")
+        return value
+
+    def sequence(self, value: Any, key: str) -> Sequence[Any]:
+        if not isinstance(value, list):
+            raise self.fail(key, f"must be a list, got {_show(value)}")
+        return value
+
+    def number(self, value: Any, key: str, *, positive: bool = False, minimum: float | None = None) -> float:
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            raise self.fail(key, f"must be a number, got {_show(value)}")
+        number = float(value)
+        if not math.isfinite(number):
+            raise self.fail(key, f"must be finite, got {number}")
+        if positive and number <= 0.0:
+            raise self.fail(key, f"must be positive, got {number:g}")
+        if minimum is not None and number < minimum:
+            raise self.fail(key, f"must be at least {minimum:g}, got {number:g}")
+        return number
+
+    def vector(self, value: Any, key: str, length: int, *, positive: bool = False) -> tuple[float, ...]:
+        items = self.sequence(value, key)
+        if len(items) != length:
+            raise self.fail(key, f"must have {length} numbers, got {len(items)}")
+        return tuple(self.number(v, f"{key}[{i}]", positive=positive) for i, v in enumerate(items))
+
+    def name(self, value: Any, key: str) -> str:
+        if not isinstance(value, str) or not value:
+            raise self.fail(key, f"must be a non-empty string, got {_show(value)}")
+        return value
+
+    def known_keys(self, data: Mapping[str, Any], key: str, allowed: Sequence[str]) -> None:
+        unknown = sorted(set(data) - set(allowed))
+        if unknown:
+            prefix = f"{key}." if key else ""
+            raise self.fail(f"{prefix}{unknown[0]}", f"unknown key (expected one of: {', '.join(allowed)})")
+
+    def required(self, data: Mapping[str, Any], name: str, key: str) -> Any:
+        if name not in data:
+            raise self.fail(f"{key}.{name}" if key else name, "missing")
+        return data[name]
+
+
+def _show(value: Any) -> str:
+    text = repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
+def _read_pose(reader: _Reader, value: Any, key: str) -> Pose:
+    data = reader.mapping(value, key)
+    reader.known_keys(data, key, ("position", "orientation"))
+    position = reader.vector(reader.required(data, "position", key), f"{key}.position", 3)
+    orientation = reader.vector(data.get("orientation", list(IDENTITY)), f"{key}.orientation", 4)
+    try:
+        return make_pose(position, orientation)
+    except ValueError as error:
+        raise reader.fail(f"{key}.orientation", str(error)) from None
+
+
+def _read_shape(reader: _Reader, data: Mapping[str, Any], key: str, allowed: Sequence[str]) -> Shape:
+    kind = reader.required(data, "shape", key)
+    if kind not in allowed:
+        raise reader.fail(f"{key}.shape", f"unknown shape {_show(kind)} (expected one of: {', '.join(allowed)})")
+    if kind == "box":
+        size = reader.vector(reader.required(data, "size", key), f"{key}.size", 3, positive=True)
+        return Box((size[0], size[1], size[2]))
+    if kind == "sphere":
+        return Sphere(reader.number(reader.required(data, "radius", key), f"{key}.radius", positive=True))
+    if kind == "cylinder":
+        radius = reader.number(reader.required(data, "radius", key), f"{key}.radius", positive=True)
+        length = reader.number(reader.required(data, "length", key), f"{key}.length", positive=True)
+        return Cylinder(radius, length)
+    return Plane()
+
+
+_SHAPE_KEYS = ("shape", "size", "radius", "length")
+
+
+def _read_static(reader: _Reader, value: Any, key: str) -> StaticBody:
+    data = reader.mapping(value, key)
+    reader.known_keys(data, key, ("name", *_SHAPE_KEYS, "pose", "friction"))
+    name = reader.name(reader.required(data, "name", key), f"{key}.name")
+    shape = _read_shape(reader, data, key, STATIC_SHAPES)
+    pose = _read_pose(reader, data["pose"], f"{key}.pose") if "pose" in data else ORIGIN
+    friction = reader.number(data.get("friction", 0.8), f"{key}.friction", minimum=0.0)
+    return StaticBody(name, shape, pose, friction)
+
+
+def _read_object(reader: _Reader, value: Any, key: str) -> ObjectModel:
+    data = reader.mapping(value, key)
+    reader.known_keys(data, key, ("name", *_SHAPE_KEYS, "mass", "friction", "rolling_friction"))
+    name = reader.name(reader.required(data, "name", key), f"{key}.name")
+    shape = _read_shape(reader, data, key, OBJECT_SHAPES)
+    assert not isinstance(shape, Plane)  # excluded by OBJECT_SHAPES
+    return ObjectModel(
+        name=name,
+        shape=shape,
+        mass=reader.number(data.get("mass", 0.5), f"{key}.mass", positive=True),
+        friction=reader.number(data.get("friction", 0.8), f"{key}.friction", minimum=0.0),
+        rolling_friction=reader.number(data.get("rolling_friction", 0.0), f"{key}.rolling_friction", minimum=0.0),
+    )
+
+
+def _read_search(reader: _Reader, value: Any, key: str) -> SearchParams:
+    data = reader.mapping(value, key)
+    names = [f.name for f in fields(SearchParams)]
+    reader.known_keys(data, key, names)
+    values: dict[str, Any] = {}
+    for name in names:
+        if name not in data:
+            continue
+        if name == "fallback":
+            if data[name] not in FALLBACKS:
+                raise reader.fail(f"{key}.fallback", f"must be one of {', '.join(FALLBACKS)}, got {_show(data[name])}")
+            values[name] = data[name]
+        else:
+            values[name] = reader.number(data[name], f"{key}.{name}", minimum=0.0)
+    params = replace(SearchParams(), **values)
+    problem = search_params_problem(params)
+    if problem is not None:
+        raise reader.fail(key, problem)
+    return params
+
+
+def search_params_problem(params: SearchParams) -> str | None:
+    """Say which search parameter is out of range, or return None."""
+    if not 0.0 <= params.probability_threshold <= 1.0:
+        return f"probability_threshold must be in [0, 1], got {params.probability_threshold:g}"
+    if params.deadline <= 0.0:
+        return f"deadline must be positive, got {params.deadline:g}"
+    if params.fallback not in FALLBACKS:
+        return f"fallback must be one of {', '.join(FALLBACKS)}, got {params.fallback!r}"
+    for name in ("penetration_threshold", "jitter_threshold", "angular_weight", "settle_time"):
+        if getattr(params, name) < 0.0:
+            return f"{name} must not be negative, got {getattr(params, name):g}"
+    return None
+
+
+_SCENE_KEYS = ("frame_id", "static", "objects", "search")
+
+
+def scene_from_dict(data: Any, source: str) -> Scene:
+    """Build a validated :class:`Scene` from parsed YAML; ``source`` names it in errors."""
+    reader = _Reader(source)
+    top = reader.mapping(data, "")
+    reader.known_keys(top, "", (*_SCENE_KEYS, "hypotheses", "scene"))
+    frame_id = reader.name(top.get("frame_id", "world"), "frame_id")
+    static = tuple(
+        _read_static(reader, item, f"static[{i}]")
+        for i, item in enumerate(reader.sequence(top.get("static", []), "static"))
+    )
+    items = reader.sequence(reader.required(top, "objects", ""), "objects")
+    if not items:
+        raise reader.fail("objects", "needs at least one object")
+    objects = tuple(_read_object(reader, item, f"objects[{i}]") for i, item in enumerate(items))
+    names = [o.name for o in objects] + [b.name for b in static]
+    for i, name in enumerate(names):
+        if name in names[:i]:
+            raise reader.fail("objects" if i < len(objects) else "static", f"duplicate body name {name!r}")
+    search = _read_search(reader, top.get("search", {}), "search")
+    return Scene(objects=objects, static=static, search=search, frame_id=frame_id)
+
+
+def _read_hypotheses(reader: _Reader, value: Any, key: str) -> RankedHypotheses:
+    items = reader.sequence(value, key)
+    if not items:
+        raise reader.fail(key, "needs at least one hypothesis")
+    hypotheses = []
+    for i, item in enumerate(items):
+        item_key = f"{key}[{i}]"
+        data = reader.mapping(item, item_key)
+        reader.known_keys(data, item_key, ("position", "orientation", "weight"))
+        pose = _read_pose(reader, {k: v for k, v in data.items() if k != "weight"}, item_key)
+        weight = reader.number(data.get("weight", 1.0), f"{item_key}.weight", minimum=0.0)
+        hypotheses.append(Hypothesis(pose, weight))
+    problem = weights_problem([h.weight for h in hypotheses], len(hypotheses))
+    if problem is not None:
+        raise reader.fail(key, problem)
+    return RankedHypotheses.from_weighted(hypotheses)
+
+
+def problem_from_dict(data: Any, source: str, base_dir: Path | None = None) -> Problem:
+    """Build a :class:`Problem`: an inline scene (or ``scene: path``) plus ``hypotheses``.
+
+    A relative ``scene:`` path is taken relative to ``base_dir`` (the problem file's folder).
+    """
+    reader = _Reader(source)
+    top = reader.mapping(data, "")
+    if "scene" in top:
+        reader.known_keys(top, "", ("scene", "hypotheses", "search"))
+        scene_path = Path(reader.name(top["scene"], "scene"))
+        if not scene_path.is_absolute() and base_dir is not None:
+            scene_path = base_dir / scene_path
+        scene = load_scene(scene_path)
+        if "search" in top:
+            overrides = reader.mapping(top["search"], "search")
+            merged = {f.name: getattr(scene.search, f.name) for f in fields(SearchParams)} | dict(overrides)
+            scene = replace(scene, search=_read_search(reader, merged, "search"))
+    else:
+        scene = scene_from_dict(top, source)
+    given = reader.mapping(reader.required(top, "hypotheses", ""), "hypotheses")
+    for name in given:
+        if name not in scene.object_names:
+            known = ", ".join(scene.object_names)
+            raise reader.fail(f"hypotheses.{name}", f"no object of that name in the scene (objects: {known})")
+    ranked = []
+    for name in scene.object_names:
+        if name not in given:
+            raise reader.fail(f"hypotheses.{name}", "missing: every object needs hypotheses")
+        ranked.append(_read_hypotheses(reader, given[name], f"hypotheses.{name}"))
+    return Problem(scene, tuple(ranked))
+
+
+def _load_yaml(path: Path) -> Any:
+    try:
+        text = path.read_text(encoding="utf-8")
+    except OSError as error:
+        raise SceneError(str(path), "", f"cannot read file: {error.strerror or error}") from None
+    try:
+        return yaml.safe_load(text)
+    except yaml.YAMLError as error:
+        mark = getattr(error, "problem_mark", None)
+        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
+        raise SceneError(str(path), "", f"not valid YAML{where}") from None
+
+
+def load_scene(path: str | Path) -> Scene:
+    """Load and validate a scene file; raises :class:`SceneError`."""
+    path = Path(path)
+    return scene_from_dict(_load_yaml(path), str(path))
+
+
+def load_problem(path: str | Path) -> Problem:
+    """Load and validate a problem file; raises :class:`SceneError`."""
+    path = Path(path)
+    return problem_from_dict(_load_yaml(path), str(path), path.parent)

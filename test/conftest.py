@@ -1,0 +1,28 @@
+"""Shared test fixtures: every pytest run gets its own ROS domain, confined to this host."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parent.parent
+SCENES = REPO / "config" / "scenes"
+PROBLEMS = REPO / "config" / "problems"
+
+
+def _domain_id() -> int:
+    # Fast DDS supports domain ids 0..232; a per-process choice keeps parallel runs apart.
+    return 10 + os.getpid() % 200
+
+
+@pytest.fixture(scope="session", autouse=True)
+def ros_environment() -> None:
+    """Isolate DDS traffic of this run: own ROS_DOMAIN_ID, discovery on localhost only.
+
+    Set in os.environ so that child processes (the node under test) inherit it.
+    """
+    os.environ.setdefault("ROS_DOMAIN_ID", str(_domain_id()))
+    os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+    os.environ.setdefault("RMW_IMPLEMENTATION", "rmw_fastrtps_cpp")
