@@ -9,16 +9,17 @@ kilograms, times seconds.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any, Literal, TypeVar
 
 import yaml
 
 from physics_mapper.geometry import IDENTITY, ORIGIN, Pose, make_pose
 from physics_mapper.hypotheses import Hypothesis, RankedHypotheses, weights_problem
 
+T = TypeVar("T")
 Fallback = Literal["none", "settled"]
 FALLBACKS: tuple[Fallback, ...] = ("none", "settled")
 
@@ -109,6 +110,8 @@ class Scene:
     static: tuple[StaticBody, ...] = ()
     search: SearchParams = field(default_factory=SearchParams)
     frame_id: str = "world"
+    #: Optional true pose of each object, in object order (for generating data and scoring).
+    ground_truth: tuple[Pose, ...] | None = None
 
     @property
     def object_names(self) -> tuple[str, ...]:
@@ -282,7 +285,7 @@ def search_params_problem(params: SearchParams) -> str | None:
     return None
 
 
-_SCENE_KEYS = ("frame_id", "static", "objects", "search")
+_SCENE_KEYS = ("frame_id", "static", "objects", "search", "ground_truth")
 
 
 def scene_from_dict(data: Any, source: str) -> Scene:
@@ -304,7 +307,26 @@ def scene_from_dict(data: Any, source: str) -> Scene:
         if name in names[:i]:
             raise reader.fail("objects" if i < len(objects) else "static", f"duplicate body name {name!r}")
     search = _read_search(reader, top.get("search", {}), "search")
-    return Scene(objects=objects, static=static, search=search, frame_id=frame_id)
+    truth = None
+    if "ground_truth" in top:
+        truth = _read_per_object(reader, top["ground_truth"], "ground_truth", [o.name for o in objects], _read_pose)
+    return Scene(objects=objects, static=static, search=search, frame_id=frame_id, ground_truth=truth)
+
+
+def _read_per_object(
+    reader: _Reader, value: Any, key: str, names: Sequence[str], read: Callable[[_Reader, Any, str], T]
+) -> tuple[T, ...]:
+    """Read a mapping object name -> item that must cover exactly the scene's objects, in object order."""
+    given = reader.mapping(value, key)
+    for name in given:
+        if name not in names:
+            raise reader.fail(f"{key}.{name}", f"no object of that name in the scene (objects: {', '.join(names)})")
+    items = []
+    for name in names:
+        if name not in given:
+            raise reader.fail(f"{key}.{name}", "missing: every object needs one")
+        items.append(read(reader, given[name], f"{key}.{name}"))
+    return tuple(items)
 
 
 def _read_hypotheses(reader: _Reader, value: Any, key: str) -> RankedHypotheses:
@@ -344,17 +366,8 @@ def problem_from_dict(data: Any, source: str, base_dir: Path | None = None) -> P
             scene = replace(scene, search=_read_search(reader, merged, "search"))
     else:
         scene = scene_from_dict(top, source)
-    given = reader.mapping(reader.required(top, "hypotheses", ""), "hypotheses")
-    for name in given:
-        if name not in scene.object_names:
-            known = ", ".join(scene.object_names)
-            raise reader.fail(f"hypotheses.{name}", f"no object of that name in the scene (objects: {known})")
-    ranked = []
-    for name in scene.object_names:
-        if name not in given:
-            raise reader.fail(f"hypotheses.{name}", "missing: every object needs hypotheses")
-        ranked.append(_read_hypotheses(reader, given[name], f"hypotheses.{name}"))
-    return Problem(scene, tuple(ranked))
+    given = reader.required(top, "hypotheses", "")
+    return Problem(scene, _read_per_object(reader, given, "hypotheses", scene.object_names, _read_hypotheses))
 
 
 def _load_yaml(path: Path) -> Any:
