@@ -7,10 +7,8 @@ import json
 from dataclasses import replace
 from pathlib import Path
 
-from physics_mapper.physics import PhysicsChecker
-from physics_mapper.report import result_dict, summary, trace_entry_dict, trace_tree
-from physics_mapper.scene import load_problem
-from physics_mapper.search import BranchAndBound
+from physics_mapper.cli import InputError
+from physics_mapper.scene import load_problem, search_params_problem
 
 HELP = "search a problem file (scene + hypotheses) for the best physically valid configuration"
 
@@ -30,10 +28,22 @@ def run(args: argparse.Namespace) -> int:
     params = problem.scene.search
     if args.deadline is not None:
         params = replace(params, deadline=args.deadline)
+        problem_text = search_params_problem(params)
+        if problem_text is not None:
+            raise InputError(f"--deadline: {problem_text}")
+    # pybullet prints a banner on stderr when imported: only once the input is known to be
+    # good, so that a bad input gets one error line (and --help stays fast).
+    from physics_mapper.physics import PhysicsChecker
+    from physics_mapper.report import result_dict, summary, trace_entry_dict, trace_tree
+    from physics_mapper.search import BranchAndBound
+
     with PhysicsChecker(problem.scene) as checker:
         result = BranchAndBound(checker, problem.hypotheses, params).run(params.deadline)
     if args.trace is not None:
-        args.trace.write_text(json.dumps([trace_entry_dict(e) for e in result.trace], indent=1) + "\n")
+        try:
+            args.trace.write_text(json.dumps([trace_entry_dict(e) for e in result.trace], indent=1) + "\n")
+        except OSError as error:
+            raise InputError(f"cannot write {args.trace}: {error.strerror or error}") from None
     if args.json:
         print(json.dumps(result_dict(result, problem.scene.object_names), indent=1))
         return 0
