@@ -8,9 +8,10 @@ most ``jitter_threshold``, where object i's jitter is
 
 with p in metres and the rotation angle in radians (SPEC section 2).
 
-The world is built once per :class:`PhysicsChecker`; configurations move the bodies
-and restore a saved solver state, so no world is rebuilt per configuration and the
-same configuration always gives the same answer, whatever was checked before it.
+The world is built once per :class:`PhysicsChecker`; configurations move the bodies,
+restore a saved solver state and empty the contact caches, so no world is rebuilt per
+configuration and the same configuration always gives the same answer, whatever was
+checked before it.
 """
 
 from __future__ import annotations
@@ -21,7 +22,7 @@ from dataclasses import dataclass
 
 import pybullet
 
-from physics_mapper.geometry import ORIGIN, Pose, pose_displacement
+from physics_mapper.geometry import IDENTITY, ORIGIN, Pose, pose_displacement
 from physics_mapper.scene import Box, Cylinder, Plane, Scene, Shape, Sphere
 
 #: Bullet's default step, 240 Hz, in seconds.
@@ -29,6 +30,8 @@ TIME_STEP = 1.0 / 240.0
 GRAVITY = -9.81  # m/s^2 along z
 #: Simulation steps between two looks at the wall clock during settling.
 CLOCK_CHECK_STEPS = 8
+#: Metres between the spots, far above any scene, where objects wait between configurations.
+PARKING_SPACING = 1000.0
 
 
 @dataclass(frozen=True)
@@ -59,6 +62,14 @@ class Settling:
     def is_stable(self, jitter_threshold: float) -> bool:
         """True iff every J_i is at most ``jitter_threshold``."""
         return max(self.jitters) <= jitter_threshold
+
+
+@dataclass(frozen=True)
+class Snapshot:
+    """The objects' poses ``time`` seconds into a simulation."""
+
+    time: float
+    poses: tuple[Pose, ...]
 
 
 class PhysicsChecker:
@@ -139,8 +150,14 @@ class PhysicsChecker:
     def _place(self, poses: Sequence[Pose]) -> None:
         if len(poses) != len(self._bodies):
             raise ValueError(f"{len(poses)} poses for {len(self._bodies)} objects")
-        # Restoring the saved state drops contact caches and velocities of the previous configuration.
+        # Restoring the saved state resets velocities, but Bullet keeps its contact points (and
+        # their warm-start impulses) across restoreState. Parking the objects far apart and
+        # running collision detection empties them, so no configuration inherits its predecessor's.
         pybullet.restoreState(self._initial_state, physicsClientId=self._client)
+        for index, uid in enumerate(self._bodies):
+            parking = (PARKING_SPACING * (index + 1), PARKING_SPACING, PARKING_SPACING)
+            pybullet.resetBasePositionAndOrientation(uid, parking, IDENTITY, physicsClientId=self._client)
+        pybullet.performCollisionDetection(physicsClientId=self._client)
         for uid, pose in zip(self._bodies, poses, strict=True):
             pybullet.resetBasePositionAndOrientation(uid, pose.position, pose.orientation, physicsClientId=self._client)
 
@@ -193,3 +210,19 @@ class PhysicsChecker:
         settled = self._poses()
         jitters = tuple(pose_displacement(a, b, angular_weight) for a, b in zip(poses, settled, strict=True))
         return Settling(settled, jitters)
+
+    def trajectory(self, poses: Sequence[Pose], duration: float, sample_interval: float) -> tuple[Snapshot, ...]:
+        """Simulate ``duration`` seconds from rest at ``poses``, recording the objects' poses.
+
+        Returns a snapshot at time 0 and then every ``sample_interval`` seconds (rounded to
+        whole :data:`TIME_STEP` steps, at least one). For plots and inspection; the rules use
+        :meth:`settle`, which steps the same world the same way.
+        """
+        self._place(poses)
+        steps_per_sample = max(1, round(sample_interval / TIME_STEP))
+        snapshots = [Snapshot(0.0, self._poses())]
+        for step in range(1, round(duration / TIME_STEP) + 1):
+            pybullet.stepSimulation(physicsClientId=self._client)
+            if step % steps_per_sample == 0:
+                snapshots.append(Snapshot(step * TIME_STEP, self._poses()))
+        return tuple(snapshots)
