@@ -24,8 +24,14 @@ lint: venv
 test: venv lint
 	$(BIN)/pytest
 
+# Starts the node on the pyramid scene, publishes the shipped pyramid problem into it,
+# prints the map it publishes and its diagnostics, stops it (physics_mapper/commands/demo.py).
 demo: venv
-	$(BIN)/physics-mapper solve config/problems/pyramid.yaml --tree
+	$(BIN)/physics-mapper demo --scene config/scenes/pyramid.yaml --problem config/problems/pyramid.yaml
+
+# The paper's figures at full size (20 runs, 1000 particles) into reports/: PNG + markdown + JSON each.
+paper: venv
+	$(BIN)/physics-mapper experiment all -o reports
 
 clean:
 	rm -rf $(VENV) build install log .pytest_cache .mypy_cache .ruff_cache

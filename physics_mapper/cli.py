@@ -14,7 +14,7 @@ from types import ModuleType
 from physics_mapper.scene import SceneError
 
 #: Subcommand name -> module under ``physics_mapper.commands``.
-COMMANDS = ("solve",)
+COMMANDS = ("solve", "generate", "replay", "node", "publish", "demo", "experiment")
 
 EXIT_FAILURE = 1
 EXIT_BAD_INPUT = 2

@@ -1,0 +1,97 @@
+"""A tick's report -> ``diagnostic_msgs/DiagnosticArray``.
+
+One status for the search (name ``<node>: search``) with the key-values of SPEC section 4,
+then one status per object (name ``<node>: hypotheses/<object>``) saying what its input is.
+Every status's ``hardware_id`` is the node's fully qualified name, which tells apart nodes
+of the same name in different namespaces on the shared ``/diagnostics`` topic.
+Times are in seconds, p(C) and J as in the paper.
+"""
+
+from __future__ import annotations
+
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from std_msgs.msg import Header
+
+from msg_adapters.hypotheses import stamp_from_seconds
+from physics_mapper.inputs import Level, ObjectStatus
+from physics_mapper.mapper import TickReport
+from physics_mapper.report import code_text
+from physics_mapper.search import SearchResult, SearchStats
+
+LEVELS = {Level.OK: DiagnosticStatus.OK, Level.WARN: DiagnosticStatus.WARN, Level.ERROR: DiagnosticStatus.ERROR}
+
+
+def _number(value: float | None) -> str:
+    return "" if value is None else f"{value:.6g}"
+
+
+def _search_state(report: TickReport) -> str:
+    result = report.result
+    if result is None:
+        return "waiting for inputs"
+    stats = result.stats
+    state = "exhausted (every node visited)" if stats.exhausted else "stopped at the deadline"
+    return f"{'resumed' if report.resumed else 'new'}, {state}"
+
+
+def _search_level_and_message(report: TickReport) -> tuple[Level, str]:
+    result = report.result
+    if result is None:
+        return Level.ERROR, f"waiting for hypotheses of: {', '.join(report.snapshot.missing)}"
+    if result.valid:
+        return Level.OK, f"valid {code_text(result.code)}, p(C)={result.probability:.4g}, J={result.jitter:.4g}"
+    if result.code is not None:
+        return Level.WARN, f"no valid configuration; fallback settled {code_text(result.code)}"
+    ending = "" if result.stats.exhausted else " yet"
+    return Level.WARN, f"no valid configuration found{ending} (fallback: none, nothing published)"
+
+
+def search_values(report: TickReport) -> list[tuple[str, str]]:
+    """The search status's key-values, in display order."""
+    result: SearchResult | None = report.result
+    stats = result.stats if result is not None else SearchStats()
+    values = [
+        ("best code", code_text(result.code) if result is not None else "none"),
+        ("valid", str(result is not None and result.valid).lower()),
+        ("fallback used", str(result is not None and result.fallback_used).lower()),
+        ("p(C)", _number(result.probability if result is not None else None)),
+        ("J", _number(result.jitter if result is not None else None)),
+        ("nodes visited", str(stats.visited)),
+        ("nodes expanded", str(stats.expanded)),
+        ("nodes bounded", str(stats.bounded)),
+        ("rejected by collision", str(stats.collisions)),
+        ("rejected by stability", str(stats.unstable)),
+        ("valid configurations", str(stats.valid)),
+        ("search time [s]", f"{report.search_time:.6f}"),
+        ("total search time [s]", f"{stats.search_time:.6f}"),
+        ("deadline [s]", f"{report.settings.search.deadline:g}"),
+        ("configurations per second", f"{stats.configurations_per_second:.1f}"),
+        ("search", _search_state(report)),
+    ]
+    values += [(f"input {o.name}", f"{o.level.name}: {o.message}") for o in report.snapshot.objects]
+    return values
+
+
+def _status(level: Level, name: str, message: str, hardware_id: str, values: list[tuple[str, str]]) -> DiagnosticStatus:
+    return DiagnosticStatus(
+        level=LEVELS[level],
+        name=name,
+        message=message,
+        hardware_id=hardware_id,
+        values=[KeyValue(key=key, value=value) for key, value in values],
+    )
+
+
+def _object_status(status: ObjectStatus, node_name: str, hardware_id: str) -> DiagnosticStatus:
+    return _status(
+        status.level, f"{node_name}: hypotheses/{status.name}", status.message, hardware_id, list(status.details)
+    )
+
+
+def diagnostics_msg(report: TickReport, *, node_name: str, hardware_id: str, stamp: float) -> DiagnosticArray:
+    """The search status (its level the worst of search and inputs), then one status per object."""
+    level, message = _search_level_and_message(report)
+    level = max([level, *(o.level for o in report.snapshot.objects)])
+    statuses = [_status(level, f"{node_name}: search", message, hardware_id, search_values(report))]
+    statuses += [_object_status(o, node_name, hardware_id) for o in report.snapshot.objects]
+    return DiagnosticArray(header=Header(stamp=stamp_from_seconds(stamp)), status=statuses)

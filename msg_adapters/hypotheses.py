@@ -1,0 +1,80 @@
+"""Hypothesis messages <-> core types: PoseArray and Float64MultiArray weights.
+
+Incoming messages become :class:`~physics_mapper.inputs.ReceivedPoses` and
+:class:`~physics_mapper.inputs.ReceivedWeights`, validated by the core (every problem
+collected, none raised); outgoing hypotheses become the same two message types. Times
+are seconds (float) on the ROS side's ``builtin_interfaces/Time`` scale.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+from builtin_interfaces.msg import Time
+from geometry_msgs.msg import Point, PoseArray, Quaternion
+from geometry_msgs.msg import Pose as PoseMsg
+from std_msgs.msg import Float64MultiArray, Header
+
+from physics_mapper.geometry import Pose
+from physics_mapper.hypotheses import RankedHypotheses
+from physics_mapper.inputs import RawPose, ReceivedPoses, ReceivedWeights, check_poses, check_weights
+
+NANOSECONDS_PER_SECOND = 1_000_000_000
+
+
+def seconds_from_stamp(stamp: Time) -> float:
+    """A ``builtin_interfaces/Time`` as seconds."""
+    return float(stamp.sec) + float(stamp.nanosec) / NANOSECONDS_PER_SECOND
+
+
+def stamp_from_seconds(seconds: float) -> Time:
+    """Seconds as a ``builtin_interfaces/Time`` (nanosecond resolution)."""
+    nanoseconds = round(seconds * NANOSECONDS_PER_SECOND)
+    return Time(sec=nanoseconds // NANOSECONDS_PER_SECOND, nanosec=nanoseconds % NANOSECONDS_PER_SECOND)
+
+
+def raw_pose(msg: PoseMsg) -> RawPose:
+    """Position (m) and orientation quaternion (x, y, z, w) of a pose message, unchecked."""
+    p, q = msg.position, msg.orientation
+    return (p.x, p.y, p.z), (q.x, q.y, q.z, q.w)
+
+
+def received_poses(msg: PoseArray, *, expected_frame: str, received: float) -> ReceivedPoses:
+    """A PoseArray received at ``received`` seconds, checked against the scene frame."""
+    return check_poses(
+        [raw_pose(pose) for pose in msg.poses],
+        frame_id=msg.header.frame_id,
+        expected_frame=expected_frame,
+        stamp=seconds_from_stamp(msg.header.stamp),
+        received=received,
+    )
+
+
+def received_weights(msg: Float64MultiArray, *, received: float) -> ReceivedWeights:
+    """A weights message received at ``received`` seconds (``layout`` is ignored: one flat vector)."""
+    return check_weights(list(msg.data), received=received)
+
+
+def pose_msg(pose: Pose) -> PoseMsg:
+    """A core pose as ``geometry_msgs/Pose``."""
+    (x, y, z), (qx, qy, qz, qw) = pose.position, pose.orientation
+    return PoseMsg(position=Point(x=x, y=y, z=z), orientation=Quaternion(x=qx, y=qy, z=qz, w=qw))
+
+
+def pose_array_msg(poses: Sequence[Pose], *, frame_id: str, stamp: float) -> PoseArray:
+    """Poses, in order, as one PoseArray in ``frame_id`` stamped ``stamp`` seconds."""
+    header = Header(frame_id=frame_id, stamp=stamp_from_seconds(stamp))
+    return PoseArray(header=header, poses=[pose_msg(p) for p in poses])
+
+
+def weights_msg(weights: Sequence[float]) -> Float64MultiArray:
+    """Weights, in pose order, as a flat Float64MultiArray."""
+    return Float64MultiArray(data=[float(w) for w in weights])
+
+
+def hypotheses_msgs(
+    hypotheses: RankedHypotheses, *, frame_id: str, stamp: float
+) -> tuple[PoseArray, Float64MultiArray]:
+    """An object's hypotheses as the two messages the node reads: poses in rank order, and their weights."""
+    poses = pose_array_msg([h.pose for h in hypotheses.hypotheses], frame_id=frame_id, stamp=stamp)
+    return poses, weights_msg([h.weight for h in hypotheses.hypotheses])

@@ -1,0 +1,254 @@
+"""rosbag2 bags of hypotheses and results, written and read with the ``rosbags`` library (SPEC section 6).
+
+Bags are mcap (the Jazzy default) or sqlite3, metadata version 9, messages CDR-serialised with
+the ROS 2 Jazzy type store, so ``ros2 bag play`` / ``ros2 bag record`` on a ROS machine and
+this module read each other's bags. Topics (absolute names, as ``ros2 bag record`` writes them):
+
+* ``/hypotheses/<object>``: ``geometry_msgs/msg/PoseArray``, an object's hypotheses, ranked;
+* ``/hypotheses/<object>/weights``: ``std_msgs/msg/Float64MultiArray``, one weight per pose;
+* ``/ground_truth``: ``geometry_msgs/msg/PoseArray``, every object's true pose, in scene order.
+
+Messages are kept as raw CDR bytes (what a publisher sends); :func:`pose_array_from_cdr` and
+:func:`weights_from_cdr` turn one into core values, the only conversion from bag messages here.
+Reading is all in memory: the bags this tool makes are small. Time stamps are integer nanoseconds.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from types import TracebackType
+from typing import Any, Final, Literal
+
+import numpy as np
+from rosbags.interfaces import Connection
+from rosbags.rosbag2 import Reader, StoragePlugin, Writer, WriterError
+from rosbags.typesys import Stores, get_typestore
+
+from physics_mapper.geometry import Pose, Quaternion, Vector3, make_pose
+from physics_mapper.hypotheses import RankedHypotheses
+
+Storage = Literal["mcap", "sqlite3"]
+_PLUGINS = {"mcap": StoragePlugin.MCAP, "sqlite3": StoragePlugin.SQLITE3}
+#: rosbag2 metadata version written (the one ROS 2 Jazzy writes).
+BAG_VERSION: Final = 9
+
+POSE_ARRAY = "geometry_msgs/msg/PoseArray"
+WEIGHTS = "std_msgs/msg/Float64MultiArray"
+GROUND_TRUTH_TOPIC = "/ground_truth"
+
+TYPESTORE = get_typestore(Stores.ROS2_JAZZY)
+_Time = TYPESTORE.types["builtin_interfaces/msg/Time"]
+_Header = TYPESTORE.types["std_msgs/msg/Header"]
+_Point = TYPESTORE.types["geometry_msgs/msg/Point"]
+_Quaternion = TYPESTORE.types["geometry_msgs/msg/Quaternion"]
+_Pose = TYPESTORE.types["geometry_msgs/msg/Pose"]
+_PoseArray = TYPESTORE.types[POSE_ARRAY]
+_Dimension = TYPESTORE.types["std_msgs/msg/MultiArrayDimension"]
+_Layout = TYPESTORE.types["std_msgs/msg/MultiArrayLayout"]
+_Float64MultiArray = TYPESTORE.types[WEIGHTS]
+
+NANOSECONDS = 1_000_000_000
+
+
+class BagError(ValueError):
+    """A bag cannot be used: unreadable, corrupt or truncated, or missing or mistyped topics."""
+
+
+def hypotheses_topic(object_name: str) -> str:
+    """The node's input topic for an object's hypotheses, as recorded."""
+    return f"/hypotheses/{object_name}"
+
+
+def weights_topic(object_name: str) -> str:
+    """The node's input topic for an object's hypothesis weights, as recorded."""
+    return f"/hypotheses/{object_name}/weights"
+
+
+def absolute_topic(topic: str) -> str:
+    """``hypotheses/a`` and ``/hypotheses/a`` name the same topic for a node in the root namespace."""
+    return "/" + topic.lstrip("/")
+
+
+@dataclass(frozen=True)
+class BagMessage:
+    """One recorded message: absolute ``topic``, ROS ``msgtype``, receive ``time_ns`` and raw CDR bytes."""
+
+    topic: str
+    msgtype: str
+    time_ns: int
+    raw: bytes
+
+
+@dataclass(frozen=True)
+class Bag:
+    """A whole bag in memory: every topic's type (even without messages) and the messages by time."""
+
+    path: Path
+    topics: dict[str, str]
+    messages: tuple[BagMessage, ...]
+
+    def on(self, topic: str) -> tuple[BagMessage, ...]:
+        """The messages of one topic, in time order."""
+        return tuple(m for m in self.messages if m.topic == topic)
+
+
+@dataclass(frozen=True)
+class PoseArrayData:
+    """A PoseArray's content as recorded: header ``stamp_ns``, ``frame_id`` and the poses unchecked.
+
+    Each pose is ``((x, y, z), (qx, qy, qz, qw))``; a recorded pose may be invalid (NaN, zero
+    quaternion), which the node's input rules, not the bag reader, decide about.
+    """
+
+    stamp_ns: int
+    frame_id: str
+    poses: tuple[tuple[Vector3, Quaternion], ...]
+
+    def checked_poses(self) -> tuple[Pose, ...]:
+        """The poses validated and normalised; raises BagError naming the first bad one."""
+        checked = []
+        for index, (position, orientation) in enumerate(self.poses):
+            try:
+                checked.append(make_pose(position, orientation))
+            except ValueError as error:
+                raise BagError(f"pose {index} of a PoseArray stamped {self.stamp_ns} ns: {error}") from None
+        return tuple(checked)
+
+
+def time_to_ns(sec: int, nanosec: int) -> int:
+    """A ``builtin_interfaces/Time`` as integer nanoseconds."""
+    return sec * NANOSECONDS + nanosec
+
+
+def _deserialize(raw: bytes, msgtype: str) -> Any:
+    try:
+        return TYPESTORE.deserialize_cdr(raw, msgtype)
+    except Exception as error:
+        # Garbage bytes fail in many ways inside the deserialiser (SerdeError, struct.error, IndexError, ...).
+        raise BagError(f"a {msgtype} message is not valid CDR ({error})") from None
+
+
+def pose_array_from_cdr(raw: bytes) -> PoseArrayData:
+    """Deserialise a CDR ``geometry_msgs/msg/PoseArray``; raises BagError for bytes that are not one."""
+    message = _deserialize(raw, POSE_ARRAY)
+    stamp = message.header.stamp
+    poses = tuple(
+        (
+            (p.position.x, p.position.y, p.position.z),
+            (p.orientation.x, p.orientation.y, p.orientation.z, p.orientation.w),
+        )
+        for p in message.poses
+    )
+    return PoseArrayData(time_to_ns(stamp.sec, stamp.nanosec), message.header.frame_id, poses)
+
+
+def weights_from_cdr(raw: bytes) -> tuple[float, ...]:
+    """Deserialise a CDR ``std_msgs/msg/Float64MultiArray`` into its data; raises BagError for bad bytes."""
+    return tuple(float(w) for w in _deserialize(raw, WEIGHTS).data)
+
+
+def pose_array_cdr(stamp_ns: int, frame_id: str, poses: Sequence[Pose]) -> bytes:
+    """A CDR ``geometry_msgs/msg/PoseArray`` with header stamp ``stamp_ns`` and ``frame_id``."""
+    stamp = _Time(sec=stamp_ns // NANOSECONDS, nanosec=stamp_ns % NANOSECONDS)
+    header = _Header(stamp=stamp, frame_id=frame_id)
+    message = _PoseArray(
+        header=header,
+        poses=[_Pose(position=_Point(*pose.position), orientation=_Quaternion(*pose.orientation)) for pose in poses],
+    )
+    return bytes(TYPESTORE.serialize_cdr(message, POSE_ARRAY))
+
+
+def weights_cdr(weights: Sequence[float]) -> bytes:
+    """A CDR ``std_msgs/msg/Float64MultiArray`` with one dimension labelled ``hypotheses``."""
+    layout = _Layout(dim=[_Dimension(label="hypotheses", size=len(weights), stride=len(weights))], data_offset=0)
+    message = _Float64MultiArray(layout=layout, data=np.asarray(weights, dtype=np.float64))
+    return bytes(TYPESTORE.serialize_cdr(message, WEIGHTS))
+
+
+class BagWriter:
+    """Writes a new bag (mcap or sqlite3); topics are added on their first message.
+
+    Use as a context manager; refuses (BagError) a path that already exists.
+    """
+
+    def __init__(self, path: str | Path, storage: Storage = "mcap") -> None:
+        self.path = Path(path)
+        try:
+            self._writer = Writer(self.path, version=BAG_VERSION, storage_plugin=_PLUGINS[storage])
+            self._writer.open()
+        except (WriterError, OSError) as error:
+            raise BagError(f"cannot write bag {self.path}: {error}") from None
+        self._connections: dict[str, Connection] = {}
+
+    def __enter__(self) -> BagWriter:
+        return self
+
+    def __exit__(
+        self, kind: type[BaseException] | None, error: BaseException | None, traceback: TracebackType | None
+    ) -> None:
+        self.close()
+
+    def close(self) -> None:
+        """Write the metadata and close the storage file (idempotent)."""
+        if self._writer.storage is not None:
+            self._writer.close()
+
+    def write(self, topic: str, msgtype: str, time_ns: int, raw: bytes) -> None:
+        """Append one raw CDR message received at ``time_ns``."""
+        connection = self._connections.get(topic)
+        if connection is None:
+            connection = self._writer.add_connection(topic, msgtype, typestore=TYPESTORE)
+            self._connections[topic] = connection
+        elif connection.msgtype != msgtype:
+            raise BagError(f"topic {topic} was written as {connection.msgtype}, not {msgtype}")
+        self._writer.write(connection, time_ns, raw)
+
+    def write_hypotheses(
+        self, time_ns: int, stamp_ns: int, frame_id: str, object_name: str, hypotheses: RankedHypotheses
+    ) -> None:
+        """At ``time_ns``, an object's ranked hypotheses (a PoseArray stamped ``stamp_ns``); 1 ns later its weights."""
+        poses = [h.pose for h in hypotheses.hypotheses]
+        self.write(hypotheses_topic(object_name), POSE_ARRAY, time_ns, pose_array_cdr(stamp_ns, frame_id, poses))
+        weights = [h.weight for h in hypotheses.hypotheses]
+        self.write(weights_topic(object_name), WEIGHTS, time_ns + 1, weights_cdr(weights))
+
+
+def read_bag(path: str | Path) -> Bag:
+    """Read a whole mcap or sqlite3 bag; raises BagError if it is missing, corrupt or truncated."""
+    path = Path(path)
+    if not path.exists():
+        raise BagError(f"{path}: no such bag")
+    try:
+        with Reader(path) as reader:
+            topics = {absolute_topic(c.topic): c.msgtype for c in reader.connections}
+            messages = [
+                BagMessage(absolute_topic(connection.topic), connection.msgtype, time_ns, bytes(raw))
+                for connection, time_ns, raw in reader.messages()
+            ]
+    except Exception as error:
+        # A damaged file surfaces as whatever layer notices it first (ReaderError, apsw's CorruptError,
+        # struct.error, OverflowError, ...); the try holds only rosbags calls. One line: YAML errors span several.
+        raise BagError(f"{path}: cannot read bag (corrupt or truncated?): {' '.join(str(error).split())}") from None
+    messages.sort(key=lambda m: m.time_ns)
+    return Bag(path, topics, tuple(messages))
+
+
+def check_hypothesis_topics(bag: Bag, object_names: Sequence[str]) -> None:
+    """Require a PoseArray topic with messages for every object; weights and ground truth, if there, typed right.
+
+    Raises BagError naming the bag, the topic and the problem.
+    """
+    expected = {GROUND_TRUTH_TOPIC: POSE_ARRAY}
+    for name in object_names:
+        expected[hypotheses_topic(name)] = POSE_ARRAY
+        expected[weights_topic(name)] = WEIGHTS
+    for topic, msgtype in expected.items():
+        found = bag.topics.get(topic)
+        if found is not None and found != msgtype:
+            raise BagError(f"{bag.path}: topic {topic} has type {found}, expected {msgtype}")
+    missing = [hypotheses_topic(name) for name in object_names if not bag.on(hypotheses_topic(name))]
+    if missing:
+        present = ", ".join(sorted(bag.topics)) or "none"
+        raise BagError(f"{bag.path}: no messages on {', '.join(missing)} (topics in the bag: {present})")

@@ -1,0 +1,68 @@
+"""``physics-mapper experiment``: the paper's figures reproduced as plots and summaries (SPEC section 6)."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from dataclasses import replace
+from pathlib import Path
+
+from physics_mapper.cli import InputError
+
+HELP = "reproduce the paper's experiments (Figs. 4, 6, 8 and the peg in a hole) as PNG plots and summaries"
+
+#: Experiment name -> module under ``physics_mapper.experiments``, in the order ``all`` runs them.
+EXPERIMENTS = ("fig4", "fig6", "fig8", "peg")
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("experiment", choices=(*EXPERIMENTS, "all"), help="which figure to reproduce, or all")
+    parser.add_argument(
+        "-o", "--output", type=Path, default=Path("reports"), metavar="DIR", help="output folder (default: reports)"
+    )
+    parser.add_argument("--runs", type=int, metavar="N", help="runs of figs. 6 and 8 (default: the paper's 20)")
+    parser.add_argument("--seed", type=int, default=0, help="random seed (default: 0)")
+    parser.add_argument(
+        "--particles", type=int, metavar="P", help="particles per filter in figs. 6 and 8 (default: the paper's 1000)"
+    )
+    parser.add_argument(
+        "--scenes",
+        type=Path,
+        metavar="DIR",
+        help="folder of the shipped scene files (default: config/scenes of the source tree)",
+    )
+
+
+def run(args: argparse.Namespace) -> int:
+    if args.runs is not None and args.runs < 1:
+        raise InputError(f"--runs must be at least 1, got {args.runs}")
+    if args.seed < 0:
+        raise InputError(f"--seed must not be negative, got {args.seed}")
+    if args.output.exists() and not args.output.is_dir():
+        raise InputError(f"{args.output} exists and is not a folder")
+    if args.scenes is not None and not args.scenes.is_dir():
+        raise InputError(f"--scenes {args.scenes} is not a folder")
+    # Heavy imports (pybullet, matplotlib, scipy) only once the arguments are known to be usable.
+    import importlib
+
+    from physics_mapper.experiments.common import ExperimentOptions
+    from physics_mapper.particle_filter import TrackerSettings
+
+    top_m = TrackerSettings().top_m
+    if args.particles is not None and args.particles < top_m:
+        raise InputError(f"--particles must be at least {top_m} (the hypotheses kept per object), got {args.particles}")
+    options = ExperimentOptions(
+        output_dir=args.output, seed=args.seed, runs=args.runs, particles=args.particles, progress=_progress
+    )
+    if args.scenes is not None:
+        options = replace(options, scenes_dir=args.scenes)
+    for name in EXPERIMENTS if args.experiment == "all" else (args.experiment,):
+        start = time.monotonic()
+        output = importlib.import_module(f"physics_mapper.experiments.{name}").run(options)
+        _progress(f"{name}: wrote {output.png}, {output.markdown}, {output.json} in {time.monotonic() - start:.1f} s")
+    return 0
+
+
+def _progress(line: str) -> None:
+    print(line, file=sys.stderr, flush=True)

@@ -1,0 +1,86 @@
+"""``physics-mapper publish``: publish a problem file's hypotheses and weights to the node."""
+
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+
+from physics_mapper.cli import InputError
+from physics_mapper.scene import load_problem
+
+#: Seconds to keep the process alive after the last round, so that it is delivered.
+LINGER = 0.3
+
+HELP = "publish a problem file's hypotheses and weights on the node's input topics (like `ros2 topic pub`)"
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("problem", type=Path, help="problem YAML: a scene plus hypotheses per object")
+    parser.add_argument("--rate", type=float, default=1.0, metavar="HZ", help="rounds per second (default 1)")
+    parser.add_argument("--count", type=int, default=0, metavar="N", help="rounds to publish; 0 = until Ctrl-C")
+    parser.add_argument("--namespace", default="", metavar="NS", help="namespace of the node's topics (default: /)")
+    parser.add_argument(
+        "--wait",
+        type=float,
+        default=5.0,
+        metavar="SECONDS",
+        help="wait this long for the node's subscriptions before the first round (default 5)",
+    )
+
+
+def run(args: argparse.Namespace) -> int:
+    if not args.rate > 0.0:
+        raise InputError(f"--rate must be positive, got {args.rate:g}")
+    if args.count < 0:
+        raise InputError(f"--count must not be negative, got {args.count}")
+    problem = load_problem(args.problem)
+
+    import rclpy
+    from rclpy.exceptions import InvalidNamespaceException
+    from rclpy.executors import ExternalShutdownException
+    from rclpy.utilities import ok
+    from rclpy.validate_namespace import validate_namespace
+
+    from physics_mapper.problem_publisher import ProblemPublisher
+    from physics_mapper.ros_interface import shutdown_ros
+
+    namespace = "/" + args.namespace.lstrip("/")
+    try:
+        validate_namespace(namespace)
+    except InvalidNamespaceException:
+        raise InputError(f"--namespace {args.namespace!r} is not a valid ROS namespace") from None
+    rclpy.init()
+    try:
+        node = rclpy.create_node("physics_mapper_publisher", namespace=namespace)
+        publisher = ProblemPublisher(node, problem)
+        sizes = ", ".join(
+            f"{n} ({len(h)})" for n, h in zip(problem.scene.object_names, problem.hypotheses, strict=True)
+        )
+        print(f"publishing {sizes} on {node.get_namespace().rstrip('/')}/hypotheses/<object>[/weights]", flush=True)
+        if not publisher.wait_for_subscribers(args.wait) and ok():
+            print(f"no subscriber on every topic after {args.wait:g} s; publishing anyway", flush=True)
+        rounds = 0
+
+        def publish_round() -> None:
+            nonlocal rounds
+            if args.count == 0 or rounds < args.count:
+                publisher.publish()
+                rounds += 1
+
+        publish_round()
+        node.create_timer(1.0 / args.rate, publish_round)
+        while ok() and (args.count == 0 or rounds < args.count):
+            rclpy.spin_once(node, timeout_sec=0.1)
+        if ok():
+            # Reliable delivery of the last round completes in the background: give it time.
+            end = time.monotonic() + LINGER
+            while ok() and time.monotonic() < end:
+                rclpy.spin_once(node, timeout_sec=0.05)
+        print(f"published {rounds} round{'s' if rounds != 1 else ''}", flush=True)
+        node.destroy_node()  # type: ignore[no-untyped-call]
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        shutdown_ros()
+    return 0

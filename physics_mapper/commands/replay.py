@@ -1,0 +1,175 @@
+"""``physics-mapper replay``: a bag's hypotheses into the live node (or the core, ``--offline``); errors out."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import tempfile
+import time
+from collections.abc import Sequence
+from contextlib import ExitStack
+from dataclasses import replace
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from physics_mapper.cli import EXIT_FAILURE, InputError
+
+if TYPE_CHECKING:
+    from physics_mapper.bags import Bag
+    from physics_mapper.replay import BagSnapshot, Outcome
+    from physics_mapper.scene import Scene
+
+HELP = "play a bag's hypotheses into the running node and record its outputs, or search them offline"
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("bag", type=Path, help="rosbag2 bag (mcap or sqlite3 directory) with hypotheses topics")
+    parser.add_argument("--scene", type=Path, required=True, help="scene YAML the hypotheses are for")
+    parser.add_argument(
+        "-o",
+        "--output",
+        type=Path,
+        metavar="OUT_BAG",
+        help="bag to record the results into (live default: <bag>_replay_<date-time>; offline: none)",
+    )
+    parser.add_argument("--storage", choices=("mcap", "sqlite3"), default="mcap", help="output bag format")
+    parser.add_argument("--rate", type=float, default=1.0, help="playback speed factor (default: 1.0)")
+    parser.add_argument("--offline", action="store_true", help="search each snapshot with the core, no ROS graph")
+    parser.add_argument("--start-node", action="store_true", help="start the node on --scene for the replay")
+    parser.add_argument("--namespace", default="/", help="ROS namespace of the node (default: /)")
+    parser.add_argument(
+        "--wait", type=float, default=15.0, metavar="SECONDS", help="wait this long for the node (default: 15)"
+    )
+    parser.add_argument(
+        "--tail",
+        type=float,
+        default=2.0,
+        metavar="SECONDS",
+        help="keep recording this long after the last message (default: 2)",
+    )
+    parser.add_argument(
+        "--deadline", type=float, metavar="SECONDS", help="offline: override the scene's search.deadline"
+    )
+    parser.add_argument(
+        "--exhaustive", action="store_true", help="offline: visit every reachable node, whatever the deadline"
+    )
+    parser.add_argument("--json", type=Path, metavar="FILE", help="write each snapshot's code and errors as JSON")
+
+
+def _progress(text: str) -> None:
+    print(f"replay: {text}", file=sys.stderr, flush=True)
+
+
+def run(args: argparse.Namespace) -> int:
+    from physics_mapper.bags import BagError, check_hypothesis_topics, read_bag
+    from physics_mapper.replay import bag_snapshots, summary
+    from physics_mapper.scene import load_scene
+
+    if not args.rate > 0.0:
+        raise InputError(f"--rate must be positive, got {args.rate}")
+    if args.offline and args.start_node:
+        raise InputError("--start-node is for a live replay; --offline runs no node")
+    if not args.offline and (args.deadline is not None or args.exhaustive):
+        raise InputError("--deadline and --exhaustive are for --offline; a live node has its own deadline parameter")
+    scene = load_scene(args.scene)
+    try:
+        bag = read_bag(args.bag)
+        check_hypothesis_topics(bag, scene.object_names)
+        snapshots = bag_snapshots(bag, scene)
+        _progress(f"{args.bag}: {len(bag.messages)} messages, {len(snapshots)} snapshots of hypotheses")
+        if not snapshots:
+            _progress(
+                "warning: at no time does every object have usable hypotheses "
+                f"(frame_id must be {scene.frame_id!r}, poses finite with unit quaternions, weights valid)"
+            )
+        outcomes = _offline(args, scene, snapshots) if args.offline else _live(args, scene, bag, snapshots)
+    except BagError as error:
+        raise InputError(str(error)) from None
+    if outcomes is None:
+        return EXIT_FAILURE
+    print(summary(outcomes, scene.object_names))
+    if args.json is not None:
+        _write_json(args.json, "offline" if args.offline else "live", outcomes, scene.object_names)
+    return 0
+
+
+def _offline(args: argparse.Namespace, scene: Scene, snapshots: Sequence[BagSnapshot]) -> list[Outcome]:
+    from physics_mapper.bags import BagWriter
+    from physics_mapper.replay import search_offline, write_outcomes
+    from physics_mapper.report import code_text
+    from physics_mapper.search import SearchResult
+
+    if args.deadline is not None:
+        if not args.deadline > 0.0:
+            raise InputError(f"--deadline must be positive, got {args.deadline}")
+        scene = replace(scene, search=replace(scene.search, deadline=args.deadline))
+    budget = None if args.exhaustive else scene.search.deadline
+
+    def progress(index: int, result: SearchResult) -> None:
+        state = "valid" if result.valid else ("fallback" if result.code else "no configuration")
+        _progress(
+            f"snapshot {index + 1}/{len(snapshots)}: {code_text(result.code)} {state}, "
+            f"{result.stats.visited} visited in {result.stats.search_time * 1000:.0f} ms"
+        )
+
+    with ExitStack() as stack:
+        # Opened first: an unusable output path is reported before the searches, not after.
+        writer = None if args.output is None else stack.enter_context(BagWriter(args.output, args.storage))
+        outcomes = search_offline(snapshots, scene, budget, progress)
+        if writer is not None:
+            write_outcomes(writer, outcomes, scene.frame_id)
+            _progress(f"results written to {args.output}")
+    return outcomes
+
+
+def _live(args: argparse.Namespace, scene: Scene, bag: Bag, snapshots: Sequence[BagSnapshot]) -> list[Outcome] | None:
+    from rclpy.exceptions import InvalidNamespaceException
+    from rclpy.validate_namespace import validate_namespace
+
+    from physics_mapper.bags import BagWriter, hypotheses_topic, read_bag
+    from physics_mapper.launch import start_node, stop_node
+    from physics_mapper.live_replay import Playback, ReplayError, play_and_record
+    from physics_mapper.replay import recorded_outcomes
+
+    try:
+        validate_namespace(args.namespace)
+    except InvalidNamespaceException as error:
+        raise InputError(f"--namespace: {' '.join(str(error).split()).rstrip(' ^')}") from None
+    output = args.output or Path(f"{args.bag.resolve().name}_replay_{time.strftime('%Y_%m_%d-%H_%M_%S')}")
+    playback = Playback(rate=args.rate, wait=args.wait, tail=args.tail, namespace=args.namespace)
+    inputs = [hypotheses_topic(name) for name in scene.object_names]
+    with ExitStack() as stack:
+        writer = stack.enter_context(BagWriter(output, args.storage))
+        log = stack.enter_context(tempfile.TemporaryFile(mode="w+"))
+        process = None
+        if args.start_node:
+            process = start_node(args.scene.resolve(), namespace=args.namespace, output=log)
+            stack.callback(stop_node, process)
+            _progress(f"started the node on {args.scene}")
+
+        def alive() -> bool:
+            return process is None or process.poll() is None
+
+        try:
+            counts = play_and_record(bag, inputs, writer, playback, _progress, alive)
+        except ReplayError as error:
+            print(f"physics-mapper replay: error: {error}", file=sys.stderr)
+            if not alive():
+                log.seek(0)
+                print(f"node output:\n{log.read()}", file=sys.stderr)
+            return None
+    _progress(f"recorded into {output}: " + ", ".join(f"{n} on {t}" for t, n in counts.items()))
+    return recorded_outcomes(snapshots, read_bag(output), scene)
+
+
+def _write_json(path: Path, mode: str, outcomes: Sequence[Outcome], object_names: Sequence[str]) -> None:
+    from physics_mapper.replay import mean_errors, outcome_dict
+
+    data = {
+        "mode": mode,
+        "objects": list(object_names),
+        "mean_errors": mean_errors(outcomes),
+        "snapshots": [outcome_dict(o) for o in outcomes],
+    }
+    path.write_text(json.dumps(data, indent=1) + "\n")

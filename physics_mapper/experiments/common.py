@@ -1,0 +1,228 @@
+"""Shared pieces of the paper's experiments: options, error metric, search, output files.
+
+Every experiment writes three files into the output folder: ``<name>.png`` (the plot),
+``<name>.json`` (every number, machine-readable) and ``<name>.md`` (the same for people,
+with the comparison against the paper).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from matplotlib.axes import Axes
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+from matplotlib.patches import Polygon
+from numpy.typing import NDArray
+from scipy.stats import kruskal
+
+from physics_mapper.geometry import Pose, translation_distance
+from physics_mapper.hypotheses import RankedHypotheses
+from physics_mapper.physics import PhysicsChecker
+from physics_mapper.scene import Box, Cylinder, Scene, SceneError, SearchParams, StaticBody, load_scene
+from physics_mapper.search import SearchResult, solve
+
+#: The shipped scenes, in the source tree next to this package.
+SCENES_DIR = Path(__file__).resolve().parents[2] / "config" / "scenes"
+
+#: Wall-clock budget, seconds, of each search. The experiments have at most 5^3 = 125
+#: configurations of ~4 ms each, so the search always empties its queue well before it;
+#: the summaries count the searches that did not (expected: none).
+EXHAUSTIVE_DEADLINE = 60.0
+
+#: The colours of the two estimates, as in the paper's plots: without physics blue, with black.
+COLOR_WITHOUT_PHYSICS = "tab:blue"
+COLOR_WITH_PHYSICS = "black"
+
+PNG_DPI = 110
+#: Sideways shift, in iterations, between the lines of an error plot.
+SERIES_SHIFT = 0.08
+
+
+def _silent(_: str) -> None:
+    return None
+
+
+@dataclass(frozen=True)
+class ExperimentOptions:
+    """What an experiment run is asked for.
+
+    ``runs`` and ``particles`` of None mean the paper's sizes (20 runs, 1000 particles).
+    ``progress`` receives one short line per step, for people watching a long run.
+    """
+
+    output_dir: Path
+    seed: int = 0
+    runs: int | None = None
+    particles: int | None = None
+    scenes_dir: Path = SCENES_DIR
+    progress: Callable[[str], None] = _silent
+
+
+@dataclass(frozen=True)
+class ExperimentOutput:
+    """The files one experiment wrote, and its summary."""
+
+    png: Path
+    json: Path
+    markdown: Path
+    summary: dict[str, Any]
+
+
+def reproduce_command(name: str, options: ExperimentOptions, *, sized: bool = True) -> str:
+    """The command line that reproduces an experiment's outputs; ``sized`` adds ``--runs``/``--particles``."""
+    words = ["physics-mapper", "experiment", name, "-o", f"{options.output_dir}/", "--seed", str(options.seed)]
+    if sized and options.runs is not None:
+        words += ["--runs", str(options.runs)]
+    if sized and options.particles is not None:
+        words += ["--particles", str(options.particles)]
+    return " ".join(words)
+
+
+def position_errors_cm(estimate: Sequence[Pose], truth: Sequence[Pose]) -> tuple[float, ...]:
+    """Per object, the distance in centimetres between estimated and true centre positions.
+
+    e_i = 100 * |p_i - p_i_true|, with positions in metres. Orientation is not scored:
+    the paper's Figs. 6 and 8 estimate and score object centres.
+    """
+    return tuple(100.0 * translation_distance(e, t) for e, t in zip(estimate, truth, strict=True))
+
+
+def exhaustive_search(
+    checker: PhysicsChecker, hypotheses: Sequence[RankedHypotheses], params: SearchParams
+) -> SearchResult:
+    """Run the branch and bound with :data:`EXHAUSTIVE_DEADLINE` seconds, enough to empty its queue."""
+    return solve(checker, hypotheses, replace(params, deadline=EXHAUSTIVE_DEADLINE))
+
+
+def rank_one_poses(hypotheses: Sequence[RankedHypotheses]) -> tuple[Pose, ...]:
+    """The configuration C11..1: every object's most likely hypothesis."""
+    return tuple(h.pose(1) for h in hypotheses)
+
+
+def new_figure(width_inches: float, height_inches: float) -> Figure:
+    """A matplotlib figure drawn by the Agg backend (no display, no global pyplot state)."""
+    figure = Figure(figsize=(width_inches, height_inches), layout="constrained")
+    FigureCanvasAgg(figure)
+    return figure
+
+
+def side_outline_cm(shape: Box | Cylinder, pose: Pose) -> NDArray[np.float64]:
+    """Corners (x, z) in centimetres of a box's or a cylinder's silhouette seen along y.
+
+    Exact for bodies turned about the y axis only, as every body drawn in these figures is.
+    """
+    if isinstance(shape, Box):
+        half_width, half_height = shape.size[0] / 2.0, shape.size[2] / 2.0
+    else:
+        half_width, half_height = shape.radius, shape.length / 2.0
+    angle = 2.0 * math.atan2(pose.orientation[1], pose.orientation[3])  # about y
+    cos, sin = math.cos(angle), math.sin(angle)
+    local = np.array([[-half_width, -half_height], [half_width, -half_height], [half_width, half_height]])
+    local = np.vstack([local, [-half_width, half_height]])
+    # A rotation by `angle` about y takes local (x, z) to (x cos + z sin, -x sin + z cos).
+    rotated = local @ np.array([[cos, -sin], [sin, cos]])
+    outline: NDArray[np.float64] = 100.0 * (rotated + np.array([pose.position[0], pose.position[2]]))
+    return outline
+
+
+def draw_static_section(axes: Axes, static: Sequence[StaticBody]) -> None:
+    """The scene's fixed boxes cut by the plane y = 0 (grey), and the floor line z = 0, in centimetres."""
+    for body in static:
+        if isinstance(body.shape, Box) and abs(body.pose.position[1]) < body.shape.size[1] / 2.0:
+            axes.add_patch(Polygon(side_outline_cm(body.shape, body.pose), facecolor="0.82", edgecolor="0.3"))
+    axes.axhline(0.0, color="0.3", linewidth=1.5)
+
+
+@dataclass(frozen=True)
+class ErrorSeries:
+    """One line of an error plot: errors in cm indexed [run, iteration], its legend label and style."""
+
+    errors: NDArray[np.float64]
+    label: str
+    color: str
+    marker: str = "o"
+    linestyle: str = "-"
+
+
+def plot_mean_errors(axes: Axes, series: Sequence[ErrorSeries], title: str, *, legend: bool = True) -> None:
+    """Per iteration, each series' mean +- standard error over runs.
+
+    The series are shifted sideways by a few hundredths of an iteration so that equal values stay visible.
+    """
+    for index, line in enumerate(series):
+        runs, iterations = line.errors.shape
+        sem = line.errors.std(axis=0, ddof=1) / math.sqrt(runs) if runs > 1 else np.zeros(iterations)
+        axes.errorbar(
+            np.arange(1, iterations + 1) + SERIES_SHIFT * (index - (len(series) - 1) / 2.0),
+            line.errors.mean(axis=0),
+            yerr=sem,
+            color=line.color,
+            marker=line.marker,
+            linestyle=line.linestyle,
+            markersize=4,
+            capsize=3,
+            label=line.label,
+        )
+    axes.set_title(title, fontsize=9)
+    axes.set_xlabel("particle filter iteration")
+    axes.set_ylabel("error (cm)")
+    axes.set_xticks(np.arange(1, series[0].errors.shape[1] + 1))
+    axes.set_ylim(bottom=0.0)
+    axes.grid(alpha=0.3)
+    if legend:
+        axes.legend(fontsize=7)
+
+
+def compare_errors(without: NDArray[np.float64], with_: NDArray[np.float64]) -> dict[str, Any]:
+    """Kruskal-Wallis test (scipy) of two estimates' errors, pooled, and counts of the paired differences."""
+    statistic, p_value = kruskal(without.ravel(), with_.ravel())
+    difference = with_ - without
+    return {
+        "kruskal_wallis_statistic": float(statistic),
+        "kruskal_wallis_p_value": float(p_value),
+        "samples_per_group": int(without.size),
+        "physics_lower": int((difference < 0).sum()),
+        "physics_higher": int((difference > 0).sum()),
+        "equal": int((difference == 0).sum()),
+    }
+
+
+def check_finite(data: Any, key: str = "summary") -> None:
+    """Raise ValueError naming the key of the first NaN or infinite number in nested data."""
+    if isinstance(data, float) and not math.isfinite(data):
+        raise ValueError(f"{key} is {data}")
+    if isinstance(data, dict):
+        for name, value in data.items():
+            check_finite(value, f"{key}.{name}")
+    elif isinstance(data, list | tuple):
+        for index, value in enumerate(data):
+            check_finite(value, f"{key}[{index}]")
+
+
+def write_outputs(
+    output_dir: Path, name: str, figure: Figure, summary: dict[str, Any], markdown: str
+) -> ExperimentOutput:
+    """Write ``<name>.png``, ``<name>.json`` and ``<name>.md`` into ``output_dir`` (created if missing)."""
+    check_finite(summary)
+    output_dir.mkdir(parents=True, exist_ok=True)
+    png, json_path, markdown_path = (output_dir / f"{name}.{ext}" for ext in ("png", "json", "md"))
+    figure.savefig(png, dpi=PNG_DPI)
+    json_path.write_text(json.dumps(summary, indent=1) + "\n", encoding="utf-8")
+    markdown_path.write_text(markdown.rstrip() + "\n", encoding="utf-8")
+    return ExperimentOutput(png, json_path, markdown_path, summary)
+
+
+def load_experiment_scene(options: ExperimentOptions, file_name: str) -> tuple[Scene, tuple[Pose, ...]]:
+    """Load a shipped scene and its ground truth, which every experiment scores against."""
+    path = options.scenes_dir / file_name
+    scene = load_scene(path)
+    if scene.ground_truth is None:
+        raise SceneError(str(path), "ground_truth", "missing: the experiments score against it")
+    return scene, scene.ground_truth

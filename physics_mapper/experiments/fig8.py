@@ -1,0 +1,260 @@
+"""Paper Fig. 8: a 5 cm sphere in a V-groove, mapped with and without the physics check.
+
+The ball of ``config/scenes/sphere_groove.yaml`` is tracked by a particle filter (noise
+sigma = 10 cm per position axis, 1000 particles, 10 iterations, top 5 particles as
+hypotheses), 20 runs. After each iteration two estimates are scored against the settled
+ground truth (the bottom of the groove):
+
+* C1, the most likely hypothesis;
+* the settled estimate: where the search's configuration comes to rest, i.e. the settled
+  pose of the valid configuration, or, when none is valid (a ball on a slope rolls), of
+  ``fallback: settled`` (the collision-free hypothesis of highest weight).
+  When every hypothesis overlaps the groove there is nothing to settle and C1 is kept.
+
+Errors, centimetres: the position error e = 100 |p - p_true| and its part in the groove's
+cross-section, e_xz = 100 sqrt(dx^2 + dz^2). The groove runs along y, so rolling corrects
+x and z but can never correct y.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from typing import Any
+
+import numpy as np
+from matplotlib.axes import Axes
+from matplotlib.figure import Figure
+from matplotlib.patches import Circle
+from numpy.typing import NDArray
+
+from physics_mapper.experiments.common import (
+    COLOR_WITH_PHYSICS,
+    COLOR_WITHOUT_PHYSICS,
+    EXHAUSTIVE_DEADLINE,
+    ErrorSeries,
+    ExperimentOptions,
+    ExperimentOutput,
+    compare_errors,
+    draw_static_section,
+    load_experiment_scene,
+    new_figure,
+    plot_mean_errors,
+    reproduce_command,
+    write_outputs,
+)
+from physics_mapper.experiments.tracking import TrackingOutcome, track_and_search, tracker_settings
+from physics_mapper.geometry import Pose
+from physics_mapper.scene import Box, Scene, Sphere
+from physics_mapper.search import SearchResult
+
+NAME = "fig8"
+SCENE_FILE = "sphere_groove.yaml"
+#: The paper's measurement noise for Fig. 8, metres per position axis.
+SIGMA_POSITION = 0.10
+#: A settled estimate closer than this (metres) to the true x and z rests in the groove.
+IN_GROOVE_TOLERANCE = 0.01
+
+
+def groove_length(scene: Scene) -> float:
+    """Length, metres, of the groove along y: the extent of its slopes (the scene's static boxes)."""
+    return max(body.shape.size[1] for body in scene.static if isinstance(body.shape, Box))
+
+
+def settled_estimate(result: SearchResult) -> tuple[Pose, ...] | None:
+    """Where the chosen (or fallback) configuration comes to rest; None when nothing was collision-free."""
+    return result.settled_poses
+
+
+def cross_section_errors_cm(positions: NDArray[np.float64], truth: Pose) -> NDArray[np.float64]:
+    """e_xz = 100 sqrt(dx^2 + dz^2) of positions [..., 3] in metres against ``truth``."""
+    offset = positions - np.asarray(truth.position)
+    errors: NDArray[np.float64] = 100.0 * np.hypot(offset[..., 0], offset[..., 2])
+    return errors
+
+
+def error_series(without: NDArray[np.float64], with_: NDArray[np.float64]) -> list[ErrorSeries]:
+    """The two lines of an error plot: C1 and the settled estimate."""
+    return [
+        ErrorSeries(without, "without physics (C1)", COLOR_WITHOUT_PHYSICS),
+        ErrorSeries(with_, "with physics (settled estimate)", COLOR_WITH_PHYSICS, "s"),
+    ]
+
+
+def draw_last_iteration(axes: Axes, scene: Scene, outcome: TrackingOutcome) -> None:
+    """Groove cross-section with each run's last C1 and its settled estimate, joined by an arrow."""
+    draw_static_section(axes, scene.static)
+    ball = scene.objects[0].shape
+    assert isinstance(ball, Sphere)
+    radius = 100.0 * ball.radius
+    truth = 100.0 * np.asarray(outcome.truth[0].position)
+    axes.add_patch(Circle((truth[0], truth[2]), radius, fill=False, color="tab:green", linewidth=2, label="truth"))
+    before = 100.0 * outcome.without_physics_positions[:, -1, 0]
+    after = 100.0 * outcome.with_physics_positions[:, -1, 0]
+    settled = ~outcome.no_estimate[:, -1]
+    for start, end in zip(before[settled], after[settled], strict=True):
+        axes.annotate("", (end[0], end[2]), (start[0], start[2]), arrowprops={"arrowstyle": "->", "color": "0.5"})
+    axes.scatter(before[:, 0], before[:, 2], color=COLOR_WITHOUT_PHYSICS, s=18, label="C1", zorder=3)
+    axes.scatter(
+        after[settled, 0], after[settled, 2], color=COLOR_WITH_PHYSICS, marker="s", s=14, label="settled", zorder=3
+    )
+    kept = before[~settled]
+    axes.scatter(
+        kept[:, 0], kept[:, 2], color="tab:red", marker="x", s=30, label="no hypothesis collision-free: C1 kept"
+    )
+    axes.set_aspect("equal")
+    axes.set_xlim(-40.0, 40.0)
+    axes.set_ylim(-2.0, 40.0)
+    axes.set_xlabel("x (cm)")
+    axes.set_ylabel("z (cm)")
+    axes.set_title("last iteration, every run: ball centres (side view; y not shown)", fontsize=9)
+    axes.legend(fontsize=7, loc="upper right")
+
+
+def draw(
+    scene: Scene, outcome: TrackingOutcome, without_xz: NDArray[np.float64], with_xz: NDArray[np.float64]
+) -> Figure:
+    settings, runs = outcome.settings, outcome.valid.shape[0]
+    figure = new_figure(16.0, 5.2)
+    position, cross_section, picture = figure.subplots(1, 3, gridspec_kw={"width_ratios": [1.0, 1.0, 1.25]})
+    without, with_ = outcome.without_physics_errors[:, :, 0], outcome.with_physics_errors[:, :, 0]
+    plot_mean_errors(position, error_series(without, with_), "position error")
+    plot_mean_errors(cross_section, error_series(without_xz, with_xz), "error in the groove's cross-section (x, z)")
+    draw_last_iteration(picture, scene, outcome)
+    figure.suptitle(
+        f"5 cm sphere in a V-groove, sigma = {100 * settings.sigma_position:g} cm, {settings.particles} particles, "
+        f"top {settings.top_m}, {runs} runs (mean +- standard error over runs)",
+        fontsize=10,
+    )
+    return figure
+
+
+def run(options: ExperimentOptions) -> ExperimentOutput:
+    """Track, search, settle, score, plot and summarise (see the module docstring)."""
+    scene, truth = load_experiment_scene(options, SCENE_FILE)
+    # The settled estimate exists whenever some hypothesis is collision-free, whatever the scene file says.
+    scene = replace(scene, search=replace(scene.search, fallback="settled"))
+    settings = tracker_settings(options, SIGMA_POSITION)
+    outcome = track_and_search(scene, truth, settings, options, NAME, settled_estimate)
+    settled_truth = outcome.truth[0]
+    without, with_ = outcome.without_physics_errors[:, :, 0], outcome.with_physics_errors[:, :, 0]
+    without_xz = cross_section_errors_cm(outcome.without_physics_positions[:, :, 0], settled_truth)
+    with_xz = cross_section_errors_cm(outcome.with_physics_positions[:, :, 0], settled_truth)
+    settled = ~outcome.no_estimate
+    in_groove = settled & (with_xz < 100.0 * IN_GROOVE_TOLERANCE)
+    summary: dict[str, Any] = {
+        "experiment": NAME,
+        "scene": f"config/scenes/{SCENE_FILE}",
+        "seed": options.seed,
+        "runs": int(without.shape[0]),
+        "iterations": settings.iterations,
+        "particles": settings.particles,
+        "top_m": settings.top_m,
+        "sigma_position_m": settings.sigma_position,
+        "penetration_threshold_m": scene.search.penetration_threshold,
+        "settle_time_s": scene.search.settle_time,
+        "groove_length_m": groove_length(scene),
+        "search_deadline_s": EXHAUSTIVE_DEADLINE,
+        "searches": outcome.searches,
+        "searches_exhausted": int(outcome.exhausted.sum()),
+        "error_definition": "e = 100 |p - p_true| cm; cross-section e_xz = 100 sqrt(dx^2 + dz^2) cm",
+        "per_iteration_cm": {
+            "without_physics": without.mean(axis=0).tolist(),
+            "with_physics": with_.mean(axis=0).tolist(),
+            "without_physics_cross_section": without_xz.mean(axis=0).tolist(),
+            "with_physics_cross_section": with_xz.mean(axis=0).tolist(),
+        },
+        "mean_error_cm": {"without_physics": float(without.mean()), "with_physics": float(with_.mean())},
+        "mean_cross_section_error_cm": {
+            "without_physics": float(without_xz.mean()),
+            "with_physics": float(with_xz.mean()),
+        },
+        **compare_errors(without, with_),
+        "valid_searches": int(outcome.valid.sum()),
+        "fallback_searches": int(outcome.fallback_used.sum()),
+        "no_estimate_searches": int(outcome.no_estimate.sum()),
+        "settled_in_groove": int(in_groove.sum()),
+        "settled_elsewhere": int((settled & ~in_groove).sum()),
+        "root_outcomes": outcome.root_outcomes,
+        "hypothesis_spread_cm": float(outcome.hypothesis_spread_cm.mean()),
+        "when_settled_mean_error_cm": {
+            "without_physics": float(without[settled].mean()) if settled.any() else None,
+            "with_physics": float(with_[settled].mean()) if settled.any() else None,
+        },
+    }
+    figure = draw(scene, outcome, without_xz, with_xz)
+    return write_outputs(options.output_dir, NAME, figure, summary, markdown(summary, options))
+
+
+def markdown(summary: dict[str, Any], options: ExperimentOptions) -> str:
+    """The summary for people: setup, numbers per iteration, and the comparison with the paper."""
+    per_iteration = summary["per_iteration_cm"]
+    rows = "\n".join(
+        f"| {i + 1} | {per_iteration['without_physics'][i]:.2f} | {per_iteration['with_physics'][i]:.2f} "
+        f"| {per_iteration['without_physics_cross_section'][i]:.2f} "
+        f"| {per_iteration['with_physics_cross_section'][i]:.2f} |"
+        for i in range(summary["iterations"])
+    )
+    searches = summary["searches"]
+    error, cross = summary["mean_error_cm"], summary["mean_cross_section_error_cm"]
+    when_settled = summary["when_settled_mean_error_cm"]
+    settled_count = searches - summary["no_estimate_searches"]
+    when_settled_text = (
+        f"In the {settled_count} searches with a settled estimate, the mean error is "
+        f"{when_settled['without_physics']:.2f} cm for C1 and {when_settled['with_physics']:.2f} cm settled."
+        if settled_count
+        else "No search had a collision-free hypothesis to settle."
+    )
+    reasons = ", ".join(f"{kind}: {count}" for kind, count in summary["root_outcomes"].items())
+    ratio = cross["with_physics"] / cross["without_physics"] if cross["without_physics"] > 0 else 1.0
+    return f"""# Fig. 8: a 5 cm sphere in a V-groove, with and without physics
+
+Command: `{reproduce_command(NAME, options)}`
+
+![Fig. 8](fig8.png)
+
+## Setup
+Scene `{summary["scene"]}`: a ball of radius 5 cm in a fixed groove of two 30° slopes. One particle filter
+(`physics_mapper.particle_filter`): {summary["particles"]} particles, {summary["iterations"]} iterations,
+measurement noise sigma = {100 * summary["sigma_position_m"]:g} cm per position axis; after each iteration its top
+{summary["top_m"]} particles are the hypotheses. {summary["runs"]} runs (seed {summary["seed"]}). Ground truth: the
+bottom of the groove, settled under gravity. Each search ran with a {summary["search_deadline_s"]:g} s deadline,
+exhaustive here ({summary["searches_exhausted"]} of {searches} emptied their queue), and
+{summary["settle_time_s"]:g} s of settling.
+
+Errors (cm): e = 100 |p - p_true|, and its part in the groove's cross-section, e_xz = 100 sqrt(dx^2 + dz^2).
+Without physics: C1, the most likely hypothesis. With physics: the settled estimate, i.e. where the chosen
+configuration comes to rest (the valid one, or `fallback: settled`, the collision-free hypothesis of
+highest weight); when every hypothesis overlaps the groove there is nothing to settle and C1 is kept.
+
+## Result (means over runs)
+
+| iteration | e, C1 | e, settled | e_xz, C1 | e_xz, settled |
+|---|---|---|---|---|
+{rows}
+
+- Over all runs and iterations: e = {error["without_physics"]:.2f} cm (C1) vs {error["with_physics"]:.2f} cm
+  (settled); in the cross-section e_xz = {cross["without_physics"]:.2f} vs {cross["with_physics"]:.2f} cm.
+- Kruskal-Wallis on e ({summary["samples_per_group"]} per group): H = {summary["kruskal_wallis_statistic"]:.3f},
+  p = {summary["kruskal_wallis_p_value"]:.3g}. Paired by run and iteration, the settled estimate is lower in
+  {summary["physics_lower"]}, higher in {summary["physics_higher"]} and equal in {summary["equal"]} cases.
+- Of {searches} searches: C1's rejection: {reasons}. A valid hypothesis (already at rest) in
+  {summary["valid_searches"]}, the fallback used in {summary["fallback_searches"]}, nothing collision-free (C1 kept)
+  in {summary["no_estimate_searches"]}. The settled ball lies in the groove (within
+  {100 * IN_GROOVE_TOLERANCE:g} cm in x and z) in {summary["settled_in_groove"]} cases and elsewhere (rolled off the
+  groove's ends onto the floor, or not yet at rest) in {summary["settled_elsewhere"]}.
+- {when_settled_text}
+
+## Compared with the paper
+- The paper reports a much lower error for the simulated estimate than for C1 (its Fig. 8, no numbers in the
+  text). In the groove's cross-section ours is {ratio:.0%} of C1's error. The full position error drops less,
+  for reasons that are in the setup, not in the method:
+  - the groove runs along y, so rolling corrects x and z but leaves y's error untouched;
+  - in {summary["no_estimate_searches"]} of {searches} searches all {summary["top_m"]} hypotheses overlap a slope or
+    the floor (deeper than the {100 * summary["penetration_threshold_m"]:g} cm penetration threshold): they are the
+    heaviest particles of one posterior, {summary["hypothesis_spread_cm"]:.2f} cm apart (RMS), so when the estimate
+    is inside a body they all are, and there is nothing to settle;
+  - the groove is {100 * summary["groove_length_m"]:g} cm long (along y); a ball estimated beyond its ends falls to
+    the floor.
+- The paper does not publish its filter, its groove's size, its thresholds or its number of hypotheses; it used ODE,
+  we use Bullet.
+"""

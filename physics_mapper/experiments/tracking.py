@@ -1,0 +1,178 @@
+"""The loop shared by Figs. 6 and 8: particle filters give hypotheses, the search picks, errors are scored.
+
+For each run, every object is tracked by its own particle filter
+(:func:`physics_mapper.particle_filter.track`) around the scene's settled ground truth. After
+each iteration two estimates of the scene are scored against that truth:
+
+* without physics, C11..1: every object's most likely hypothesis;
+* with physics, what :data:`PhysicsEstimate` takes from the exhaustive search of the top-M
+  hypotheses (Fig. 6: the chosen hypotheses; Fig. 8: their settled poses). When the search
+  yields nothing (no valid configuration and no fallback), C11..1 is kept and counted.
+
+Run k draws from child k of ``numpy.random.SeedSequence(seed)``, so a run's numbers do not
+depend on how many runs were asked for.
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+from collections.abc import Callable
+from dataclasses import dataclass, replace
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from physics_mapper.experiments.common import ExperimentOptions, exhaustive_search, position_errors_cm, rank_one_poses
+from physics_mapper.geometry import Pose, Vector3
+from physics_mapper.hypotheses import RankedHypotheses
+from physics_mapper.particle_filter import TrackerSettings, settle_ground_truth, track
+from physics_mapper.physics import PhysicsChecker
+from physics_mapper.scene import Scene
+from physics_mapper.search import SearchResult, TraceEntry
+
+#: The paper's sizes: 20 runs of a 1000-particle filter.
+PAPER_RUNS = 20
+PAPER_PARTICLES = 1000
+
+#: From a search result, the physics-based estimate of every object's pose, or None if it has none.
+PhysicsEstimate = Callable[[SearchResult], tuple[Pose, ...] | None]
+
+
+@dataclass(frozen=True)
+class TrackingOutcome:
+    """Positions and errors of both estimates, indexed [run, iteration, object].
+
+    ``*_positions`` are metres, shape (runs, iterations, objects, 3); ``*_errors`` centimetres,
+    shape (runs, iterations, objects); ``hypothesis_spread_cm`` (same shape) is the RMS distance of
+    an object's M hypotheses from their mean position. ``truth`` holds the settled true poses.
+    The flags, shape (runs, iterations), say whether C11..1 was valid (``root_valid``), whether
+    any configuration passed Rule 1 (``collision_free``), whether one was valid (``valid``),
+    whether the fallback was used (``fallback_used``), whether C11..1 had to stand in for the
+    physics estimate (``no_estimate``) and whether the search emptied its queue (``exhausted``).
+    ``root_outcomes`` counts why C11..1 was rejected (e.g. ``collision cube_left-floor``).
+    """
+
+    truth: tuple[Pose, ...]
+    settings: TrackerSettings
+    without_physics_positions: NDArray[np.float64]
+    with_physics_positions: NDArray[np.float64]
+    without_physics_errors: NDArray[np.float64]
+    with_physics_errors: NDArray[np.float64]
+    hypothesis_spread_cm: NDArray[np.float64]
+    root_valid: NDArray[np.bool_]
+    collision_free: NDArray[np.bool_]
+    valid: NDArray[np.bool_]
+    fallback_used: NDArray[np.bool_]
+    no_estimate: NDArray[np.bool_]
+    exhausted: NDArray[np.bool_]
+    root_outcomes: dict[str, int]
+
+    @property
+    def searches(self) -> int:
+        return int(self.valid.size)
+
+
+@dataclass(frozen=True)
+class _Scored:
+    """One iteration of one run: both estimates scored, and how the search went."""
+
+    without_positions: list[Vector3]
+    with_positions: list[Vector3]
+    without_errors: tuple[float, ...]
+    with_errors: tuple[float, ...]
+    spread: list[float]
+    #: root_valid, collision_free, valid, fallback_used, no_estimate, exhausted (TrackingOutcome's order).
+    flags: tuple[bool, bool, bool, bool, bool, bool]
+    root_outcome: str
+
+
+def tracker_settings(options: ExperimentOptions, sigma_position: float) -> TrackerSettings:
+    """The paper's filter (1000 particles, 10 iterations) unless ``options.particles`` says otherwise."""
+    particles = PAPER_PARTICLES if options.particles is None else options.particles
+    return replace(TrackerSettings(), particles=particles, sigma_position=sigma_position)
+
+
+def _score(
+    checker: PhysicsChecker,
+    hypotheses: tuple[RankedHypotheses, ...],
+    truth: tuple[Pose, ...],
+    physics_estimate: PhysicsEstimate,
+) -> _Scored:
+    result = exhaustive_search(checker, hypotheses, checker.scene.search)
+    rank_one = rank_one_poses(hypotheses)
+    estimate = physics_estimate(result)
+    chosen = rank_one if estimate is None else estimate
+    stats = result.stats
+    return _Scored(
+        without_positions=[pose.position for pose in rank_one],
+        with_positions=[pose.position for pose in chosen],
+        without_errors=position_errors_cm(rank_one, truth),
+        with_errors=position_errors_cm(chosen, truth),
+        spread=[hypothesis_spread_cm(ranked) for ranked in hypotheses],
+        flags=(
+            result.trace[0].outcome == "valid",
+            stats.collisions < stats.visited,
+            result.valid,
+            result.fallback_used,
+            estimate is None,
+            stats.exhausted,
+        ),
+        root_outcome=outcome_kind(result.trace[0]),
+    )
+
+
+def track_and_search(
+    scene: Scene,
+    truth: tuple[Pose, ...],
+    settings: TrackerSettings,
+    options: ExperimentOptions,
+    name: str,
+    physics_estimate: PhysicsEstimate,
+) -> TrackingOutcome:
+    """Run the filters and the searches for every run and iteration; see the module docstring."""
+    runs = PAPER_RUNS if options.runs is None else options.runs
+    settled_truth = settle_ground_truth(scene, truth)
+    scored: list[list[_Scored]] = []
+    with PhysicsChecker(scene) as checker:
+        for run, seed in enumerate(np.random.SeedSequence(options.seed).spawn(runs)):
+            options.progress(f"{name}: run {run + 1}/{runs}")
+            history = track(scene, settled_truth, settings, np.random.default_rng(seed))
+            scored.append([_score(checker, hypotheses, settled_truth, physics_estimate) for hypotheses in history])
+
+    def stacked(field: str) -> NDArray[Any]:
+        return np.array([[getattr(item, field) for item in run] for run in scored])
+
+    flags = stacked("flags")
+    return TrackingOutcome(
+        truth=settled_truth,
+        settings=settings,
+        without_physics_positions=stacked("without_positions"),
+        with_physics_positions=stacked("with_positions"),
+        without_physics_errors=stacked("without_errors"),
+        with_physics_errors=stacked("with_errors"),
+        hypothesis_spread_cm=stacked("spread"),
+        root_valid=flags[:, :, 0],
+        collision_free=flags[:, :, 1],
+        valid=flags[:, :, 2],
+        fallback_used=flags[:, :, 3],
+        no_estimate=flags[:, :, 4],
+        exhausted=flags[:, :, 5],
+        root_outcomes=dict(Counter(item.root_outcome for run in scored for item in run).most_common()),
+    )
+
+
+def outcome_kind(entry: TraceEntry) -> str:
+    """A node's outcome with who caused it: ``collision a-b``, ``unstable (a moved)`` or ``valid``."""
+    if entry.outcome == "collision":
+        assert entry.pair is not None
+        return f"collision {entry.pair[0]}-{entry.pair[1]}"
+    if entry.outcome == "unstable":
+        return f"unstable ({entry.moved} moved)"
+    return "valid"
+
+
+def hypothesis_spread_cm(hypotheses: RankedHypotheses) -> float:
+    """RMS distance, centimetres, of an object's hypothesis positions from their mean."""
+    positions = np.array([h.pose.position for h in hypotheses.hypotheses])
+    return 100.0 * float(np.sqrt(((positions - positions.mean(axis=0)) ** 2).sum(axis=1).mean()))

@@ -1,0 +1,93 @@
+"""One map-building tick, ROS-free: snapshot the inputs, resume or restart the search, time it.
+
+The node (``physics_mapper.node``) owns a :class:`Mapper`, feeds its :attr:`Mapper.inputs`
+from subscriptions and calls :meth:`Mapper.tick` from its timer; everything it publishes
+comes from the returned :class:`TickReport`.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+from physics_mapper.inputs import InputSettings, InputTracker, Snapshot
+from physics_mapper.physics import PhysicsChecker
+from physics_mapper.scene import Scene, SearchParams, search_params_problem
+from physics_mapper.search import BranchAndBound, SearchResult
+
+#: Seconds a tick's search may run past its deadline: the search looks at the clock every
+#: few simulation steps and then assembles its result. The overrun measured here is about a
+#: millisecond (BENCHMARKS.md, "Deadline slack"); the bound leaves room for a busy machine.
+DEADLINE_SLACK = 0.05
+
+
+@dataclass(frozen=True)
+class MapperSettings:
+    """Everything a tick depends on; the node builds it from its parameters at each tick.
+
+    rate_hz: ticks per second; ``search.deadline`` (seconds) must be shorter than 1 / rate_hz.
+    """
+
+    search: SearchParams
+    inputs: InputSettings
+    rate_hz: float
+
+
+def settings_problem(settings: MapperSettings) -> str | None:
+    """Say which setting is out of range, or return None."""
+    problem = search_params_problem(settings.search)
+    if problem is not None:
+        return problem
+    if settings.rate_hz <= 0.0:
+        return f"rate_hz must be positive, got {settings.rate_hz:g}"
+    period = 1.0 / settings.rate_hz
+    if settings.search.deadline >= period:
+        return f"deadline {settings.search.deadline:g} s must be shorter than the tick period 1/rate_hz = {period:g} s"
+    if settings.inputs.max_age <= 0.0:
+        return f"max_age must be positive, got {settings.inputs.max_age:g}"
+    if settings.inputs.max_hypotheses < 1:
+        return f"max_hypotheses_per_object must be at least 1, got {settings.inputs.max_hypotheses}"
+    return None
+
+
+@dataclass(frozen=True)
+class TickReport:
+    """What one tick saw and found.
+
+    ``result`` is None while some object has no usable hypotheses. ``search_time`` is the
+    wall-clock seconds this tick spent in the search (at most ``deadline`` plus a small slack).
+    ``resumed`` says the tick continued the previous search (same inputs and settings).
+    """
+
+    snapshot: Snapshot
+    result: SearchResult | None
+    search_time: float
+    resumed: bool
+    settings: MapperSettings
+
+
+class Mapper:
+    """A scene's physics world, its inputs and the search in progress."""
+
+    def __init__(self, scene: Scene) -> None:
+        self.scene = scene
+        self.inputs = InputTracker(scene.object_names)
+        self._checker = PhysicsChecker(scene)
+        self._search: BranchAndBound | None = None
+
+    def close(self) -> None:
+        self._checker.close()
+
+    def tick(self, now: float, settings: MapperSettings) -> TickReport:
+        """Snapshot the inputs at ``now`` (seconds) and search until ``settings.search.deadline``."""
+        snapshot = self.inputs.snapshot(now, settings.inputs)
+        hypotheses = snapshot.hypotheses
+        if hypotheses is None:
+            return TickReport(snapshot, None, 0.0, False, settings)
+        search = self._search
+        resumed = search is not None and search.hypotheses == hypotheses and search.params == settings.search
+        if search is None or not resumed:
+            search = self._search = BranchAndBound(self._checker, hypotheses, settings.search)
+        started = time.monotonic()
+        result = search.run(settings.search.deadline)
+        return TickReport(snapshot, result, time.monotonic() - started, resumed, settings)

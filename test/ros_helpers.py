@@ -1,0 +1,194 @@
+"""Shared helpers for tests over real DDS: the node as a subprocess, and an in-test rclpy client.
+
+The node under test runs in its own process (``physics_mapper.launch``); the test talks to
+it through :class:`RosClient`, an rclpy node with its own context, on the ROS domain that
+conftest.py chose for this pytest run.
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import time
+from collections.abc import Callable, Mapping
+from pathlib import Path
+from typing import IO, Any
+
+import rclpy
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from geometry_msgs.msg import PoseArray
+from rclpy.context import Context
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.parameter import Parameter
+from rclpy.parameter_client import AsyncParameterClient
+from std_msgs.msg import Float64MultiArray
+from visualization_msgs.msg import MarkerArray
+
+from physics_mapper.launch import start_node, stop_node
+from physics_mapper.ros_interface import (
+    CONFIGURATION_TOPIC,
+    DIAGNOSTICS_QOS,
+    DIAGNOSTICS_TOPIC,
+    MAP_QOS,
+    MARKERS_TOPIC,
+    NODE_NAME,
+    SETTLED_TOPIC,
+    output_topic,
+    poses_topic,
+    weights_topic,
+)
+
+#: The search status keys SPEC section 4 requires.
+SPEC_DIAGNOSTIC_KEYS = (
+    "nodes visited",
+    "nodes expanded",
+    "nodes bounded",
+    "rejected by collision",
+    "rejected by stability",
+    "best code",
+    "p(C)",
+    "J",
+    "search time [s]",
+    "deadline [s]",
+    "configurations per second",
+)
+#: The console script (``python -m physics_mapper.cli`` would load the CLI module twice).
+PHYSICS_MAPPER = Path(sys.executable).parent / "physics-mapper"
+#: Generous liveness bounds (seconds): a shared 2-core machine may be slow, never this slow.
+STARTUP_TIMEOUT = 30.0
+REPLY_TIMEOUT = 15.0
+
+
+class NodeProcess:
+    """The node running as a child process; its output is kept in a file for assertions."""
+
+    def __init__(
+        self, scene_file: str | Path, parameters: Mapping[str, object], log_path: Path, namespace: str
+    ) -> None:
+        self.log_path = log_path
+        self._log: IO[str] = log_path.open("w")
+        self.process = start_node(scene_file, parameters, namespace=namespace, output=self._log)
+
+    @property
+    def alive(self) -> bool:
+        return self.process.poll() is None
+
+    def stop(self) -> int:
+        code = stop_node(self.process)
+        self._log.close()
+        return code
+
+    def output(self) -> str:
+        if not self._log.closed:
+            self._log.flush()
+        return self.log_path.read_text()
+
+
+def search_status(msg: DiagnosticArray) -> DiagnosticStatus | None:
+    """The node's search status in a DiagnosticArray, if it is one of the node's."""
+    return next((s for s in msg.status if s.name == f"{NODE_NAME}: search"), None)
+
+
+def node_full_name(namespace: str) -> str:
+    return f"{namespace.rstrip('/')}/{NODE_NAME}"
+
+
+def object_status(msg: DiagnosticArray, name: str) -> DiagnosticStatus:
+    return next(s for s in msg.status if s.name == f"{NODE_NAME}: hypotheses/{name}")
+
+
+def values(status: DiagnosticStatus) -> dict[str, str]:
+    return {kv.key: kv.value for kv in status.values}
+
+
+def stamp_of(msg: PoseArray) -> float:
+    return float(msg.header.stamp.sec) + float(msg.header.stamp.nanosec) / 1e9
+
+
+class RosClient:
+    """Publishes into the node running in ``namespace`` and records what it publishes."""
+
+    def __init__(self, namespace: str) -> None:
+        self.namespace = namespace
+        self.context = Context()
+        rclpy.init(context=self.context)
+        self.node = rclpy.create_node("physics_mapper_test", namespace=namespace, context=self.context)
+        self.executor = SingleThreadedExecutor(context=self.context)
+        self.executor.add_node(self.node)
+        self.configurations: list[PoseArray] = []
+        self.settled: list[PoseArray] = []
+        self.markers: list[MarkerArray] = []
+        self.diagnostics: list[DiagnosticArray] = []
+        for topic, msg_type, messages in (
+            (CONFIGURATION_TOPIC, PoseArray, self.configurations),
+            (SETTLED_TOPIC, PoseArray, self.settled),
+            (MARKERS_TOPIC, MarkerArray, self.markers),
+        ):
+            self.node.create_subscription(msg_type, output_topic(topic, namespace), messages.append, MAP_QOS)
+        self.node.create_subscription(DiagnosticArray, DIAGNOSTICS_TOPIC, self._on_diagnostics, DIAGNOSTICS_QOS)
+        self._publishers: dict[str, Any] = {}
+        self.parameters = AsyncParameterClient(self.node, node_full_name(namespace))
+
+    def _on_diagnostics(self, msg: DiagnosticArray) -> None:
+        """Keep the node's own diagnostics: other nodes publish on /diagnostics too."""
+        search = search_status(msg)
+        if search is not None and search.hardware_id == node_full_name(self.namespace):
+            self.diagnostics.append(msg)
+
+    def close(self) -> None:
+        self.executor.shutdown()
+        self.node.destroy_node()
+        rclpy.try_shutdown(context=self.context)
+
+    def _publisher(self, msg_type: type, topic: str) -> Any:
+        if topic not in self._publishers:
+            self._publishers[topic] = self.node.create_publisher(msg_type, topic, 10)
+        return self._publishers[topic]
+
+    def publish(self, object_name: str, poses: PoseArray, weights: Float64MultiArray | None = None) -> None:
+        """Publish an object's PoseArray, then its weights (if given)."""
+        poses_pub = self._publisher(PoseArray, poses_topic(object_name))
+        weights_pub = self._publisher(Float64MultiArray, weights_topic(object_name))
+        self.wait_for(lambda: poses_pub.get_subscription_count() > 0 and weights_pub.get_subscription_count() > 0)
+        poses_pub.publish(poses)
+        if weights is not None:
+            weights_pub.publish(weights)
+
+    def spin_until(self, predicate: Callable[[], bool], timeout: float = REPLY_TIMEOUT) -> bool:
+        end = time.monotonic() + timeout
+        while not predicate():
+            if time.monotonic() >= end:
+                return False
+            self.executor.spin_once(timeout_sec=0.05)
+        return True
+
+    def wait_for(self, predicate: Callable[[], bool], timeout: float = REPLY_TIMEOUT, what: str = "") -> None:
+        assert self.spin_until(predicate, timeout), f"timed out after {timeout:g} s waiting for {what or predicate}"
+
+    def next_diagnostics(
+        self, predicate: Callable[[DiagnosticArray], bool], timeout: float = REPLY_TIMEOUT, what: str = ""
+    ) -> DiagnosticArray:
+        """The first DiagnosticArray arriving from now on that satisfies ``predicate``."""
+        start = len(self.diagnostics)
+
+        def found() -> DiagnosticArray | None:
+            return next((d for d in self.diagnostics[start:] if predicate(d)), None)
+
+        self.wait_for(lambda: found() is not None, timeout, what or "diagnostics")
+        result = found()
+        assert result is not None
+        return result
+
+    def set_parameter(self, name: str, value: object) -> tuple[bool, str]:
+        """Set one of the node's parameters through its SetParameters service: (successful, reason)."""
+        self.wait_for(lambda: self.parameters.wait_for_services(timeout_sec=0.1), what="parameter services")
+        future = self.parameters.set_parameters([Parameter(name, value=value)])
+        self.wait_for(future.done, what=f"set_parameters {name}")
+        result = future.result().results[0]
+        return bool(result.successful), str(result.reason)
+
+
+def run_cli(*args: str, cwd: Path | None = None, timeout: float = 120.0) -> subprocess.CompletedProcess[str]:
+    """Run ``physics-mapper ARGS`` in a child process (same interpreter and environment)."""
+    command = [str(PHYSICS_MAPPER), *args]
+    return subprocess.run(command, capture_output=True, text=True, timeout=timeout, cwd=cwd, check=False)

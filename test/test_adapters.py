@@ -1,0 +1,238 @@
+"""msg_adapters with real message objects: round trips, every rejection class, results and diagnostics."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+from conftest import SCENES
+from diagnostic_msgs.msg import DiagnosticStatus
+from geometry_msgs.msg import PoseArray
+from ros_helpers import SPEC_DIAGNOSTIC_KEYS
+from std_msgs.msg import Float64MultiArray
+from visualization_msgs.msg import Marker
+
+from msg_adapters.diagnostics import diagnostics_msg
+from msg_adapters.hypotheses import (
+    hypotheses_msgs,
+    pose_array_msg,
+    received_poses,
+    received_weights,
+    seconds_from_stamp,
+    stamp_from_seconds,
+)
+from msg_adapters.results import LABEL_NAMESPACE, SHAPE_NAMESPACE, configuration_msgs, markers_msg, object_jitters
+from physics_mapper.geometry import Pose, make_pose
+from physics_mapper.hypotheses import Hypothesis, RankedHypotheses
+from physics_mapper.inputs import InputSettings, Level, ObjectInputs, rank
+from physics_mapper.mapper import Mapper, MapperSettings
+from physics_mapper.physics import PhysicsChecker
+from physics_mapper.scene import Box, Cylinder, ObjectModel, Plane, Scene, SearchParams, Sphere, StaticBody, load_scene
+from physics_mapper.search import BranchAndBound
+
+TILTED = make_pose((0.1, -0.2, 0.3), (0.1, 0.2, 0.3, math.sqrt(1.0 - 0.14)))
+
+
+def pose_array(*poses: tuple[tuple[float, ...], tuple[float, ...]], frame: str = "world") -> PoseArray:
+    """A PoseArray with raw (unvalidated) values, as a publisher may send them."""
+    msg = pose_array_msg([], frame_id=frame, stamp=12.5)
+    for position, orientation in poses:
+        pose = pose_array_msg([Pose((0.0, 0.0, 0.0))], frame_id=frame, stamp=0.0).poses[0]
+        pose.position.x, pose.position.y, pose.position.z = position
+        pose.orientation.x, pose.orientation.y, pose.orientation.z, pose.orientation.w = orientation
+        msg.poses.append(pose)
+    return msg
+
+
+def test_stamps_round_trip_to_the_nanosecond() -> None:
+    stamp = stamp_from_seconds(1_700_000_000.123456789)
+    assert stamp.sec == 1_700_000_000
+    assert abs(stamp.nanosec - 123_456_789) < 1000  # float64 resolves ~0.2 us at this magnitude
+    assert seconds_from_stamp(stamp) == pytest.approx(1_700_000_000.123456789, abs=1e-6)
+    assert seconds_from_stamp(stamp_from_seconds(2.5)) == 2.5
+
+
+def test_poses_round_trip_through_a_pose_array() -> None:
+    msg = pose_array_msg([TILTED, Pose((1.0, 2.0, 3.0))], frame_id="world", stamp=7.25)
+    assert msg.header.frame_id == "world"
+    received = received_poses(msg, expected_frame="world", received=8.0)
+    assert (received.stamp, received.received, received.count, received.refusal) == (7.25, 8.0, 2, None)
+    assert [pose for _, pose in received.poses] == [TILTED, Pose((1.0, 2.0, 3.0))]
+
+
+def test_hypotheses_round_trip_through_pose_array_and_weights() -> None:
+    ranked = RankedHypotheses.from_weighted(
+        [Hypothesis(TILTED, 0.2), Hypothesis(Pose((0.0, 0.0, 1.0)), 0.5), Hypothesis(Pose((1.0, 0.0, 0.0)), 0.3)]
+    )
+    poses_msg, weights = hypotheses_msgs(ranked, frame_id="world", stamp=3.0)
+    assert isinstance(weights, Float64MultiArray)
+    assert list(weights.data) == [h.weight for h in ranked.hypotheses]
+    in_use = rank(
+        received_poses(poses_msg, expected_frame="world", received=3.0),
+        received_weights(weights, received=3.0),
+        max_hypotheses=100,
+    )
+    assert not isinstance(in_use, str)
+    assert [h.weight for h in in_use.hypotheses.hypotheses] == pytest.approx([h.weight for h in ranked.hypotheses])
+    assert [h.pose for h in in_use.hypotheses.hypotheses] == [h.pose for h in ranked.hypotheses]
+
+
+@pytest.mark.parametrize(
+    ("position", "orientation", "problem"),
+    [
+        ((math.nan, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0), "non-finite value (NaN or Inf) in pose"),
+        ((0.0, 0.0, -math.inf), (0.0, 0.0, 0.0, 1.0), "non-finite value (NaN or Inf) in pose"),
+        ((0.0, 0.0, 0.0), (0.0, 0.0, math.nan, 1.0), "non-finite value (NaN or Inf) in pose"),
+        ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 0.0), "zero quaternion"),
+        ((0.0, 0.0, 0.0), (0.0, 0.0, 0.5, 0.5), "quaternion norm 0.7071 is not 1"),
+    ],
+)
+def test_every_bad_pose_class_is_named(
+    position: tuple[float, ...], orientation: tuple[float, ...], problem: str
+) -> None:
+    msg = pose_array(((0.0, 0.0, 0.1), (0.0, 0.0, 0.0, 1.0)), (position, orientation))
+    received = received_poses(msg, expected_frame="world", received=0.0)
+    assert received.refusal is None
+    assert len(received.poses) == 1
+    assert len(received.dropped) == 1
+    assert received.dropped[0].startswith(f"poses[1]: {problem}")
+    alone = received_poses(pose_array((position, orientation)), expected_frame="world", received=0.0)
+    assert alone.refusal == f"no usable pose ({received.dropped[0].replace('poses[1]', 'poses[0]')})"
+
+
+def test_a_wrong_frame_and_an_empty_array_are_refused() -> None:
+    wrong = received_poses(pose_array(((0.0, 0.0, 0.1), (0, 0, 0, 1)), frame="map"), expected_frame="world", received=0)
+    assert wrong.refusal == "frame_id 'map' is not the scene frame 'world'"
+    empty = received_poses(pose_array(), expected_frame="world", received=0.0)
+    assert empty.refusal == "empty PoseArray"
+
+
+@pytest.mark.parametrize(
+    ("values", "refusal"),
+    [
+        ([0.2, -0.1], "negative weight"),
+        ([0.0, 0.0], "weights sum to zero"),
+        ([0.5, math.nan], "non-finite weight (NaN or Inf)"),
+        ([0.5, math.inf], "non-finite weight (NaN or Inf)"),
+        ([], "empty weights array"),
+    ],
+)
+def test_every_bad_weights_class_is_named(values: list[float], refusal: str) -> None:
+    assert received_weights(Float64MultiArray(data=values), received=0.0).refusal == refusal
+
+
+def test_weights_of_the_wrong_length_and_oversized_arrays_through_messages() -> None:
+    inputs = ObjectInputs("cube")
+    poses = [Pose((0.01 * i, 0.0, 0.1)) for i in range(150)]
+    inputs.add_poses(
+        received_poses(pose_array_msg(poses, frame_id="world", stamp=1.0), expected_frame="world", received=1)
+    )
+    inputs.add_weights(received_weights(Float64MultiArray(data=[1.0] * 149), received=1.0))
+    status = inputs.status(2.0, InputSettings(max_hypotheses=100))
+    assert status.level == Level.WARN
+    assert "no weights message of length 150 (weights received have length 149)" in status.message
+    assert "kept the 100 heaviest of 150 hypotheses (max_hypotheses_per_object)" in status.message
+    assert status.hypotheses is not None and len(status.hypotheses) == 100
+
+
+# --- results -------------------------------------------------------------------------------------
+
+MIXED = Scene(
+    objects=(
+        ObjectModel("crate", Box((0.2, 0.1, 0.06))),
+        ObjectModel("ball", Sphere(0.05), mass=0.1, rolling_friction=0.01),
+        ObjectModel("peg", Cylinder(0.02, 0.1), mass=0.05),
+    ),
+    static=(StaticBody("floor", Plane()),),
+    search=SearchParams(deadline=5.0),
+    frame_id="table",
+)
+RESTING = (Pose((0.0, 0.0, 0.03)), Pose((0.5, 0.0, 0.05)), Pose((-0.5, 0.0, 0.05)))
+
+
+@pytest.fixture(scope="module")
+def mixed_result() -> object:
+    hypotheses = [RankedHypotheses.from_weighted([Hypothesis(pose, 1.0)]) for pose in RESTING]
+    with PhysicsChecker(MIXED) as checker:
+        return BranchAndBound(checker, hypotheses, MIXED.search).run(None)
+
+
+def test_configuration_messages_hold_chosen_and_settled_poses(mixed_result: object) -> None:
+    from physics_mapper.search import SearchResult
+
+    assert isinstance(mixed_result, SearchResult) and mixed_result.valid
+    messages = configuration_msgs(mixed_result, frame_id="table", stamp=4.5)
+    assert messages is not None
+    chosen, settled = messages
+    for msg, poses in ((chosen, mixed_result.poses), (settled, mixed_result.settled_poses)):
+        assert msg.header.frame_id == "table" and seconds_from_stamp(msg.header.stamp) == 4.5
+        back = received_poses(msg, expected_frame="table", received=0.0)
+        assert poses is not None
+        assert [pose for _, pose in back.poses] == list(poses)
+
+
+def test_markers_show_each_objects_true_shape_and_a_label_with_its_jitter(mixed_result: object) -> None:
+    from physics_mapper.search import SearchResult
+
+    assert isinstance(mixed_result, SearchResult)
+    markers = markers_msg(mixed_result, MIXED, angular_weight=0.1, stamp=4.5).markers
+    shapes = [m for m in markers if m.ns == SHAPE_NAMESPACE]
+    labels = [m for m in markers if m.ns == LABEL_NAMESPACE]
+    assert len(shapes) == len(labels) == 3
+    assert [m.type for m in shapes] == [Marker.CUBE, Marker.SPHERE, Marker.CYLINDER]
+    assert [(m.scale.x, m.scale.y, m.scale.z) for m in shapes] == [(0.2, 0.1, 0.06), (0.1, 0.1, 0.1), (0.04, 0.04, 0.1)]
+    assert [m.id for m in shapes] == [0, 1, 2]
+    assert all(m.header.frame_id == "table" for m in markers)
+    assert [(m.pose.position.x, m.pose.position.z) for m in shapes] == [(p.position[0], p.position[2]) for p in RESTING]
+    jitters = object_jitters(mixed_result, 0.1)
+    assert [m.text for m in labels] == [
+        f"{n}\nJ={j:.4f}" for n, j in zip(("crate", "ball", "peg"), jitters, strict=True)
+    ]
+    assert all(m.type == Marker.TEXT_VIEW_FACING for m in labels)
+    assert sum(jitters) == pytest.approx(mixed_result.jitter)
+
+
+def test_nothing_chosen_gives_no_configuration_and_no_markers() -> None:
+    floating = [RankedHypotheses.from_weighted([Hypothesis(Pose((0.0, 0.0, 1.0)), 1.0)])] + [
+        RankedHypotheses.from_weighted([Hypothesis(pose, 1.0)]) for pose in RESTING[1:]
+    ]
+    with PhysicsChecker(MIXED) as checker:
+        result = BranchAndBound(checker, floating, MIXED.search).run(None)
+    assert result.code is None
+    assert configuration_msgs(result, frame_id="table", stamp=0.0) is None
+    assert markers_msg(result, MIXED, angular_weight=0.1, stamp=0.0).markers == []
+
+
+# --- diagnostics ---------------------------------------------------------------------------------
+
+
+def test_diagnostics_hold_the_spec_keys_and_one_status_per_object() -> None:
+    scene = load_scene(SCENES / "pyramid.yaml")
+    mapper = Mapper(scene)
+    settings = MapperSettings(SearchParams(deadline=0.3), InputSettings(), rate_hz=2.0)
+    try:
+        waiting = diagnostics_msg(
+            mapper.tick(0.0, settings), node_name="physics_mapper", hardware_id="/ns/physics_mapper", stamp=0.0
+        )
+        assert waiting.status[0].level == DiagnosticStatus.ERROR
+        assert waiting.status[0].message == "waiting for hypotheses of: cube_left, cube_right, cube_top"
+        for name, x, z in (("cube_left", -0.105, 0.1), ("cube_right", 0.105, 0.1), ("cube_top", 0.0, 0.3)):
+            msg = pose_array_msg([Pose((x, 0.0, z))], frame_id="world", stamp=1.0)
+            mapper.inputs.add_poses(name, received_poses(msg, expected_frame="world", received=1.0))
+            mapper.inputs.add_weights(name, received_weights(Float64MultiArray(data=[1.0]), received=1.0))
+        report = mapper.tick(1.0, settings)
+    finally:
+        mapper.close()
+    diagnostics = diagnostics_msg(report, node_name="physics_mapper", hardware_id="/ns/physics_mapper", stamp=1.0)
+    search, *objects = diagnostics.status
+    values = {kv.key: kv.value for kv in search.values}
+    assert set(SPEC_DIAGNOSTIC_KEYS) <= set(values)
+    assert (search.name, search.level) == ("physics_mapper: search", DiagnosticStatus.OK)
+    assert search.message.startswith("valid C111, p(C)=1, J=")
+    assert values["best code"] == "C111" and values["nodes visited"] == "1" and values["deadline [s]"] == "0.3"
+    assert float(values["search time [s]"]) == pytest.approx(report.search_time, abs=1e-6)
+    assert [values[f"input {n}"] for n in scene.object_names] == ["OK: 1 hypotheses, weighted"] * 3
+    assert [s.name for s in objects] == [f"physics_mapper: hypotheses/{n}" for n in scene.object_names]
+    assert all(s.level == DiagnosticStatus.OK for s in objects)
+    assert {s.hardware_id for s in diagnostics.status} == {"/ns/physics_mapper"}
+    assert dict((kv.key, kv.value) for kv in objects[0].values)["weights"] == "paired"

@@ -1,0 +1,391 @@
+"""Bags from ``generate``, read back with the rosbags library alone; bad bags give one clear error line."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from dataclasses import dataclass
+from itertools import pairwise
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+import yaml
+from conftest import REPO, SCENES
+from rosbags.rosbag2 import Reader, StoragePlugin, Writer
+from rosbags.typesys import Stores, get_typestore
+
+from physics_mapper.bags import BagWriter, read_bag
+from physics_mapper.cli import EXIT_BAD_INPUT, main
+from physics_mapper.geometry import make_pose
+from physics_mapper.hypotheses import Hypothesis, RankedHypotheses
+from physics_mapper.replay import bag_snapshots
+from physics_mapper.scene import load_scene
+
+TYPESTORE = get_typestore(Stores.ROS2_JAZZY)
+POSE_ARRAY = "geometry_msgs/msg/PoseArray"
+WEIGHTS = "std_msgs/msg/Float64MultiArray"
+PYRAMID = ("cube_left", "cube_right", "cube_top")
+RUNS, ITERATIONS, TOP_M = 2, 3, 3
+DATA = REPO / "test" / "data"
+
+
+@dataclass(frozen=True)
+class RawBag:
+    """What rosbags alone reports about a bag."""
+
+    storage: str
+    files: list[str]
+    topics: dict[str, str]
+    counts: dict[str, int]
+    messages: list[tuple[str, int, bytes]]  # topic, receive time (ns), raw CDR
+
+    def decoded(self, topic: str) -> list[Any]:
+        return [TYPESTORE.deserialize_cdr(raw, self.topics[topic]) for t, _, raw in self.messages if t == topic]
+
+
+def stamp_ns(message: Any) -> int:
+    return int(message.header.stamp.sec) * 1_000_000_000 + int(message.header.stamp.nanosec)
+
+
+def read_with_rosbags(path: Path) -> RawBag:
+    metadata = yaml.safe_load((path / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
+    with Reader(path) as reader:
+        return RawBag(
+            storage=metadata["storage_identifier"],
+            files=metadata["relative_file_paths"],
+            topics={c.topic: c.msgtype for c in reader.connections},
+            counts={c.topic: c.msgcount for c in reader.connections},
+            messages=[(c.topic, t, bytes(raw)) for c, t, raw in reader.messages()],
+        )
+
+
+def generate(output: Path, *extra: str) -> None:
+    arguments = ["generate", str(SCENES / "pyramid.yaml"), "-o", str(output), "--runs", str(RUNS)]
+    arguments += ["--iterations", str(ITERATIONS), "--top-m", str(TOP_M), "--particles", "200", *extra]
+    assert main(arguments) == 0
+
+
+@pytest.fixture(scope="module", params=["mcap", "sqlite3"])
+def generated(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory) -> tuple[str, RawBag]:
+    storage = str(request.param)
+    path = tmp_path_factory.mktemp(storage) / "pyramid"
+    generate(path, "--storage", storage, "--seed", "5")
+    return storage, read_with_rosbags(path)
+
+
+def test_storage_format_as_requested(generated: tuple[str, RawBag]) -> None:
+    storage, bag = generated
+    assert bag.storage == storage
+    assert [Path(f).suffix for f in bag.files] == [".mcap" if storage == "mcap" else ".db3"]
+
+
+def test_topics_types_and_counts(generated: tuple[str, RawBag]) -> None:
+    _, bag = generated
+    expected = {"/ground_truth": POSE_ARRAY}
+    for name in PYRAMID:
+        expected[f"/hypotheses/{name}"] = POSE_ARRAY
+        expected[f"/hypotheses/{name}/weights"] = WEIGHTS
+    assert bag.topics == expected
+    assert bag.counts == dict.fromkeys(expected, RUNS * ITERATIONS)
+    assert len(bag.messages) == len(expected) * RUNS * ITERATIONS
+
+
+def test_timestamps_strictly_increasing(generated: tuple[str, RawBag]) -> None:
+    _, bag = generated
+    times = [t for _, t, _ in bag.messages]
+    assert all(a < b for a, b in pairwise(times))
+    # Iterations are 0.5 s apart; every PoseArray of an iteration carries the iteration's stamp.
+    first = stamp_ns(bag.decoded("/ground_truth")[0])
+    for topic, msgtype in bag.topics.items():
+        if msgtype == POSE_ARRAY:
+            offsets = [stamp_ns(m) - first for m in bag.decoded(topic)]
+            assert offsets == [k * 500_000_000 for k in range(RUNS * ITERATIONS)]
+
+
+def test_message_contents(generated: tuple[str, RawBag]) -> None:
+    _, bag = generated
+    for name in PYRAMID:
+        pairs = zip(bag.decoded(f"/hypotheses/{name}"), bag.decoded(f"/hypotheses/{name}/weights"), strict=True)
+        for poses, weights in pairs:
+            assert poses.header.frame_id == "world"
+            assert len(poses.poses) == len(weights.data) == TOP_M
+            assert weights.data.sum() == pytest.approx(1.0)
+            assert list(weights.data) == sorted(weights.data, reverse=True)
+            for pose in poses.poses:
+                q = pose.orientation
+                assert np.hypot.reduce([q.x, q.y, q.z, q.w]) == pytest.approx(1.0)
+    truth = bag.decoded("/ground_truth")
+    assert all(len(m.poses) == len(PYRAMID) for m in truth)
+    assert truth[0].poses[2].position.z == pytest.approx(0.3, abs=0.002)  # the top cube rests on the others
+
+
+def test_same_seed_same_messages(tmp_path: Path) -> None:
+    generate(tmp_path / "a", "--seed", "3")
+    generate(tmp_path / "b", "--seed", "3")
+    generate(tmp_path / "c", "--seed", "4")
+    a, b, c = (read_with_rosbags(tmp_path / name).messages for name in "abc")
+    assert a == b
+    assert a != c
+
+
+@pytest.mark.parametrize(
+    ("bag", "command"),
+    [
+        (
+            "pyramid",
+            "generate config/scenes/pyramid.yaml -o test/data/pyramid --runs 2 --sigma 0.005 --sigma-rotation 0.005 "
+            "--seed 1",
+        ),
+        (
+            "sphere_groove_sqlite3",
+            "generate config/scenes/sphere_groove.yaml -o test/data/sphere_groove_sqlite3 --runs 2 --sigma 0.1 "
+            "--seed 2 --storage sqlite3",
+        ),
+    ],
+)
+def test_shipped_bags_are_what_their_recorded_command_makes(
+    bag: str, command: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    assert f"`physics-mapper {command}`" in (DATA / "README.md").read_text()
+    monkeypatch.chdir(REPO)
+    arguments = command.split()
+    arguments[arguments.index("-o") + 1] = str(tmp_path / bag)
+    assert main(arguments) == 0
+    assert read_with_rosbags(tmp_path / bag).messages == read_with_rosbags(DATA / bag).messages
+
+
+def test_shipped_bags_are_small() -> None:
+    assert sum(f.stat().st_size for f in DATA.rglob("*") if f.is_file()) < 2_000_000
+
+
+# ---- bad bags and bad arguments: one error line, exit 2, no traceback ------------------------------------
+
+
+def write_bag(path: Path, topics: dict[str, tuple[str, Any]], storage: StoragePlugin = StoragePlugin.MCAP) -> Path:
+    """A bag written with rosbags: topic -> (type, message), one message each."""
+    with Writer(path, version=9, storage_plugin=storage) as writer:
+        for time_ns, (topic, (msgtype, message)) in enumerate(topics.items(), start=1):
+            connection = writer.add_connection(topic, msgtype, typestore=TYPESTORE)
+            writer.write(connection, time_ns, TYPESTORE.serialize_cdr(message, msgtype))
+    return path
+
+
+def pose_array(count: int, frame_id: str = "world") -> Any:
+    types = TYPESTORE.types
+    stamp = types["builtin_interfaces/msg/Time"](sec=1, nanosec=0)
+    header = types["std_msgs/msg/Header"](stamp=stamp, frame_id=frame_id)
+    pose = types["geometry_msgs/msg/Pose"](
+        position=types["geometry_msgs/msg/Point"](x=0.0, y=0.0, z=0.1),
+        orientation=types["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0, w=1.0),
+    )
+    return types[POSE_ARRAY](header=header, poses=[pose] * count)
+
+
+def copy_of_fixture(tmp_path: Path, name: str) -> tuple[Path, Path]:
+    """A copy of a shipped bag and its storage file."""
+    target = tmp_path / name
+    target.mkdir()
+    for item in (DATA / name).iterdir():
+        (target / item.name).write_bytes(item.read_bytes())
+    return target, next(p for p in target.iterdir() if p.suffix in (".mcap", ".db3"))
+
+
+def replay_error(capsys: pytest.CaptureFixture[str], bag: Path, scene: str = "pyramid") -> str:
+    """Run ``replay --offline`` through the CLI's main; assert exit 2 and return the one error line."""
+    capsys.readouterr()
+    status = main(["replay", str(bag), "--scene", str(SCENES / f"{scene}.yaml"), "--offline"])
+    errors = [line for line in capsys.readouterr().err.splitlines() if "error" in line]
+    assert status == EXIT_BAD_INPUT
+    assert len(errors) == 1, errors
+    return errors[0]
+
+
+def test_truncated_mcap(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    bag, storage_file = copy_of_fixture(tmp_path, "pyramid")
+    storage_file.write_bytes(storage_file.read_bytes()[: storage_file.stat().st_size // 2])
+    line = replay_error(capsys, bag)
+    assert line.startswith(f"physics-mapper replay: error: {bag}: cannot read bag (corrupt or truncated?)")
+
+
+def test_truncated_sqlite3(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    bag, storage_file = copy_of_fixture(tmp_path, "sphere_groove_sqlite3")
+    storage_file.write_bytes(storage_file.read_bytes()[: storage_file.stat().st_size // 2])
+    assert "cannot read bag (corrupt or truncated?)" in replay_error(capsys, bag, "sphere_groove")
+
+
+def test_corrupt_metadata(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    bag, _ = copy_of_fixture(tmp_path, "pyramid")
+    (bag / "metadata.yaml").write_text("rosbag2_bagfile_information: [\n")
+    assert "cannot read bag (corrupt or truncated?)" in replay_error(capsys, bag)
+
+
+def test_storage_file_missing(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    bag, storage_file = copy_of_fixture(tmp_path, "pyramid")
+    storage_file.unlink()
+    assert "files are missing" in replay_error(capsys, bag)
+
+
+def test_no_such_bag(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert replay_error(capsys, tmp_path / "nothing").endswith("nothing: no such bag")
+
+
+def test_missing_topics(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    bag = write_bag(tmp_path / "partial", {"/hypotheses/cube_left": (POSE_ARRAY, pose_array(2))})
+    line = replay_error(capsys, bag)
+    assert "no messages on /hypotheses/cube_right, /hypotheses/cube_top" in line
+    assert "(topics in the bag: /hypotheses/cube_left)" in line
+
+
+def test_wrong_message_type(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    text = TYPESTORE.types["std_msgs/msg/String"](data="not poses")
+    topics = {f"/hypotheses/{name}": (POSE_ARRAY, pose_array(1)) for name in PYRAMID}
+    topics["/hypotheses/cube_top"] = ("std_msgs/msg/String", text)
+    bag = write_bag(tmp_path / "mistyped", topics, StoragePlugin.SQLITE3)
+    line = replay_error(capsys, bag)
+    assert "topic /hypotheses/cube_top has type std_msgs/msg/String, expected geometry_msgs/msg/PoseArray" in line
+
+
+def test_ground_truth_of_the_wrong_size(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    topics = {f"/hypotheses/{name}": (POSE_ARRAY, pose_array(1)) for name in PYRAMID}
+    topics["/ground_truth"] = (POSE_ARRAY, pose_array(2))
+    bag = write_bag(tmp_path / "truth", topics)
+    assert "/ground_truth has 2 poses for 3 scene objects" in replay_error(capsys, bag)
+
+
+def test_message_bytes_that_are_not_cdr(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    path = tmp_path / "garbage"
+    with Writer(path, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+        for time_ns, name in enumerate(PYRAMID, start=1):
+            connection = writer.add_connection(f"/hypotheses/{name}", POSE_ARRAY, typestore=TYPESTORE)
+            writer.write(connection, time_ns, b"\x00\x01\x00\x00\xff")
+    assert "a geometry_msgs/msg/PoseArray message is not valid CDR" in replay_error(capsys, path)
+
+
+def test_relative_topic_names_read_as_absolute(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    bag = write_bag(tmp_path / "relative", {f"hypotheses/{name}": (POSE_ARRAY, pose_array(1)) for name in PYRAMID})
+    capsys.readouterr()
+    assert main(["replay", str(bag), "--scene", str(SCENES / "pyramid.yaml"), "--offline"]) == 0
+    assert capsys.readouterr().out.startswith("1 snapshots, 0 with a configuration")  # three cubes in one place
+
+
+def test_hypotheses_in_another_frame_leave_nothing_to_search(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    bag = write_bag(tmp_path / "map", {f"/hypotheses/{name}": (POSE_ARRAY, pose_array(1, "map")) for name in PYRAMID})
+    capsys.readouterr()
+    assert main(["replay", str(bag), "--scene", str(SCENES / "pyramid.yaml"), "--offline"]) == 0
+    captured = capsys.readouterr()
+    assert "warning: at no time does every object have usable hypotheses (frame_id must be 'world'" in captured.err
+    assert captured.out.startswith("0 snapshots, 0 with a configuration")
+
+
+def test_offline_output_path_is_checked_before_searching(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    (tmp_path / "taken").mkdir()
+    capsys.readouterr()
+    arguments = ["replay", str(DATA / "pyramid"), "--scene", str(SCENES / "pyramid.yaml"), "--offline"]
+    assert main([*arguments, "-o", str(tmp_path / "taken")]) == EXIT_BAD_INPUT
+    captured = capsys.readouterr()
+    assert "exists already" in captured.err
+    assert "snapshot 1/" not in captured.err
+
+
+@pytest.mark.parametrize(
+    ("options", "message"),
+    [
+        (["--offline", "--start-node"], "--start-node is for a live replay"),
+        (["--exhaustive"], "--deadline and --exhaustive are for --offline"),
+        (["--rate", "0"], "--rate must be positive"),
+        (["--offline", "--deadline", "0"], "--deadline must be positive"),
+        (["--namespace", "no_slash"], "--namespace: Invalid namespace: namespace must be absolute"),
+    ],
+)
+def test_replay_refuses_options_that_do_not_fit(
+    capsys: pytest.CaptureFixture[str], options: list[str], message: str
+) -> None:
+    status = main(["replay", str(DATA / "pyramid"), "--scene", str(SCENES / "pyramid.yaml"), *options])
+    assert status == EXIT_BAD_INPUT
+    assert message in capsys.readouterr().err
+
+
+def test_generate_refuses_an_existing_output(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    (tmp_path / "taken").mkdir()
+    status = main(["generate", str(SCENES / "pyramid.yaml"), "-o", str(tmp_path / "taken")])
+    assert status == EXIT_BAD_INPUT
+    assert "exists already" in capsys.readouterr().err
+
+
+def test_generate_needs_a_ground_truth(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    scene = tmp_path / "scene.yaml"
+    scene.write_text("objects:\n  - {name: box, shape: box, size: [0.1, 0.1, 0.1]}\n")
+    status = main(["generate", str(scene), "-o", str(tmp_path / "out")])
+    assert status == EXIT_BAD_INPUT
+    assert "ground_truth: missing" in capsys.readouterr().err
+    assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize(
+    ("option", "message"),
+    [
+        (["--top-m", "0"], "top_m must be at least 1"),
+        (["--sigma", "-1"], "sigma_position must be a positive"),
+        (["--runs", "0"], "--runs must be at least 1"),
+        (["--period", "0"], "--period must be positive"),
+        (["--seed", "-1"], "--seed must not be negative"),
+    ],
+)
+def test_generate_refuses_bad_settings(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], option: list[str], message: str
+) -> None:
+    status = main(["generate", str(SCENES / "pyramid.yaml"), "-o", str(tmp_path / "out"), *option])
+    assert status == EXIT_BAD_INPUT
+    assert message in capsys.readouterr().err
+
+
+def test_the_installed_command_exits_2_without_traceback(tmp_path: Path) -> None:
+    bag, storage_file = copy_of_fixture(tmp_path, "pyramid")
+    storage_file.write_bytes(storage_file.read_bytes()[:1000])
+    command = [str(Path(sys.executable).parent / "physics-mapper"), "replay", str(bag), "--offline"]
+    completed = subprocess.run(
+        [*command, "--scene", str(SCENES / "pyramid.yaml")], capture_output=True, text=True, timeout=120, check=False
+    )
+    assert completed.returncode == EXIT_BAD_INPUT
+    assert "Traceback" not in completed.stderr
+    assert "physics-mapper replay: error:" in completed.stderr
+
+
+def test_generate_and_offline_replay_run_without_ros(tmp_path: Path) -> None:
+    """Both commands in a fresh interpreter: afterwards no ROS module has been loaded."""
+    scene, bag = str(SCENES / "pyramid.yaml"), str(tmp_path / "bag")
+    code = f"""
+import contextlib, io, sys
+from physics_mapper.cli import main
+with contextlib.redirect_stdout(io.StringIO()):
+    assert main(["generate", {scene!r}, "-o", {bag!r}, "--particles", "50"]) == 0
+    assert main(["replay", {bag!r}, "--scene", {scene!r}, "--offline"]) == 0
+roots = {{name.split(".")[0] for name in sys.modules}}
+print(sorted(r for r in roots if r in ("rclpy", "rmw") or r.endswith("_msgs") or r.startswith("rosidl")))
+"""
+    completed = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, check=False)
+    assert completed.returncode == 0, completed.stderr
+    assert completed.stdout.strip() == "[]"
+
+
+def test_a_continuous_stream_is_snapshot_like_a_ticking_node(tmp_path: Path) -> None:
+    """Three objects at 30 Hz, staggered: no 50 ms gap ever, yet a snapshot at least every 0.5 s."""
+    scene = load_scene(SCENES / "pyramid.yaml")
+    assert scene.ground_truth is not None
+    with BagWriter(tmp_path / "stream") as writer:
+        for frame in range(60):  # 2 s
+            for index, (name, truth) in enumerate(zip(PYRAMID, scene.ground_truth, strict=True)):
+                time_ns = 10**9 + frame * 33_333_333 + index * 11_000_000
+                x, y, z = truth.position
+                pose = make_pose((x + 1e-4 * frame, y, z))
+                writer.write_hypotheses(time_ns, time_ns, "world", name, RankedHypotheses((Hypothesis(pose, 1.0),)))
+    snapshots = bag_snapshots(read_bag(tmp_path / "stream"), scene)
+    assert 4 <= len(snapshots) <= 5
+    times = [s.time_ns for s in snapshots]
+    assert all(b - a <= 500_000_000 + 33_333_333 for a, b in pairwise(times))
+    # Each snapshot is stamped with the newest PoseArray it uses, as the node stamps its output.
+    assert all(s.stamp_ns <= s.time_ns for s in snapshots)

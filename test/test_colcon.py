@@ -1,0 +1,76 @@
+"""The ament_python layout: ``colcon build`` installs what ``ros2 run physics_mapper node`` needs, and it runs."""
+
+from __future__ import annotations
+
+import shutil
+import signal
+import subprocess
+import sys
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+from conftest import REPO
+from ros_helpers import RosClient, object_status, search_status
+
+#: Top-level entries of the checkout that are not package sources.
+NOT_SOURCES = {".venv", ".git", "build", "install", "log", "reports", ".mypy_cache", ".ruff_cache", ".pytest_cache"}
+COLCON = Path(sys.executable).parent / "colcon"
+PACKAGE = "physics_mapper"
+
+
+def _ignore(directory: str, names: list[str]) -> set[str]:
+    ignored = {n for n in names if n == "__pycache__" or n.endswith(".egg-info")}
+    if Path(directory) == REPO:
+        ignored |= NOT_SOURCES & set(names)
+    return ignored
+
+
+@pytest.fixture(scope="module")
+def workspace(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Path]:
+    """A colcon workspace holding a copy of the package sources, built."""
+    root = tmp_path_factory.mktemp("colcon_ws")
+    shutil.copytree(REPO, root / "src" / PACKAGE, ignore=_ignore)
+    built = subprocess.run([str(COLCON), "build"], cwd=root, capture_output=True, text=True, timeout=300, check=False)
+    assert built.returncode == 0, built.stdout + built.stderr
+    yield root
+
+
+def test_colcon_lists_an_ament_python_package(workspace: Path) -> None:
+    listed = subprocess.run([str(COLCON), "list"], cwd=workspace, capture_output=True, text=True, check=True).stdout
+    assert listed.split() == [PACKAGE, f"src/{PACKAGE}", "(ros.ament_python)"]
+
+
+def test_colcon_build_installs_the_ros2_run_layout(workspace: Path) -> None:
+    install = workspace / "install" / PACKAGE
+    assert (install / "lib" / PACKAGE / "node").is_file()
+    assert (install / "share" / "ament_index" / "resource_index" / "packages" / PACKAGE).is_file()
+    assert (install / "share" / PACKAGE / "package.xml").read_text() == (REPO / "package.xml").read_text()
+    assert (install / "share" / PACKAGE / "config" / "scenes" / "pyramid.yaml").is_file()
+    assert (install / "share" / PACKAGE / "config" / "params" / "node.yaml").is_file()
+
+
+def test_the_installed_node_runs_with_the_colcon_environment(workspace: Path, tmp_path: Path) -> None:
+    scene = f"package://{PACKAGE}/config/scenes/pyramid.yaml"  # found through the ament index
+    command = (
+        f"source install/setup.bash && exec install/{PACKAGE}/lib/{PACKAGE}/node "
+        f"--ros-args -p scene_file:={scene} -r __ns:=/colcon"
+    )
+    log_path = tmp_path / "node.log"
+    with log_path.open("w") as log:
+        process = subprocess.Popen(["bash", "-c", command], cwd=workspace, stdout=log, stderr=subprocess.STDOUT)
+        client = RosClient("/colcon")
+        try:
+            diagnostics = client.next_diagnostics(lambda d: True, timeout=30.0, what="the installed node's diagnostics")
+        finally:
+            client.close()
+            process.send_signal(signal.SIGINT)
+            code = process.wait(timeout=10)
+    output = log_path.read_text()
+    search = search_status(diagnostics)
+    assert search is not None
+    assert search.message == "waiting for hypotheses of: cube_left, cube_right, cube_top"
+    assert object_status(diagnostics, "cube_top").message == "no PoseArray received yet"
+    installed_scene = workspace / "install" / PACKAGE / "share" / PACKAGE / "config" / "scenes" / "pyramid.yaml"
+    assert f"scene {installed_scene}:" in output
+    assert code == 0, output

@@ -1,0 +1,392 @@
+"""The node over real DDS: a child process fed by an in-test rclpy node (SPEC section 4, issue 3).
+
+Two node processes are shared by the tests of this module: ``pyramid`` (the shipped pyramid
+scene, fed the shipped pyramid problem) and ``busy`` (a problem far too large to finish).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import signal
+import subprocess
+import time
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+import pytest
+import yaml
+from conftest import PROBLEMS, REPO, SCENES
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from geometry_msgs.msg import PoseArray
+from ros_helpers import (
+    PHYSICS_MAPPER,
+    SPEC_DIAGNOSTIC_KEYS,
+    NodeProcess,
+    RosClient,
+    object_status,
+    run_cli,
+    search_status,
+    stamp_of,
+    values,
+)
+from std_msgs.msg import Float64MultiArray
+from visualization_msgs.msg import Marker
+
+from msg_adapters.hypotheses import hypotheses_msgs, pose_array_msg
+from msg_adapters.results import SHAPE_NAMESPACE
+from physics_mapper.geometry import Pose
+from physics_mapper.hypotheses import Hypothesis, RankedHypotheses
+from physics_mapper.mapper import DEADLINE_SLACK
+from physics_mapper.scene import Problem, load_problem, load_scene
+
+PYRAMID_SCENE = SCENES / "pyramid.yaml"
+PYRAMID_PROBLEM = PROBLEMS / "pyramid.yaml"
+OBJECTS = ("cube_left", "cube_right", "cube_top")
+PUBLISH = (str(PHYSICS_MAPPER), "publish")
+
+
+@dataclass
+class Running:
+    node: NodeProcess
+    client: RosClient
+
+
+@pytest.fixture(scope="module")
+def pyramid(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Running]:
+    log = tmp_path_factory.mktemp("pyramid") / "node.log"
+    node = NodeProcess(PYRAMID_SCENE, {"rate_hz": 4.0, "deadline": 0.2, "max_age": 60.0}, log, "/pyramid")
+    client = RosClient("/pyramid")
+    try:
+        client.next_diagnostics(lambda d: True, timeout=30.0, what="the node's first diagnostics")
+        yield Running(node, client)
+    finally:
+        client.close()
+        node.stop()
+
+
+def publish_problem(client: RosClient, problem: Problem, stamp: float, only: tuple[str, ...] = OBJECTS) -> None:
+    for name, hypotheses in zip(problem.scene.object_names, problem.hypotheses, strict=True):
+        if name in only:
+            client.publish(name, *hypotheses_msgs(hypotheses, frame_id=problem.scene.frame_id, stamp=stamp))
+
+
+def wait_for_configuration(client: RosClient, stamp: float) -> PoseArray:
+    """The first configuration computed from inputs stamped ``stamp``."""
+    client.wait_for(lambda: any(stamp_of(c) == stamp for c in client.configurations), what=f"configuration @{stamp}")
+    return next(c for c in client.configurations if stamp_of(c) == stamp)
+
+
+def level_of(msg: DiagnosticArray, name: str) -> bytes:
+    level: bytes = object_status(msg, name).level
+    return level
+
+
+# --- feeding, results, diagnostics, markers (pyramid node) ---------------------------------
+
+
+def test_nothing_is_published_until_every_object_has_hypotheses(pyramid: Running) -> None:
+    client = pyramid.client
+    diagnostics = client.next_diagnostics(lambda d: True)
+    search = search_status(diagnostics)
+    assert search is not None
+    assert search.message == "waiting for hypotheses of: cube_left, cube_right, cube_top"
+    assert object_status(diagnostics, "cube_top").message == "no PoseArray received yet"
+    problem = load_problem(PYRAMID_PROBLEM)
+    publish_problem(client, problem, stamp=100.0, only=("cube_left", "cube_right"))  # cube_top never publishes
+    waiting = client.next_diagnostics(
+        lambda d: all(level_of(d, name) != DiagnosticStatus.ERROR for name in ("cube_left", "cube_right"))
+    )
+    search = search_status(waiting)
+    assert search is not None and search.message == "waiting for hypotheses of: cube_top"
+    assert object_status(waiting, "cube_top").level == DiagnosticStatus.ERROR
+    assert client.configurations == []
+
+
+def test_configuration_equals_what_solve_finds(pyramid: Running) -> None:
+    client = pyramid.client
+    publisher = subprocess.Popen(
+        [*PUBLISH, str(PYRAMID_PROBLEM), "--count", "3", "--rate", "4", "--namespace", "/pyramid"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        done = client.next_diagnostics(
+            lambda d: "exhausted" in values(search_status(d) or DiagnosticStatus()).get("search", ""),
+            what="an exhausted search",
+        )
+    finally:
+        out, err = publisher.communicate(timeout=30)
+    assert publisher.returncode == 0, err
+    assert "published 3 rounds" in out
+    solved = json.loads(run_cli("solve", str(PYRAMID_PROBLEM), "--json").stdout)
+    search = search_status(done)
+    assert search is not None
+    assert values(search)["best code"] == "C" + "".join(map(str, solved["code"]))
+    configuration, settled = client.configurations[-1], client.settled[-1]
+    assert configuration.header.frame_id == settled.header.frame_id == "world"
+    for msg, key in ((configuration, "poses"), (settled, "settled_poses")):
+        assert len(msg.poses) == len(OBJECTS)
+        for name, pose in zip(OBJECTS, msg.poses, strict=True):
+            expected = solved[key][name]
+            got_position = [pose.position.x, pose.position.y, pose.position.z]
+            got_orientation = [pose.orientation.x, pose.orientation.y, pose.orientation.z, pose.orientation.w]
+            assert got_position == pytest.approx(expected["position"], abs=1e-9)
+            assert got_orientation == pytest.approx(expected["orientation"], abs=1e-9)
+
+
+def test_diagnostics_hold_the_spec_keys(pyramid: Running) -> None:
+    diagnostics = pyramid.client.next_diagnostics(lambda d: True)
+    search = search_status(diagnostics)
+    assert search is not None
+    found = values(search)
+    assert set(SPEC_DIAGNOSTIC_KEYS) <= set(found)
+    assert {f"input {name}" for name in OBJECTS} <= set(found)
+    assert int(found["nodes visited"]) > 0
+    assert found["deadline [s]"] == "0.2"
+    assert [object_status(diagnostics, n).name for n in OBJECTS] == [f"physics_mapper: hypotheses/{n}" for n in OBJECTS]
+
+
+def test_markers_show_one_shape_per_object(pyramid: Running) -> None:
+    client = pyramid.client
+    client.wait_for(lambda: bool(client.markers), what="markers")
+    markers = client.markers[-1].markers
+    shapes = [m for m in markers if m.ns == SHAPE_NAMESPACE]
+    assert len(shapes) == len(OBJECTS)
+    assert all(m.type == Marker.CUBE and (m.scale.x, m.scale.y, m.scale.z) == (0.2, 0.2, 0.2) for m in shapes)
+    texts = [m.text for m in markers if m.type == Marker.TEXT_VIEW_FACING]
+    assert [t.split("\n")[0] for t in texts] == list(OBJECTS)
+    assert all(t.split("\n")[1].startswith("J=") for t in texts)
+
+
+# --- bad input (pyramid node) ---------------------------------------------------------------
+
+NAN, INF = math.nan, math.inf
+
+
+def raw_pose_array(*poses: tuple[tuple[float, ...], tuple[float, ...]], frame: str = "world") -> PoseArray:
+    msg = pose_array_msg([Pose((0.0, 0.0, 0.0))] * len(poses), frame_id=frame, stamp=50.0)
+    for pose, (position, orientation) in zip(msg.poses, poses, strict=True):
+        pose.position.x, pose.position.y, pose.position.z = position
+        pose.orientation.x, pose.orientation.y, pose.orientation.z, pose.orientation.w = orientation
+    return msg
+
+
+TOP = ((0.0, 0.0, 0.301), (0.0, 0.0, 0.0, 1.0))
+OVERSIZED = 150
+
+
+@dataclass(frozen=True)
+class BadInput:
+    poses: PoseArray
+    weights: list[float] | None
+    diagnostic: str
+
+
+BAD_INPUTS = {
+    "nan_position": BadInput(raw_pose_array(((NAN, 0.0, 0.3), TOP[1])), [1.0], "poses[0]: non-finite value"),
+    "inf_orientation": BadInput(raw_pose_array((TOP[0], (0.0, 0.0, INF, 1.0))), [1.0], "poses[0]: non-finite value"),
+    "zero_quaternion": BadInput(raw_pose_array((TOP[0], (0.0, 0.0, 0.0, 0.0))), [1.0], "poses[0]: zero quaternion"),
+    "non_unit_quaternion": BadInput(
+        raw_pose_array((TOP[0], (0.0, 0.0, 0.0, 2.0))), [1.0], "quaternion norm 2 is not 1"
+    ),
+    "one_bad_pose_of_two": BadInput(
+        raw_pose_array(TOP, ((0.0, 0.0, 0.3), (0.0, 0.0, 0.0, 0.0))), [0.5, 0.5], "dropped 1 of 2 poses"
+    ),
+    "wrong_frame": BadInput(raw_pose_array(TOP, frame="camera"), [1.0], "frame_id 'camera' is not the scene frame"),
+    "empty_array": BadInput(raw_pose_array(), [], "PoseArray refused: empty PoseArray"),
+    "negative_weights": BadInput(raw_pose_array(TOP, TOP), [-1.0, 2.0], "negative weight"),
+    "all_zero_weights": BadInput(raw_pose_array(TOP, TOP), [0.0, 0.0], "weights sum to zero"),
+    "nan_weights": BadInput(raw_pose_array(TOP, TOP), [NAN, 1.0], "non-finite weight"),
+    "wrong_length_weights": BadInput(raw_pose_array(TOP, TOP), [0.2, 0.3, 0.5], "no weights message of length 2"),
+    "oversized_array": BadInput(
+        raw_pose_array(*[((0.0, 0.0, 0.301 + 0.0001 * i), TOP[1]) for i in range(OVERSIZED)]),
+        [1.0 + i for i in range(OVERSIZED)],
+        f"kept the 100 heaviest of {OVERSIZED} hypotheses",
+    ),
+}
+
+
+@pytest.mark.parametrize("case", list(BAD_INPUTS))
+def test_bad_input_gets_a_diagnostic_and_the_next_good_message_recovers(pyramid: Running, case: str) -> None:
+    client, bad = pyramid.client, BAD_INPUTS[case]
+    problem = load_problem(PYRAMID_PROBLEM)
+    client.publish("cube_top", bad.poses, None if bad.weights is None else Float64MultiArray(data=bad.weights))
+    seen = client.next_diagnostics(lambda d: bad.diagnostic in object_status(d, "cube_top").message)
+    assert level_of(seen, "cube_top") in (DiagnosticStatus.WARN, DiagnosticStatus.ERROR)
+    assert level_of(seen, "cube_left") == DiagnosticStatus.OK  # the other objects keep working
+    assert pyramid.node.alive
+    stamp = 1000.0 + list(BAD_INPUTS).index(case)
+    publish_problem(client, problem, stamp)
+    configuration = wait_for_configuration(client, stamp)
+    assert len(configuration.poses) == len(OBJECTS)
+    recovered = client.next_diagnostics(lambda d: level_of(d, "cube_top") == DiagnosticStatus.OK)
+    assert bad.diagnostic not in object_status(recovered, "cube_top").message
+
+
+def test_stale_hypotheses_stop_the_map_until_fresh_ones_arrive(pyramid: Running) -> None:
+    client = pyramid.client
+    assert client.set_parameter("max_age", 1.0) == (True, "")
+    try:
+        stale = client.next_diagnostics(lambda d: object_status(d, "cube_top").message.startswith("stale:"))
+        search = search_status(stale)
+        assert search is not None and search.message.startswith("waiting for hypotheses of: cube_left")
+        publish_problem(client, load_problem(PYRAMID_PROBLEM), stamp=2000.0)
+        wait_for_configuration(client, 2000.0)
+    finally:
+        assert client.set_parameter("max_age", 60.0) == (True, "")
+    assert pyramid.node.alive
+
+
+# --- deadline, parameters, shutdown (busy node) ---------------------------------------------
+
+BUSY_HYPOTHESES = 60  # per object: 60^3 configurations, each simulated: never finished in a test
+
+
+def busy_problem() -> Problem:
+    """Every hypothesis floats (no collision, always unstable), so every node is simulated."""
+    scene = load_scene(PYRAMID_SCENE)
+    columns = {"cube_left": -0.4, "cube_right": 0.4, "cube_top": 0.0}
+    hypotheses = tuple(
+        RankedHypotheses.from_weighted(
+            [Hypothesis(Pose((columns[name], 0.0, 0.3 + 0.01 * i)), 1.0 / (i + 1)) for i in range(BUSY_HYPOTHESES)]
+        )
+        for name in scene.object_names
+    )
+    return Problem(scene, hypotheses)
+
+
+BUSY_RATE_HZ = 4.0
+BUSY_DEADLINE = 0.1
+
+
+@pytest.fixture(scope="module")
+def busy(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Running]:
+    log = tmp_path_factory.mktemp("busy") / "node.log"
+    parameters = {"rate_hz": BUSY_RATE_HZ, "deadline": BUSY_DEADLINE, "probability_threshold": 0.0, "max_age": 600.0}
+    node = NodeProcess(PYRAMID_SCENE, parameters, log, "/busy")
+    client = RosClient("/busy")
+    try:
+        client.next_diagnostics(lambda d: True, timeout=30.0, what="the node's first diagnostics")
+        publish_problem(client, busy_problem(), stamp=1.0)
+        client.next_diagnostics(lambda d: values(search_status(d) or DiagnosticStatus())["nodes visited"] != "0")
+        yield Running(node, client)
+    finally:
+        client.close()
+        node.stop()
+
+
+def search_ticks(client: RosClient, count: int) -> list[dict[str, str]]:
+    """The search key-values of the next ``count`` ticks."""
+    start = len(client.diagnostics)
+    client.wait_for(lambda: len(client.diagnostics) >= start + count, timeout=60.0, what=f"{count} ticks")
+    ticks = []
+    for msg in client.diagnostics[start : start + count]:
+        search = search_status(msg)
+        assert search is not None
+        ticks.append(values(search))
+    return ticks
+
+
+def test_every_tick_stays_within_its_deadline_plus_the_documented_slack(busy: Running) -> None:
+    ticks = search_ticks(busy.client, 20)
+    assert all("stopped at the deadline" in t["search"] for t in ticks)  # the problem is too large to finish
+    assert sum(t["search"].startswith("resumed") for t in ticks) == len(ticks)  # unchanged inputs: resumed
+    times = [float(t["search time [s]"]) for t in ticks]
+    assert max(times) <= BUSY_DEADLINE + DEADLINE_SLACK, times
+    assert int(ticks[-1]["nodes visited"]) > int(ticks[0]["nodes visited"])
+
+
+def test_deadline_changed_at_run_time_takes_effect_and_invalid_values_are_refused(busy: Running) -> None:
+    client = busy.client
+    assert client.set_parameter("deadline", 0.04) == (True, "")
+    changed = client.next_diagnostics(
+        lambda d: values(search_status(d) or DiagnosticStatus())["deadline [s]"] == "0.04"
+    )
+    search = search_status(changed)
+    assert search is not None and values(search)["search"].startswith("new")  # new settings: a new search
+    times = [float(t["search time [s]"]) for t in search_ticks(client, 5)]
+    assert max(times) <= 0.04 + DEADLINE_SLACK, times
+
+    successful, reason = client.set_parameter("deadline", 0.3)  # the tick period is 0.25 s
+    assert not successful
+    assert reason == "deadline 0.3 s must be shorter than the tick period 1/rate_hz = 0.25 s"
+    successful, reason = client.set_parameter("rate_hz", 40.0)  # period 0.025 s < deadline 0.04 s
+    assert not successful and "shorter than the tick period" in reason
+    successful, reason = client.set_parameter("deadline", -1.0)
+    assert not successful and reason  # outside the declared range
+    successful, reason = client.set_parameter("fallback", "sometimes")
+    assert not successful and reason == "fallback must be one of none, settled, got 'sometimes'"
+    successful, reason = client.set_parameter("scene_file", "other.yaml")
+    assert not successful and "read-only" in reason
+    ticks = search_ticks(client, 2)
+    assert [t["deadline [s]"] for t in ticks] == ["0.04", "0.04"]
+    assert busy.node.alive
+
+
+def test_sigint_ends_a_searching_node_within_two_seconds_cleanly(tmp_path: Path) -> None:
+    parameters = {"rate_hz": BUSY_RATE_HZ, "deadline": 0.2, "probability_threshold": 0.0}
+    node = NodeProcess(PYRAMID_SCENE, parameters, tmp_path / "node.log", "/sigint")
+    client = RosClient("/sigint")
+    try:
+        client.next_diagnostics(lambda d: True, timeout=30.0)
+        publish_problem(client, busy_problem(), stamp=1.0)
+        client.next_diagnostics(lambda d: values(search_status(d) or DiagnosticStatus())["nodes visited"] != "0")
+    finally:
+        client.close()
+    started = time.monotonic()
+    node.process.send_signal(signal.SIGINT)
+    code = node.process.wait(timeout=10)
+    elapsed = time.monotonic() - started
+    node.stop()
+    output = node.output()
+    assert code == 0, output
+    assert elapsed <= 2.0
+    assert "Traceback" not in output
+
+
+# --- start-up: parameters files and bad start-up input ------------------------------------------
+
+
+def test_params_file_configures_the_node_through_the_cli(tmp_path: Path) -> None:
+    params_file = REPO / "config" / "params" / "node.yaml"
+    expected = yaml.safe_load(params_file.read_text())["/**/physics_mapper"]["ros__parameters"]
+    log = (tmp_path / "node.log").open("w")
+    command = [str(PHYSICS_MAPPER), "node", "--ros-args", "--params-file", str(params_file)]
+    command += ["-r", "__ns:=/params"]
+    process = subprocess.Popen(command, stdout=log, stderr=subprocess.STDOUT, text=True, cwd=tmp_path)
+    client = RosClient("/params")
+    try:
+        diagnostics = client.next_diagnostics(lambda d: True, timeout=30.0)
+    finally:
+        client.close()
+        process.send_signal(signal.SIGINT)
+        code = process.wait(timeout=10)
+        log.close()
+    search = search_status(diagnostics)
+    assert search is not None
+    assert float(values(search)["deadline [s]"]) == expected["deadline"]
+    assert [object_status(diagnostics, n).name.split("/")[-1] for n in OBJECTS] == list(OBJECTS)
+    assert code == 0, (tmp_path / "node.log").read_text()
+
+
+@pytest.mark.parametrize(
+    ("ros_args", "error"),
+    [
+        ([], "parameter scene_file is required"),
+        (["-p", "scene_file:=no/such/scene.yaml"], "no/such/scene.yaml: cannot read file"),
+        (["-p", f"scene_file:={PYRAMID_SCENE}", "-p", "deadline:=0.6"], "deadline 0.6 s must be shorter than"),
+        (["-p", f"scene_file:={PYRAMID_SCENE}", "-p", "deadline:=-1.0"], "deadline"),
+        (["-p", f"scene_file:={PYRAMID_SCENE}", "-p", "rate_hz:=fast"], "rate_hz"),
+        (["-p", "scene_file:=package://no_such_package/x.yaml"], "package 'no_such_package' is not in the ament index"),
+    ],
+)
+def test_bad_start_up_input_is_one_error_line_and_exit_2(ros_args: list[str], error: str) -> None:
+    completed = run_cli("node", "--ros-args", *ros_args, timeout=60)
+    assert completed.returncode == 2, completed.stderr
+    lines = [line for line in completed.stderr.splitlines() if not line.startswith("pybullet build time")]
+    assert len(lines) == 1, completed.stderr
+    assert lines[0].startswith("physics_mapper node: error: ")
+    assert error in lines[0]

@@ -1,0 +1,237 @@
+"""Replay: a bag written here with rosbags goes into a live node (subprocess, real DDS) and into the core offline.
+
+The bag holds three snapshots of two hypotheses per pyramid cube. In each, exactly one
+configuration is physically valid: a cube 2 cm into the floor, a cube pushed 2 cm into its
+neighbour, or a top cube hovering 3 cm high invalidates every other one. So the expected code of
+each snapshot is known, and the live node and the offline search must both find it.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from dataclasses import replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+from conftest import REPO, SCENES
+from ros_helpers import NodeProcess, run_cli
+from rosbags.rosbag2 import Reader, StoragePlugin, Writer
+from rosbags.typesys import Stores, get_typestore
+
+from physics_mapper import bags, replay, ros_interface
+from physics_mapper.geometry import Pose
+from physics_mapper.scene import load_scene
+
+TYPESTORE = get_typestore(Stores.ROS2_JAZZY)
+POSE_ARRAY = "geometry_msgs/msg/PoseArray"
+WEIGHTS = "std_msgs/msg/Float64MultiArray"
+SCENE = SCENES / "pyramid.yaml"
+NAMES = ("cube_left", "cube_right", "cube_top")
+TRUTH = load_scene(SCENE).ground_truth or ()
+
+
+def moved(pose: Pose, dx: float = 0.0, dz: float = 0.0) -> Pose:
+    x, y, z = pose.position
+    return replace(pose, position=(x + dx, y, z + dz))
+
+
+BAD = (moved(TRUTH[0], dz=-0.02), moved(TRUTH[1], dx=-0.03), moved(TRUTH[2], dz=0.03))
+# Per snapshot and object: the weights of (good, bad); a heavier bad hypothesis is ranked first.
+SNAPSHOTS = (
+    ((0.4, 0.6), (0.7, 0.3), (0.8, 0.2)),
+    ((0.9, 0.1), (0.45, 0.55), (0.4, 0.6)),
+    ((0.6, 0.4), (0.6, 0.4), (0.6, 0.4)),
+)
+EXPECTED_CODES = [[2, 1, 1], [1, 2, 2], [1, 1, 1]]
+SPACING_NS = 2_000_000_000  # bag time between snapshots: the node resumes its search a few ticks on each
+FIRST_NS = 1_000_000_000
+NAMESPACE = "/replay_test"
+
+
+def pose_array(stamp_ns: int, poses: list[Pose]) -> Any:
+    types = TYPESTORE.types
+    stamp = types["builtin_interfaces/msg/Time"](sec=stamp_ns // 10**9, nanosec=stamp_ns % 10**9)
+    return types[POSE_ARRAY](
+        header=types["std_msgs/msg/Header"](stamp=stamp, frame_id="world"),
+        poses=[
+            types["geometry_msgs/msg/Pose"](
+                position=types["geometry_msgs/msg/Point"](*pose.position),
+                orientation=types["geometry_msgs/msg/Quaternion"](*pose.orientation),
+            )
+            for pose in poses
+        ],
+    )
+
+
+def weights(values: list[float]) -> Any:
+    types = TYPESTORE.types
+    layout = types["std_msgs/msg/MultiArrayLayout"](dim=[], data_offset=0)
+    return types[WEIGHTS](layout=layout, data=np.array(values, dtype=np.float64))
+
+
+@pytest.fixture(scope="module")
+def handmade_bag(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The three snapshots, written with rosbags directly (not by ``generate``), hypotheses in published order."""
+    path = tmp_path_factory.mktemp("bags") / "handmade"
+    with Writer(path, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+        connections = {
+            topic: writer.add_connection(topic, msgtype, typestore=TYPESTORE)
+            for name in NAMES
+            for topic, msgtype in ((f"/hypotheses/{name}", POSE_ARRAY), (f"/hypotheses/{name}/weights", WEIGHTS))
+        }
+        connections["/ground_truth"] = writer.add_connection("/ground_truth", POSE_ARRAY, typestore=TYPESTORE)
+
+        def write(topic: str, time_ns: int, message: Any) -> None:
+            writer.write(connections[topic], time_ns, TYPESTORE.serialize_cdr(message, connections[topic].msgtype))
+
+        for index, snapshot in enumerate(SNAPSHOTS):
+            stamp = FIRST_NS + index * SPACING_NS
+            for offset, (name, (good_weight, bad_weight), good, bad) in enumerate(
+                zip(NAMES, snapshot, TRUTH, BAD, strict=True)
+            ):
+                order = [(good, good_weight), (bad, bad_weight)]
+                order.sort(key=lambda item: -item[1])
+                write(f"/hypotheses/{name}", stamp + 1000 * offset, pose_array(stamp, [p for p, _ in order]))
+                write(f"/hypotheses/{name}/weights", stamp + 1000 * offset + 1, weights([w for _, w in order]))
+            write("/ground_truth", stamp + 5000, pose_array(stamp, list(TRUTH)))
+    return path
+
+
+def codes(json_path: Path) -> list[list[int] | None]:
+    return [snapshot["code"] for snapshot in json.loads(json_path.read_text())["snapshots"]]
+
+
+def recorded(path: Path) -> dict[str, list[Any]]:
+    """Messages of a recorded bag by topic, read with rosbags alone."""
+    messages: dict[str, list[Any]] = {}
+    with Reader(path) as reader:
+        for connection, _, raw in reader.messages():
+            messages.setdefault(connection.topic, []).append(TYPESTORE.deserialize_cdr(raw, connection.msgtype))
+    return messages
+
+
+def test_bag_and_node_agree_on_topic_names() -> None:
+    """The recorder's and the bags' topic names are those the node resolves (root namespace)."""
+    assert ros_interface.output_topic(ros_interface.CONFIGURATION_TOPIC) == replay.CONFIGURATION_TOPIC
+    assert ros_interface.output_topic(ros_interface.SETTLED_TOPIC) == replay.SETTLED_TOPIC
+    assert replay.DIAGNOSTICS_TOPIC == ros_interface.DIAGNOSTICS_TOPIC
+    assert bags.hypotheses_topic("a") == "/" + ros_interface.poses_topic("a")
+    assert bags.weights_topic("a") == "/" + ros_interface.weights_topic("a")
+
+
+@pytest.fixture(scope="module")
+def offline(handmade_bag: Path, tmp_path_factory: pytest.TempPathFactory) -> tuple[Any, Path, Path]:
+    folder = tmp_path_factory.mktemp("offline")
+    args = ["replay", str(handmade_bag), "--scene", str(SCENE), "--offline", "--exhaustive"]
+    completed = run_cli(*args, "-o", str(folder / "out"), "--json", str(folder / "result.json"))
+    return completed, folder / "out", folder / "result.json"
+
+
+def test_offline_replay_finds_the_valid_configurations(offline: tuple[Any, Path, Path]) -> None:
+    completed, _, result = offline
+    assert completed.returncode == 0, completed.stderr
+    assert codes(result) == EXPECTED_CODES
+    assert "3 snapshots, 3 with a configuration: C111 in 1, another configuration in 2" in completed.stdout
+
+
+def test_offline_output_bag_holds_the_chosen_poses(offline: tuple[Any, Path, Path]) -> None:
+    _, out, _ = offline
+    messages = recorded(out)
+    configurations = messages[replay.CONFIGURATION_TOPIC]
+    assert len(configurations) == len(messages[replay.SETTLED_TOPIC]) == 3
+    first = configurations[0]
+    assert [p.position.z for p in first.poses] == pytest.approx([t.position[2] for t in TRUTH])
+
+
+def test_replay_without_a_node_says_so(handmade_bag: Path, tmp_path: Path) -> None:
+    # A domain of its own, so that no node started by another test can answer.
+    domain = str((int(os.environ["ROS_DOMAIN_ID"]) + 101) % 233)
+    command = [sys.executable, "-m", "physics_mapper.cli", "replay", str(handmade_bag), "--scene", str(SCENE)]
+    completed = subprocess.run(
+        [*command, "--wait", "2", "-o", str(tmp_path / "out")],
+        env={**os.environ, "ROS_DOMAIN_ID": domain},
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+    )
+    assert completed.returncode == 1
+    assert "physics-mapper replay: error: no node is listening on /hypotheses/cube_left" in completed.stderr
+    assert "Traceback" not in completed.stderr
+
+
+@pytest.fixture(scope="module")
+def live(handmade_bag: Path, tmp_path_factory: pytest.TempPathFactory) -> tuple[Any, Path, Path]:
+    """The handmade bag replayed into a node started by the test, recorded into a new bag."""
+    folder = tmp_path_factory.mktemp("live")
+    node = NodeProcess(SCENE, {}, folder / "node.log", NAMESPACE)
+    try:
+        completed = run_cli(
+            "replay",
+            str(handmade_bag),
+            "--scene",
+            str(SCENE),
+            "-o",
+            str(folder / "out"),
+            "--json",
+            str(folder / "result.json"),
+            "--namespace",
+            NAMESPACE,
+            "--wait",
+            "60",
+            timeout=180,
+        )
+        assert node.alive, node.output()
+    finally:
+        node.stop()
+    return completed, folder / "out", folder / "result.json"
+
+
+def test_live_replay_yields_configurations_recorded_in_the_output_bag(live: tuple[Any, Path, Path]) -> None:
+    completed, out, _ = live
+    assert completed.returncode == 0, completed.stderr
+    messages = recorded(out)
+    stamps = {m.header.stamp.sec * 10**9 + m.header.stamp.nanosec for m in messages[replay.CONFIGURATION_TOPIC]}
+    assert {FIRST_NS + k * SPACING_NS for k in range(3)} <= stamps
+    assert all(len(m.poses) == 3 for m in messages[replay.CONFIGURATION_TOPIC])
+    assert messages[replay.SETTLED_TOPIC]
+    assert any(status.name.startswith("physics_mapper") for m in messages["/diagnostics"] for status in m.status)
+
+
+def test_live_and_offline_choose_the_same_codes(live: tuple[Any, Path, Path], offline: tuple[Any, Path, Path]) -> None:
+    assert codes(live[2]) == codes(offline[2]) == EXPECTED_CODES
+
+
+def test_live_summary_compares_errors_with_and_without_physics(live: tuple[Any, Path, Path]) -> None:
+    completed, _, result = live
+    assert "mean position error against ground truth over the 3 snapshots" in completed.stdout
+    mean = json.loads(result.read_text())["mean_errors"]
+    assert sum(mean["chosen"]) == pytest.approx(0.0, abs=1e-9)  # the good hypotheses are the truth
+    assert sum(mean["top"]) == pytest.approx((0.02 + 0.03 + 0.03) / 3)  # snapshot 1: left; 2: right, top
+    assert "replay:" in completed.stderr and "messages played" in completed.stderr  # progress
+
+
+def test_start_node_replays_the_shipped_bag(tmp_path: Path) -> None:
+    completed = run_cli(
+        "replay",
+        str(REPO / "test" / "data" / "pyramid"),
+        "--scene",
+        str(SCENE),
+        "--start-node",
+        "--rate",
+        "4",
+        "-o",
+        str(tmp_path / "out"),
+        "--wait",
+        "60",
+        timeout=180,
+    )
+    assert completed.returncode == 0, completed.stderr
+    assert "started the node" in completed.stderr
+    assert recorded(tmp_path / "out")[replay.CONFIGURATION_TOPIC]
+    assert "total" in completed.stdout.splitlines()[-1]
