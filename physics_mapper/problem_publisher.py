@@ -56,3 +56,10 @@ class ProblemPublisher:
             poses, weights = hypotheses_msgs(hypotheses, frame_id=frame_id, stamp=now)
             poses_pub.publish(poses)
             weights_pub.publish(weights)
+
+
+def spin_for(node: Node, seconds: float) -> None:
+    """Handle ``node``'s events for ``seconds`` (less if rclpy shuts down)."""
+    end = time.monotonic() + seconds
+    while ok() and time.monotonic() < end:
+        rclpy.spin_once(node, timeout_sec=0.05)

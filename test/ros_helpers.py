@@ -154,6 +154,17 @@ class RosClient:
         if weights is not None:
             weights_pub.publish(weights)
 
+    def keep_publishing(
+        self, publish: Callable[[], None], until: Callable[[], bool], what: str, timeout: float = REPLY_TIMEOUT
+    ) -> None:
+        """Publish every half second until ``until()`` holds: a message sent while the node's
+        reader has not yet matched a new writer is lost (DDS discovery is not symmetric)."""
+        end = time.monotonic() + timeout
+        while not until():
+            assert time.monotonic() < end, f"timed out after {timeout:g} s waiting for {what}"
+            publish()
+            self.spin_until(until, timeout=0.5)
+
     def spin_until(self, predicate: Callable[[], bool], timeout: float = REPLY_TIMEOUT) -> bool:
         end = time.monotonic() + timeout
         while not predicate():

@@ -11,7 +11,7 @@ import math
 import signal
 import subprocess
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -72,10 +72,29 @@ def publish_problem(client: RosClient, problem: Problem, stamp: float, only: tup
             client.publish(name, *hypotheses_msgs(hypotheses, frame_id=problem.scene.frame_id, stamp=stamp))
 
 
-def wait_for_configuration(client: RosClient, stamp: float) -> PoseArray:
-    """The first configuration computed from inputs stamped ``stamp``."""
-    client.wait_for(lambda: any(stamp_of(c) == stamp for c in client.configurations), what=f"configuration @{stamp}")
+def publish_until_configured(client: RosClient, problem: Problem, stamp: float) -> PoseArray:
+    """Publish ``problem`` stamped ``stamp`` until a configuration computed from it arrives."""
+    client.keep_publishing(
+        lambda: publish_problem(client, problem, stamp),
+        lambda: any(stamp_of(c) == stamp for c in client.configurations),
+        f"a configuration stamped {stamp}",
+    )
     return next(c for c in client.configurations if stamp_of(c) == stamp)
+
+
+def publish_until_diagnosed(
+    client: RosClient, publish: Callable[[], None], predicate: Callable[[DiagnosticArray], bool], what: str
+) -> DiagnosticArray:
+    """Publish until a DiagnosticArray arriving from now on satisfies ``predicate``; return it."""
+    start = len(client.diagnostics)
+
+    def found() -> DiagnosticArray | None:
+        return next((d for d in client.diagnostics[start:] if predicate(d)), None)
+
+    client.keep_publishing(publish, lambda: found() is not None, what)
+    result = found()
+    assert result is not None
+    return result
 
 
 def level_of(msg: DiagnosticArray, name: str) -> bytes:
@@ -94,9 +113,11 @@ def test_nothing_is_published_until_every_object_has_hypotheses(pyramid: Running
     assert search.message == "waiting for hypotheses of: cube_left, cube_right, cube_top"
     assert object_status(diagnostics, "cube_top").message == "no PoseArray received yet"
     problem = load_problem(PYRAMID_PROBLEM)
-    publish_problem(client, problem, stamp=100.0, only=("cube_left", "cube_right"))  # cube_top never publishes
-    waiting = client.next_diagnostics(
-        lambda d: all(level_of(d, name) != DiagnosticStatus.ERROR for name in ("cube_left", "cube_right"))
+    waiting = publish_until_diagnosed(
+        client,
+        lambda: publish_problem(client, problem, stamp=100.0, only=("cube_left", "cube_right")),  # not cube_top
+        lambda d: all(level_of(d, name) != DiagnosticStatus.ERROR for name in ("cube_left", "cube_right")),
+        "cube_left and cube_right in use",
     )
     search = search_status(waiting)
     assert search is not None and search.message == "waiting for hypotheses of: cube_top"
@@ -213,14 +234,17 @@ BAD_INPUTS = {
 def test_bad_input_gets_a_diagnostic_and_the_next_good_message_recovers(pyramid: Running, case: str) -> None:
     client, bad = pyramid.client, BAD_INPUTS[case]
     problem = load_problem(PYRAMID_PROBLEM)
-    client.publish("cube_top", bad.poses, None if bad.weights is None else Float64MultiArray(data=bad.weights))
-    seen = client.next_diagnostics(lambda d: bad.diagnostic in object_status(d, "cube_top").message)
+    weights = None if bad.weights is None else Float64MultiArray(data=bad.weights)
+    seen = publish_until_diagnosed(
+        client,
+        lambda: client.publish("cube_top", bad.poses, weights),
+        lambda d: bad.diagnostic in object_status(d, "cube_top").message,
+        f"the diagnostic {bad.diagnostic!r}",
+    )
     assert level_of(seen, "cube_top") in (DiagnosticStatus.WARN, DiagnosticStatus.ERROR)
     assert level_of(seen, "cube_left") == DiagnosticStatus.OK  # the other objects keep working
     assert pyramid.node.alive
-    stamp = 1000.0 + list(BAD_INPUTS).index(case)
-    publish_problem(client, problem, stamp)
-    configuration = wait_for_configuration(client, stamp)
+    configuration = publish_until_configured(client, problem, stamp=1000.0 + list(BAD_INPUTS).index(case))
     assert len(configuration.poses) == len(OBJECTS)
     recovered = client.next_diagnostics(lambda d: level_of(d, "cube_top") == DiagnosticStatus.OK)
     assert bad.diagnostic not in object_status(recovered, "cube_top").message
@@ -233,8 +257,7 @@ def test_stale_hypotheses_stop_the_map_until_fresh_ones_arrive(pyramid: Running)
         stale = client.next_diagnostics(lambda d: object_status(d, "cube_top").message.startswith("stale:"))
         search = search_status(stale)
         assert search is not None and search.message.startswith("waiting for hypotheses of: cube_left")
-        publish_problem(client, load_problem(PYRAMID_PROBLEM), stamp=2000.0)
-        wait_for_configuration(client, 2000.0)
+        publish_until_configured(client, load_problem(PYRAMID_PROBLEM), stamp=2000.0)
     finally:
         assert client.set_parameter("max_age", 60.0) == (True, "")
     assert pyramid.node.alive
@@ -258,6 +281,17 @@ def busy_problem() -> Problem:
     return Problem(scene, hypotheses)
 
 
+def start_searching(client: RosClient) -> None:
+    """Feed the busy problem until the node has searched on it."""
+    problem = busy_problem()
+    publish_until_diagnosed(
+        client,
+        lambda: publish_problem(client, problem, stamp=1.0),
+        lambda d: values(search_status(d) or DiagnosticStatus())["nodes visited"] != "0",
+        "a search on the busy problem",
+    )
+
+
 BUSY_RATE_HZ = 4.0
 BUSY_DEADLINE = 0.1
 
@@ -270,8 +304,7 @@ def busy(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Running]:
     client = RosClient("/busy")
     try:
         client.next_diagnostics(lambda d: True, timeout=30.0, what="the node's first diagnostics")
-        publish_problem(client, busy_problem(), stamp=1.0)
-        client.next_diagnostics(lambda d: values(search_status(d) or DiagnosticStatus())["nodes visited"] != "0")
+        start_searching(client)
         yield Running(node, client)
     finally:
         client.close()
@@ -332,15 +365,14 @@ def test_sigint_ends_a_searching_node_within_two_seconds_cleanly(tmp_path: Path)
     client = RosClient("/sigint")
     try:
         client.next_diagnostics(lambda d: True, timeout=30.0)
-        publish_problem(client, busy_problem(), stamp=1.0)
-        client.next_diagnostics(lambda d: values(search_status(d) or DiagnosticStatus())["nodes visited"] != "0")
+        start_searching(client)
+        started = time.monotonic()
+        node.process.send_signal(signal.SIGINT)
+        code = node.process.wait(timeout=10)
+        elapsed = time.monotonic() - started
     finally:
         client.close()
-    started = time.monotonic()
-    node.process.send_signal(signal.SIGINT)
-    code = node.process.wait(timeout=10)
-    elapsed = time.monotonic() - started
-    node.stop()
+        node.stop()  # also when the test failed before the SIGINT: no orphaned node
     output = node.output()
     assert code == 0, output
     assert elapsed <= 2.0

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import time
 from pathlib import Path
 
 from physics_mapper.cli import InputError
@@ -11,6 +10,8 @@ from physics_mapper.scene import load_problem
 
 #: Seconds to keep the process alive after the last round, so that it is delivered.
 LINGER = 0.3
+#: Seconds between seeing the node's subscriptions and the first round (see :func:`run`).
+DISCOVERY_SETTLE = 0.3
 
 HELP = "publish a problem file's hypotheses and weights on the node's input topics (like `ros2 topic pub`)"
 
@@ -42,7 +43,7 @@ def run(args: argparse.Namespace) -> int:
     from rclpy.utilities import ok
     from rclpy.validate_namespace import validate_namespace
 
-    from physics_mapper.problem_publisher import ProblemPublisher
+    from physics_mapper.problem_publisher import ProblemPublisher, spin_for
     from physics_mapper.ros_interface import shutdown_ros
 
     namespace = "/" + args.namespace.lstrip("/")
@@ -58,7 +59,11 @@ def run(args: argparse.Namespace) -> int:
             f"{n} ({len(h)})" for n, h in zip(problem.scene.object_names, problem.hypotheses, strict=True)
         )
         print(f"publishing {sizes} on {node.get_namespace().rstrip('/')}/hypotheses/<object>[/weights]", flush=True)
-        if not publisher.wait_for_subscribers(args.wait) and ok():
+        if publisher.wait_for_subscribers(args.wait):
+            # The subscriber side matches this new publisher a moment after this side sees it;
+            # a message published before then is lost.
+            spin_for(node, DISCOVERY_SETTLE)
+        elif ok():
             print(f"no subscriber on every topic after {args.wait:g} s; publishing anyway", flush=True)
         rounds = 0
 
@@ -72,11 +77,7 @@ def run(args: argparse.Namespace) -> int:
         node.create_timer(1.0 / args.rate, publish_round)
         while ok() and (args.count == 0 or rounds < args.count):
             rclpy.spin_once(node, timeout_sec=0.1)
-        if ok():
-            # Reliable delivery of the last round completes in the background: give it time.
-            end = time.monotonic() + LINGER
-            while ok() and time.monotonic() < end:
-                rclpy.spin_once(node, timeout_sec=0.05)
+        spin_for(node, LINGER)  # reliable delivery of the last round completes in the background
         print(f"published {rounds} round{'s' if rounds != 1 else ''}", flush=True)
         node.destroy_node()  # type: ignore[no-untyped-call]
     except (KeyboardInterrupt, ExternalShutdownException):
