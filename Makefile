@@ -19,15 +19,16 @@ $(STAMP): requirements.txt requirements-dev.txt setup.py
 
 lint: venv
 	$(BIN)/ruff check physics_mapper msg_adapters test benchmarks
+	$(BIN)/ruff format --check physics_mapper msg_adapters test benchmarks
 	$(BIN)/mypy
 
 test: venv lint
 	$(BIN)/pytest
 
-# Starts the node on the pyramid scene, publishes the shipped pyramid problem into it,
-# prints the map it publishes and its diagnostics, stops it (physics_mapper/commands/demo.py).
+# Starts the node on the pyramid scene, replays the shipped pyramid bag into it, prints the error
+# with and without physics and the node's last map and diagnostics (physics_mapper/commands/demo.py).
 demo: venv
-	$(BIN)/physics-mapper demo --scene config/scenes/pyramid.yaml --problem config/problems/pyramid.yaml
+	$(BIN)/physics-mapper demo
 
 # The paper's figures at full size (20 runs, 1000 particles) into reports/: PNG + markdown + JSON each.
 paper: venv

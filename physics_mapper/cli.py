@@ -11,17 +11,11 @@ import sys
 from collections.abc import Sequence
 from types import ModuleType
 
+from physics_mapper.errors import EXIT_BAD_INPUT, InputError
 from physics_mapper.scene import SceneError
 
 #: Subcommand name -> module under ``physics_mapper.commands``.
 COMMANDS = ("solve", "generate", "replay", "node", "publish", "demo", "experiment")
-
-EXIT_FAILURE = 1
-EXIT_BAD_INPUT = 2
-
-
-class InputError(Exception):
-    """A user-facing error about an input (file, bag, argument): printed without a traceback."""
 
 
 def _command(name: str) -> ModuleType:
@@ -51,7 +45,3 @@ def main(argv: Sequence[str] | None = None) -> int:
         return EXIT_BAD_INPUT
     except KeyboardInterrupt:
         return 130
-
-
-if __name__ == "__main__":
-    sys.exit(main())

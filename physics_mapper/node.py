@@ -29,7 +29,7 @@ from visualization_msgs.msg import MarkerArray
 from msg_adapters.diagnostics import diagnostics_msg
 from msg_adapters.hypotheses import received_poses, received_weights
 from msg_adapters.results import configuration_msgs, markers_msg
-from physics_mapper.cli import EXIT_BAD_INPUT, InputError
+from physics_mapper.errors import EXIT_BAD_INPUT, InputError
 from physics_mapper.inputs import InputSettings
 from physics_mapper.mapper import Mapper, MapperSettings, TickReport, settings_problem
 from physics_mapper.ros_interface import (

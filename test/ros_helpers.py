@@ -52,7 +52,7 @@ SPEC_DIAGNOSTIC_KEYS = (
     "deadline [s]",
     "configurations per second",
 )
-#: The console script (``python -m physics_mapper.cli`` would load the CLI module twice).
+#: The installed console script, as users run it.
 PHYSICS_MAPPER = Path(sys.executable).parent / "physics-mapper"
 #: Generous liveness bounds (seconds): a shared 2-core machine may be slow, never this slow.
 STARTUP_TIMEOUT = 30.0

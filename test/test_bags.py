@@ -17,7 +17,8 @@ from rosbags.rosbag2 import Reader, StoragePlugin, Writer
 from rosbags.typesys import Stores, get_typestore
 
 from physics_mapper.bags import BagWriter, read_bag
-from physics_mapper.cli import EXIT_BAD_INPUT, main
+from physics_mapper.cli import main
+from physics_mapper.errors import EXIT_BAD_INPUT
 from physics_mapper.geometry import make_pose
 from physics_mapper.hypotheses import Hypothesis, RankedHypotheses
 from physics_mapper.replay import bag_snapshots

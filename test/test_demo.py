@@ -8,27 +8,34 @@ import pytest
 from conftest import REPO
 from ros_helpers import run_cli
 
-from physics_mapper.scene import load_problem
+from physics_mapper.scene import load_scene
 
 
-def test_demo_starts_the_node_feeds_it_and_prints_the_map() -> None:
-    completed = run_cli("demo", cwd=REPO, timeout=120)
+def test_demo_replays_the_shipped_bag_into_the_node_and_prints_errors_and_the_map() -> None:
+    completed = run_cli("demo", cwd=REPO, timeout=180)
     assert completed.returncode == 0, completed.stdout + completed.stderr
     out = completed.stdout
-    names = load_problem(REPO / "config" / "problems" / "pyramid.yaml").scene.object_names
+    names = load_scene(REPO / "config" / "scenes" / "pyramid.yaml").object_names
     lines = out.splitlines()
-    start = lines.index("configuration on ~/configuration (frame 'world'):")
+    header = next(i for i, line in enumerate(lines) if line.startswith("object ") and "C111" in line)
+    assert lines[header].split() == ["object", "C111", "chosen", "settled"]
+    rows = {line.split()[0]: [float(v) for v in line.split()[1:]] for line in lines[header + 1 : header + 5]}
+    assert list(rows) == [*names, "total"]
+    c111, chosen, _settled = rows["total"]
+    assert chosen < c111, "on the shipped bag, physics lowers the total error"
+    start = lines.index("last map on ~/configuration (frame 'world'):")
     assert [line.split()[0] for line in lines[start + 1 : start + 1 + len(names)]] == list(names)
     assert any(line.startswith("diagnostics: valid C") for line in lines)
     assert "  nodes visited: " in out and "  rejected by collision: " in out
-    assert lines[-1] == "node stopped (exit code 0)"
+    assert "Traceback" not in completed.stderr
 
 
-def test_demo_refuses_a_problem_for_another_scene(tmp_path: Path) -> None:
+def test_demo_refuses_a_bag_for_another_scene() -> None:
     completed = run_cli("demo", "--scene", str(REPO / "config" / "scenes" / "stack.yaml"), cwd=REPO)
     assert completed.returncode == 2
-    assert completed.stderr.strip().startswith("physics-mapper demo: error: config/problems/pyramid.yaml has objects")
-    assert len(completed.stderr.strip().splitlines()) == 1
+    errors = [line for line in completed.stderr.splitlines() if line.startswith("physics-mapper")]
+    assert len(errors) == 1 and errors[0].startswith("physics-mapper demo: error:")
+    assert "Traceback" not in completed.stderr
 
 
 @pytest.mark.parametrize(

@@ -151,7 +151,7 @@ def test_offline_output_bag_holds_the_chosen_poses(offline: tuple[Any, Path, Pat
 def test_replay_without_a_node_says_so(handmade_bag: Path, tmp_path: Path) -> None:
     # A domain of its own, so that no node started by another test can answer.
     domain = str((int(os.environ["ROS_DOMAIN_ID"]) + 101) % 233)
-    command = [sys.executable, "-m", "physics_mapper.cli", "replay", str(handmade_bag), "--scene", str(SCENE)]
+    command = [sys.executable, "-m", "physics_mapper", "replay", str(handmade_bag), "--scene", str(SCENE)]
     completed = subprocess.run(
         [*command, "--wait", "2", "-o", str(tmp_path / "out")],
         env={**os.environ, "ROS_DOMAIN_ID": domain},

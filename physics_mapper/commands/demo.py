@@ -1,51 +1,39 @@
-"""``physics-mapper demo``: start the node, feed it a problem, print the map it publishes, stop it.
+"""``physics-mapper demo``: the main job from nothing, as ``make demo`` runs it.
 
-What ``make demo`` runs. The node is a child process, started as a launch file would;
-this process feeds it (:func:`start_feed`) and listens to ``~/configuration`` and
-``/diagnostics``.
+Starts the node on the pyramid scene (a child process, as a launch file would), replays the
+shipped pyramid bag into it with ``physics-mapper replay --start-node``, prints the error of the
+map against ground truth with and without physics, then the last map the node published and
+the diagnostics that came with it, read back from the recorded bag.
 """
 
 from __future__ import annotations
 
 import argparse
-import subprocess
-import sys
 import tempfile
-import time
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from physics_mapper.cli import EXIT_FAILURE, InputError
-from physics_mapper.scene import Problem, load_problem, load_scene
+from physics_mapper.commands import replay
+from physics_mapper.errors import EXIT_FAILURE
 
 if TYPE_CHECKING:
     from diagnostic_msgs.msg import DiagnosticArray
     from geometry_msgs.msg import PoseArray
-    from rclpy.node import Node
 
-HELP = "start the node on a scene, publish a problem's hypotheses into it, print the map it publishes, stop it"
-#: Rounds of hypotheses per second while the demo waits for the map.
-FEED_RATE_HZ = 2.0
+HELP = "start the node, replay the shipped pyramid bag into it, print the error with and without physics and the map"
+SEARCH_STATUS = "physics_mapper: search"
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--scene", type=Path, default=Path("config/scenes/pyramid.yaml"), help="scene the node loads")
     parser.add_argument(
-        "--problem", type=Path, default=Path("config/problems/pyramid.yaml"), help="hypotheses to publish"
+        "--bag", type=Path, default=Path("test/data/pyramid"), help="bag of hypotheses to replay (with ground truth)"
     )
-    parser.add_argument("--timeout", type=float, default=30.0, metavar="SECONDS", help="give up after (default 30)")
-
-
-def start_feed(node: Node, problem: Problem) -> None:
-    """Publish the problem's hypotheses at :data:`FEED_RATE_HZ` from ``node``'s executor."""
-    from physics_mapper.problem_publisher import ProblemPublisher
-
-    publisher = ProblemPublisher(node, problem)
-    node.create_timer(1.0 / FEED_RATE_HZ, publisher.publish)
+    parser.add_argument("--rate", type=float, default=1.0, help="playback speed factor (default: 1.0)")
 
 
 def _print_map(configuration: PoseArray, diagnostics: DiagnosticArray | None, names: tuple[str, ...]) -> None:
-    print(f"configuration on ~/configuration (frame {configuration.header.frame_id!r}):")
+    print(f"last map on ~/configuration (frame {configuration.header.frame_id!r}):")
     for name, pose in zip(names, configuration.poses, strict=True):
         p, q = pose.position, pose.orientation
         print(
@@ -54,74 +42,54 @@ def _print_map(configuration: PoseArray, diagnostics: DiagnosticArray | None, na
         )
     if diagnostics is None:
         return
-    search = diagnostics.status[0]
+    search = next(status for status in diagnostics.status if status.name == SEARCH_STATUS)
     print(f"diagnostics: {search.message}")
     for value in search.values:
         print(f"  {value.key}: {value.value}")
 
 
-def _listen(
-    problem: Problem, process: subprocess.Popen[str], timeout: float
-) -> tuple[PoseArray | None, DiagnosticArray | None]:
-    """Feed the node and wait for its first configuration and the diagnostics of that tick."""
-    import rclpy
+def _last_map(recorded: Path) -> tuple[PoseArray | None, DiagnosticArray | None]:
+    """The node's last configuration in the recorded bag, and the last search diagnostics up to it."""
     from diagnostic_msgs.msg import DiagnosticArray
     from geometry_msgs.msg import PoseArray
-    from rclpy.utilities import ok
+    from rclpy.serialization import deserialize_message
 
-    from physics_mapper.ros_interface import (
-        CONFIGURATION_TOPIC,
-        DIAGNOSTICS_QOS,
-        DIAGNOSTICS_TOPIC,
-        MAP_QOS,
-        NODE_NAME,
-        output_topic,
-        shutdown_ros,
-    )
+    from physics_mapper.bags import read_bag
+    from physics_mapper.replay import CONFIGURATION_TOPIC, DIAGNOSTICS_TOPIC
 
-    configuration: list[PoseArray] = []
-    diagnostics: list[DiagnosticArray] = []
-
-    def on_diagnostics(msg: DiagnosticArray) -> None:
-        if configuration and msg.status and msg.status[0].name == f"{NODE_NAME}: search":
-            diagnostics.append(msg)
-
-    rclpy.init()
-    try:
-        node = rclpy.create_node("physics_mapper_demo")
-        node.create_subscription(PoseArray, output_topic(CONFIGURATION_TOPIC), configuration.append, MAP_QOS)
-        node.create_subscription(DiagnosticArray, DIAGNOSTICS_TOPIC, on_diagnostics, DIAGNOSTICS_QOS)
-        start_feed(node, problem)
-        end = time.monotonic() + timeout
-        while ok() and not diagnostics and time.monotonic() < end and process.poll() is None:
-            rclpy.spin_once(node, timeout_sec=0.1)
-        node.destroy_node()  # type: ignore[no-untyped-call]
-    finally:
-        shutdown_ros()
-    return (configuration[0] if configuration else None), (diagnostics[0] if diagnostics else None)
+    bag = read_bag(recorded)
+    configurations = bag.on(CONFIGURATION_TOPIC)
+    if not configurations:
+        return None, None
+    last = configurations[-1]
+    configuration = deserialize_message(last.raw, PoseArray)
+    diagnostics = None
+    for message in bag.on(DIAGNOSTICS_TOPIC):
+        array = deserialize_message(message.raw, DiagnosticArray)
+        if message.time_ns <= last.time_ns and any(s.name == SEARCH_STATUS for s in array.status):
+            diagnostics = array
+    return configuration, diagnostics
 
 
 def run(args: argparse.Namespace) -> int:
-    scene = load_scene(args.scene)
-    problem = load_problem(args.problem)
-    if problem.scene.object_names != scene.object_names:
-        raise InputError(
-            f"{args.problem} has objects {', '.join(problem.scene.object_names)}; "
-            f"the scene {args.scene} has {', '.join(scene.object_names)}"
-        )
-    from physics_mapper.launch import start_node, stop_node
+    from physics_mapper.scene import load_scene
 
-    print(f"starting the node on {args.scene}, publishing {args.problem} at {FEED_RATE_HZ:g} Hz", flush=True)
-    with tempfile.TemporaryFile(mode="w+") as log:
-        process = start_node(args.scene.resolve(), output=log)
-        try:
-            configuration, diagnostics = _listen(problem, process, args.timeout)
-        finally:
-            exit_code = stop_node(process)
-        if configuration is None:
-            log.seek(0)
-            print(f"no configuration within {args.timeout:g} s; node output:\n{log.read()}", file=sys.stderr)
-            return EXIT_FAILURE
-    _print_map(configuration, diagnostics, scene.object_names)
-    print(f"node stopped (exit code {exit_code})")
-    return 0 if exit_code == 0 else EXIT_FAILURE
+    names = load_scene(args.scene).object_names
+    with tempfile.TemporaryDirectory(prefix="physics_mapper_demo_") as folder:
+        recorded = Path(folder) / "outputs"
+        parser = argparse.ArgumentParser()
+        replay.add_arguments(parser)
+        replay_args = parser.parse_args(
+            [str(args.bag), "--scene", str(args.scene), "--start-node", "--rate", str(args.rate), "-o", str(recorded)]
+        )
+        print(f"replaying {args.bag} into a node started on {args.scene} (progress on stderr)\n", flush=True)
+        status = replay.run(replay_args)
+        if status != 0:
+            return status
+        configuration, diagnostics = _last_map(recorded)
+    print()
+    if configuration is None:
+        print("the node published no configuration")
+        return EXIT_FAILURE
+    _print_map(configuration, diagnostics, names)
+    return 0

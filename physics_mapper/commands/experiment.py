@@ -8,7 +8,7 @@ import time
 from dataclasses import replace
 from pathlib import Path
 
-from physics_mapper.cli import InputError
+from physics_mapper.errors import InputError
 
 HELP = "reproduce the paper's experiments (Figs. 4, 6, 8 and the peg in a hole) as PNG plots and summaries"
 

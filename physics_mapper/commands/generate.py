@@ -8,6 +8,8 @@ from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from physics_mapper.errors import InputError
+
 if TYPE_CHECKING:
     import numpy as np
 
@@ -60,7 +62,6 @@ def run(args: argparse.Namespace) -> int:
     import numpy as np
 
     from physics_mapper.bags import BagError, BagWriter
-    from physics_mapper.cli import InputError
     from physics_mapper.particle_filter import settle_ground_truth
     from physics_mapper.scene import load_scene
 
@@ -87,7 +88,6 @@ def run(args: argparse.Namespace) -> int:
 
 def _settings(args: argparse.Namespace) -> TrackerSettings:
     """Tracker settings from the options given; InputError for values out of range."""
-    from physics_mapper.cli import InputError
     from physics_mapper.particle_filter import TrackerSettings, settings_problem
 
     given = {setting: getattr(args, option) for setting, option in _SETTING_OPTIONS.items()}

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from physics_mapper.cli import InputError
+from physics_mapper.errors import InputError
 from physics_mapper.scene import load_problem
 
 #: Seconds to keep the process alive after the last round, so that it is delivered.

@@ -13,7 +13,7 @@ from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from physics_mapper.cli import EXIT_FAILURE, InputError
+from physics_mapper.errors import EXIT_FAILURE, InputError
 
 if TYPE_CHECKING:
     from physics_mapper.bags import Bag

@@ -7,7 +7,7 @@ import json
 from dataclasses import replace
 from pathlib import Path
 
-from physics_mapper.cli import InputError
+from physics_mapper.errors import InputError
 from physics_mapper.scene import load_problem, search_params_problem
 
 HELP = "search a problem file (scene + hypotheses) for the best physically valid configuration"
