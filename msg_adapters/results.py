@@ -7,7 +7,7 @@ from std_msgs.msg import ColorRGBA, Header
 from visualization_msgs.msg import Marker, MarkerArray
 
 from msg_adapters.hypotheses import pose_array_msg, pose_msg, stamp_from_seconds
-from physics_mapper.geometry import Pose, pose_displacement
+from physics_mapper.geometry import Pose
 from physics_mapper.scene import Box, Cylinder, ObjectModel, Scene, Sphere
 from physics_mapper.search import SearchResult
 
@@ -27,15 +27,6 @@ def configuration_msgs(result: SearchResult, *, frame_id: str, stamp: float) -> 
     return (
         pose_array_msg(result.poses, frame_id=frame_id, stamp=stamp),
         pose_array_msg(result.settled_poses, frame_id=frame_id, stamp=stamp),
-    )
-
-
-def object_jitters(result: SearchResult, angular_weight: float) -> tuple[float, ...]:
-    """J_i of each object: displacement from chosen to settled pose (m + angular_weight x rad)."""
-    if result.poses is None or result.settled_poses is None:
-        return ()
-    return tuple(
-        pose_displacement(a, b, angular_weight) for a, b in zip(result.poses, result.settled_poses, strict=True)
     )
 
 
@@ -66,17 +57,16 @@ def _top(model: ObjectModel) -> float:
     return max(shape.length / 2.0, shape.radius)
 
 
-def markers_msg(result: SearchResult, scene: Scene, *, angular_weight: float, stamp: float) -> MarkerArray:
+def markers_msg(result: SearchResult, scene: Scene, *, stamp: float) -> MarkerArray:
     """One marker per object in its true shape at its chosen pose, plus a text label ``name J=...``.
 
-    ``angular_weight`` (metres per radian) is the search's, for each object's J_i.
-
-    Valid configurations are green, a fallback orange; empty if nothing was chosen.
+    J is the object's jitter J_i. Valid configurations are green, a fallback orange; empty if
+    nothing was chosen.
     """
-    if result.poses is None:
+    if result.poses is None or result.object_jitters is None:
         return MarkerArray()
     header = Header(frame_id=scene.frame_id, stamp=stamp_from_seconds(stamp))
-    jitters = object_jitters(result, angular_weight)
+    jitters = result.object_jitters
     markers = []
     for index, (model, pose) in enumerate(zip(scene.objects, result.poses, strict=True)):
         shape = Marker(header=header, ns=SHAPE_NAMESPACE, id=index, action=Marker.ADD, pose=pose_msg(pose))

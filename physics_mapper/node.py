@@ -214,8 +214,7 @@ class PhysicsMapperNode(Node):
             if configurations is not None:
                 self._configuration_pub.publish(configurations[0])
                 self._settled_pub.publish(configurations[1])
-                angular_weight = report.settings.search.angular_weight
-                self._markers_pub.publish(markers_msg(result, scene, angular_weight=angular_weight, stamp=stamp))
+                self._markers_pub.publish(markers_msg(result, scene, stamp=stamp))
         diagnostics = diagnostics_msg(
             report, node_name=self.get_name(), hardware_id=self.get_fully_qualified_name(), stamp=now
         )

@@ -51,6 +51,9 @@ def result_dict(result: SearchResult, names: tuple[str, ...]) -> dict[str, Any]:
         "fallback_used": result.fallback_used,
         "poses": _poses(result.poses, names),
         "settled_poses": _poses(result.settled_poses, names),
+        "object_jitters": None
+        if result.object_jitters is None
+        else dict(zip(names, result.object_jitters, strict=True)),
         "stats": stats,
         "trace": [trace_entry_dict(entry) for entry in result.trace],
     }

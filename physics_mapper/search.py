@@ -90,7 +90,7 @@ class SearchResult:
     ``valid`` says whether ``code`` passed both rules. When no configuration is valid,
     ``code`` is the fallback's (the collision-free one of highest p(C), when the fallback
     is ``settled``) or None; ``poses`` are the chosen hypotheses, ``settled_poses`` the
-    same objects after settling.
+    same objects after settling, ``object_jitters`` each object's J_i (their sum is ``jitter``).
     """
 
     valid: bool
@@ -99,6 +99,7 @@ class SearchResult:
     jitter: float | None
     poses: tuple[Pose, ...] | None
     settled_poses: tuple[Pose, ...] | None
+    object_jitters: tuple[float, ...] | None
     fallback_used: bool
     stats: SearchStats
     trace: tuple[TraceEntry, ...]
@@ -235,7 +236,7 @@ class BranchAndBound:
             chosen = self._first_collision_free if self.params.fallback == "settled" else None
         trace = tuple(self._trace)
         if chosen is None:
-            return SearchResult(False, None, None, None, None, None, False, replace(self.stats), trace)
+            return SearchResult(False, None, None, None, None, None, None, False, replace(self.stats), trace)
         return SearchResult(
             valid=valid,
             code=chosen.code,
@@ -243,6 +244,7 @@ class BranchAndBound:
             jitter=chosen.settling.total_jitter,
             poses=self.poses(chosen.code),
             settled_poses=chosen.settling.settled_poses,
+            object_jitters=chosen.settling.jitters,
             fallback_used=not valid,
             stats=replace(self.stats),
             trace=trace,

@@ -21,7 +21,7 @@ from msg_adapters.hypotheses import (
     seconds_from_stamp,
     stamp_from_seconds,
 )
-from msg_adapters.results import LABEL_NAMESPACE, SHAPE_NAMESPACE, configuration_msgs, markers_msg, object_jitters
+from msg_adapters.results import LABEL_NAMESPACE, SHAPE_NAMESPACE, configuration_msgs, markers_msg
 from physics_mapper.geometry import Pose, make_pose
 from physics_mapper.hypotheses import Hypothesis, RankedHypotheses
 from physics_mapper.inputs import InputSettings, Level, ObjectInputs, rank
@@ -175,7 +175,7 @@ def test_markers_show_each_objects_true_shape_and_a_label_with_its_jitter(mixed_
     from physics_mapper.search import SearchResult
 
     assert isinstance(mixed_result, SearchResult)
-    markers = markers_msg(mixed_result, MIXED, angular_weight=0.1, stamp=4.5).markers
+    markers = markers_msg(mixed_result, MIXED, stamp=4.5).markers
     shapes = [m for m in markers if m.ns == SHAPE_NAMESPACE]
     labels = [m for m in markers if m.ns == LABEL_NAMESPACE]
     assert len(shapes) == len(labels) == 3
@@ -184,7 +184,8 @@ def test_markers_show_each_objects_true_shape_and_a_label_with_its_jitter(mixed_
     assert [m.id for m in shapes] == [0, 1, 2]
     assert all(m.header.frame_id == "table" for m in markers)
     assert [(m.pose.position.x, m.pose.position.z) for m in shapes] == [(p.position[0], p.position[2]) for p in RESTING]
-    jitters = object_jitters(mixed_result, 0.1)
+    jitters = mixed_result.object_jitters
+    assert jitters is not None
     assert [m.text for m in labels] == [
         f"{n}\nJ={j:.4f}" for n, j in zip(("crate", "ball", "peg"), jitters, strict=True)
     ]
@@ -200,7 +201,7 @@ def test_nothing_chosen_gives_no_configuration_and_no_markers() -> None:
         result = BranchAndBound(checker, floating, MIXED.search).run(None)
     assert result.code is None
     assert configuration_msgs(result, frame_id="table", stamp=0.0) is None
-    assert markers_msg(result, MIXED, angular_weight=0.1, stamp=0.0).markers == []
+    assert markers_msg(result, MIXED, stamp=0.0).markers == []
 
 
 # --- diagnostics ---------------------------------------------------------------------------------

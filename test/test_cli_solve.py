@@ -13,7 +13,18 @@ from conftest import PROBLEMS
 from core_builders import FIG4_ORDER, cli, ground_truth, shipped_scene, solve_json
 
 SHIPPED = ("stack", "pyramid", "peg_in_hole", "sphere_groove")
-RESULT_KEYS = {"valid", "code", "probability", "jitter", "fallback_used", "poses", "settled_poses", "stats", "trace"}
+RESULT_KEYS = {
+    "valid",
+    "code",
+    "probability",
+    "jitter",
+    "fallback_used",
+    "poses",
+    "settled_poses",
+    "object_jitters",
+    "stats",
+    "trace",
+}
 
 
 @functools.cache
@@ -75,6 +86,7 @@ def test_pyramid_c111_collides_and_a_later_code_is_valid() -> None:
     assert result["valid"] and result["code"] == [5, 4, 4]
     assert result["jitter"] < shipped_scene("pyramid.yaml").search.jitter_threshold
     assert result["jitter"] == min(entry["jitter"] for entry in result["trace"] if entry["outcome"] == "valid")
+    assert sum(result["object_jitters"].values()) == pytest.approx(result["jitter"])
 
 
 def test_peg_poses_in_the_walls_are_rejected_and_the_dropped_peg_ends_in_the_hole() -> None:
