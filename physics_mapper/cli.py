@@ -15,7 +15,7 @@ from physics_mapper.errors import EXIT_BAD_INPUT, InputError
 from physics_mapper.scene import SceneError
 
 #: Subcommand name -> module under ``physics_mapper.commands``.
-COMMANDS = ("solve", "generate", "replay", "node", "publish", "demo", "experiment")
+COMMANDS = ("solve", "generate", "replay", "node", "publish", "demo", "experiment", "bench")
 
 
 def _command(name: str) -> ModuleType:
