@@ -28,6 +28,8 @@ from rosbags.typesys import Stores, get_typestore
 
 from physics_mapper.geometry import Pose, Quaternion, Vector3, make_pose
 from physics_mapper.hypotheses import RankedHypotheses
+from physics_mapper.topics import GROUND_TRUTH_TOPIC, poses_topic, recorded
+from physics_mapper.topics import weights_topic as node_weights_topic
 
 Storage = Literal["mcap", "sqlite3"]
 _PLUGINS = {"mcap": StoragePlugin.MCAP, "sqlite3": StoragePlugin.SQLITE3}
@@ -36,7 +38,6 @@ BAG_VERSION: Final = 9
 
 POSE_ARRAY = "geometry_msgs/msg/PoseArray"
 WEIGHTS = "std_msgs/msg/Float64MultiArray"
-GROUND_TRUTH_TOPIC = "/ground_truth"
 
 TYPESTORE = get_typestore(Stores.ROS2_JAZZY)
 _Time = TYPESTORE.types["builtin_interfaces/msg/Time"]
@@ -58,17 +59,12 @@ class BagError(ValueError):
 
 def hypotheses_topic(object_name: str) -> str:
     """The node's input topic for an object's hypotheses, as recorded."""
-    return f"/hypotheses/{object_name}"
+    return recorded(poses_topic(object_name))
 
 
 def weights_topic(object_name: str) -> str:
     """The node's input topic for an object's hypothesis weights, as recorded."""
-    return f"/hypotheses/{object_name}/weights"
-
-
-def absolute_topic(topic: str) -> str:
-    """``hypotheses/a`` and ``/hypotheses/a`` name the same topic for a node in the root namespace."""
-    return "/" + topic.lstrip("/")
+    return recorded(node_weights_topic(object_name))
 
 
 @dataclass(frozen=True)
@@ -222,9 +218,9 @@ def read_bag(path: str | Path) -> Bag:
         raise BagError(f"{path}: no such bag")
     try:
         with Reader(path) as reader:
-            topics = {absolute_topic(c.topic): c.msgtype for c in reader.connections}
+            topics = {recorded(c.topic): c.msgtype for c in reader.connections}
             messages = [
-                BagMessage(absolute_topic(connection.topic), connection.msgtype, time_ns, bytes(raw))
+                BagMessage(recorded(connection.topic), connection.msgtype, time_ns, bytes(raw))
                 for connection, time_ns, raw in reader.messages()
             ]
     except Exception as error:

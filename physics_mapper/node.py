@@ -4,7 +4,7 @@ A thin shell: subscriptions hand messages to ``msg_adapters`` and the ROS-free
 :class:`~physics_mapper.mapper.Mapper`; a timer at ``rate_hz`` runs one tick and
 publishes what it found. Run it with ``ros2 run physics_mapper node --ros-args -p
 scene_file:=<path>`` or, without a ROS installation, ``physics-mapper node --ros-args ...``.
-Topic names and QoS are in :mod:`physics_mapper.ros_interface`.
+Topic names are in :mod:`physics_mapper.topics`, QoS in :mod:`physics_mapper.ros_interface`.
 """
 
 from __future__ import annotations
@@ -32,20 +32,17 @@ from msg_adapters.results import configuration_msgs, markers_msg
 from physics_mapper.errors import EXIT_BAD_INPUT, InputError
 from physics_mapper.inputs import InputSettings
 from physics_mapper.mapper import Mapper, MapperSettings, TickReport, settings_problem
-from physics_mapper.ros_interface import (
+from physics_mapper.ros_interface import DIAGNOSTICS_QOS, INPUT_QOS, MAP_QOS, shutdown_ros
+from physics_mapper.scene import FALLBACKS, Fallback, SceneError, SearchParams, load_scene
+from physics_mapper.topics import (
     CONFIGURATION_TOPIC,
-    DIAGNOSTICS_QOS,
     DIAGNOSTICS_TOPIC,
-    INPUT_QOS,
-    MAP_QOS,
     MARKERS_TOPIC,
     NODE_NAME,
     SETTLED_TOPIC,
     poses_topic,
-    shutdown_ros,
     weights_topic,
 )
-from physics_mapper.scene import FALLBACKS, Fallback, SceneError, SearchParams, load_scene
 
 PACKAGE_URL = "package://"
 PACKAGE = "physics_mapper"

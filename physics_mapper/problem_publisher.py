@@ -17,8 +17,8 @@ from rclpy.utilities import ok
 from std_msgs.msg import Float64MultiArray
 
 from msg_adapters.hypotheses import hypotheses_msgs
-from physics_mapper.ros_interface import poses_topic, weights_topic
 from physics_mapper.scene import Problem
+from physics_mapper.topics import poses_topic, weights_topic
 
 QUEUE_DEPTH = 10
 

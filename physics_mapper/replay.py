@@ -23,8 +23,8 @@ from typing import Any
 
 import numpy as np
 
+from physics_mapper import topics
 from physics_mapper.bags import (
-    GROUND_TRUTH_TOPIC,
     NANOSECONDS,
     POSE_ARRAY,
     Bag,
@@ -50,9 +50,9 @@ BURST_GAP_NS = 50_000_000
 #: A burst is cut after this long (ns), like a node ticking at its default 2 Hz.
 MAX_BURST_NS = 500_000_000
 #: The node's outputs (node ``physics_mapper`` in the root namespace), as recorded.
-CONFIGURATION_TOPIC = "/physics_mapper/configuration"
-SETTLED_TOPIC = "/physics_mapper/settled_configuration"
-DIAGNOSTICS_TOPIC = "/diagnostics"
+CONFIGURATION_TOPIC = topics.recorded(topics.CONFIGURATION_TOPIC)
+SETTLED_TOPIC = topics.recorded(topics.SETTLED_TOPIC)
+DIAGNOSTICS_TOPIC = topics.recorded(topics.DIAGNOSTICS_TOPIC)
 #: A published pose is the hypothesis it lies this close to (metres + radians); both went through make_pose.
 SAME_POSE = 1e-9
 
@@ -101,7 +101,7 @@ def _bursts(messages: Sequence[BagMessage]) -> Iterator[list[BagMessage]]:
 def _ground_truth(message: BagMessage, scene: Scene) -> tuple[Pose, ...]:
     poses = pose_array_from_cdr(message.raw).checked_poses()
     if len(poses) != len(scene.objects):
-        raise BagError(f"{GROUND_TRUTH_TOPIC} has {len(poses)} poses for {len(scene.objects)} scene objects")
+        raise BagError(f"{topics.GROUND_TRUTH_TOPIC} has {len(poses)} poses for {len(scene.objects)} scene objects")
     return poses
 
 
@@ -137,7 +137,7 @@ def bag_snapshots(bag: Bag, scene: Scene, settings: InputSettings | None = None)
                 tracker.add_weights(
                     weights_of[message.topic], check_weights(weights_from_cdr(message.raw), received=received)
                 )
-            elif message.topic == GROUND_TRUTH_TOPIC:
+            elif message.topic == topics.GROUND_TRUTH_TOPIC:
                 truth = _ground_truth(message, scene)
         snapshot = tracker.snapshot(burst[-1].time_ns / NANOSECONDS, settings)
         hypotheses, stamp = snapshot.hypotheses, snapshot.stamp

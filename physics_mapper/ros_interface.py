@@ -1,4 +1,4 @@
-"""The node's ROS interface in one place: its name, topic names and QoS profiles.
+"""The node's QoS profiles and rclpy helpers (topic names are in :mod:`physics_mapper.topics`).
 
 Light to import (no physics): the node, the publisher, the demo and the tests share it.
 
@@ -14,8 +14,6 @@ import rclpy
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.utilities import ok
 
-NODE_NAME = "physics_mapper"
-
 # QoSProfile.__init__ is unannotated in rclpy 7.
 INPUT_QOS = QoSProfile(  # type: ignore[no-untyped-call]
     depth=10, reliability=ReliabilityPolicy.BEST_EFFORT, durability=DurabilityPolicy.VOLATILE
@@ -24,29 +22,6 @@ MAP_QOS = QoSProfile(  # type: ignore[no-untyped-call]
     depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL
 )
 DIAGNOSTICS_QOS = QoSProfile(depth=10)  # type: ignore[no-untyped-call]
-
-# Outputs, relative to the node (``~``) or absolute.
-CONFIGURATION_TOPIC = "~/configuration"
-SETTLED_TOPIC = "~/settled_configuration"
-MARKERS_TOPIC = "~/markers"
-DIAGNOSTICS_TOPIC = "/diagnostics"
-
-
-def poses_topic(object_name: str) -> str:
-    """The object's PoseArray input topic, relative to the node's namespace."""
-    return f"hypotheses/{object_name}"
-
-
-def weights_topic(object_name: str) -> str:
-    """The object's weights input topic, relative to the node's namespace."""
-    return f"hypotheses/{object_name}/weights"
-
-
-def output_topic(topic: str, namespace: str = "/") -> str:
-    """An output topic's full name for a node named :data:`NODE_NAME` in ``namespace``."""
-    if not topic.startswith("~/"):
-        return topic
-    return f"{namespace.rstrip('/')}/{NODE_NAME}/{topic[2:]}"
 
 
 def shutdown_ros() -> None:

@@ -25,11 +25,10 @@ from std_msgs.msg import Float64MultiArray
 from visualization_msgs.msg import MarkerArray
 
 from physics_mapper.launch import start_node, stop_node
-from physics_mapper.ros_interface import (
+from physics_mapper.ros_interface import DIAGNOSTICS_QOS, MAP_QOS
+from physics_mapper.topics import (
     CONFIGURATION_TOPIC,
-    DIAGNOSTICS_QOS,
     DIAGNOSTICS_TOPIC,
-    MAP_QOS,
     MARKERS_TOPIC,
     NODE_NAME,
     SETTLED_TOPIC,

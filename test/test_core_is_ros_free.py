@@ -17,6 +17,8 @@ CORE_MODULES = (
     "physics_mapper.search",
     "physics_mapper.report",
     "physics_mapper.errors",
+    "physics_mapper.topics",
+    "physics_mapper.bench",
     "physics_mapper.inputs",
     "physics_mapper.mapper",
     "physics_mapper.particle_filter",

@@ -23,7 +23,7 @@ from ros_helpers import NodeProcess, run_cli
 from rosbags.rosbag2 import Reader, StoragePlugin, Writer
 from rosbags.typesys import Stores, get_typestore
 
-from physics_mapper import bags, replay, ros_interface
+from physics_mapper import bags, replay, topics
 from physics_mapper.geometry import Pose
 from physics_mapper.scene import load_scene
 
@@ -115,13 +115,13 @@ def recorded(path: Path) -> dict[str, list[Any]]:
     return messages
 
 
-def test_bag_and_node_agree_on_topic_names() -> None:
-    """The recorder's and the bags' topic names are those the node resolves (root namespace)."""
-    assert ros_interface.output_topic(ros_interface.CONFIGURATION_TOPIC) == replay.CONFIGURATION_TOPIC
-    assert ros_interface.output_topic(ros_interface.SETTLED_TOPIC) == replay.SETTLED_TOPIC
-    assert replay.DIAGNOSTICS_TOPIC == ros_interface.DIAGNOSTICS_TOPIC
-    assert bags.hypotheses_topic("a") == "/" + ros_interface.poses_topic("a")
-    assert bags.weights_topic("a") == "/" + ros_interface.weights_topic("a")
+def test_recorded_topic_names_are_those_the_node_resolves_in_the_root_namespace() -> None:
+    assert topics.recorded("hypotheses/a") == topics.recorded("/hypotheses/a") == "/hypotheses/a"
+    assert bags.hypotheses_topic("a") == "/hypotheses/a" and bags.weights_topic("a") == "/hypotheses/a/weights"
+    assert replay.CONFIGURATION_TOPIC == "/physics_mapper/configuration"
+    assert replay.SETTLED_TOPIC == "/physics_mapper/settled_configuration"
+    assert replay.DIAGNOSTICS_TOPIC == "/diagnostics"
+    assert topics.output_topic(topics.CONFIGURATION_TOPIC, "/robot1") == "/robot1/physics_mapper/configuration"
 
 
 @pytest.fixture(scope="module")

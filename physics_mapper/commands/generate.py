@@ -118,8 +118,9 @@ def _write_run(
     Iteration k of run r is stamped START_TIME_NS + (r * iterations + k) * period; within an
     iteration the messages get distinct, increasing bag times so their order is unambiguous.
     """
-    from physics_mapper.bags import GROUND_TRUTH_TOPIC, NANOSECONDS, POSE_ARRAY, pose_array_cdr
+    from physics_mapper.bags import NANOSECONDS, POSE_ARRAY, pose_array_cdr
     from physics_mapper.particle_filter import track
+    from physics_mapper.topics import GROUND_TRUTH_TOPIC
 
     period_ns = round(period * NANOSECONDS)
     for iteration, snapshot in enumerate(track(scene, truth, settings, rng)):
