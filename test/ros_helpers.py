@@ -136,8 +136,8 @@ class RosClient:
 
     def close(self) -> None:
         self.executor.shutdown()
-        self.node.destroy_node()
-        rclpy.try_shutdown(context=self.context)
+        self.node.destroy_node()  # type: ignore[no-untyped-call]  # rclpy 7 leaves it unannotated
+        rclpy.try_shutdown(context=self.context)  # type: ignore[attr-defined]  # exported, not re-declared
 
     def _publisher(self, msg_type: type, topic: str) -> Any:
         if topic not in self._publishers:
@@ -192,9 +192,9 @@ class RosClient:
     def set_parameter(self, name: str, value: object) -> tuple[bool, str]:
         """Set one of the node's parameters through its SetParameters service: (successful, reason)."""
         self.wait_for(lambda: self.parameters.wait_for_services(timeout_sec=0.1), what="parameter services")
-        future = self.parameters.set_parameters([Parameter(name, value=value)])
+        future = self.parameters.set_parameters([Parameter(name, value=value)])  # type: ignore[no-untyped-call]
         self.wait_for(future.done, what=f"set_parameters {name}")
-        result = future.result().results[0]
+        result = future.result().results[0]  # type: ignore[no-untyped-call]
         return bool(result.successful), str(result.reason)
 
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import replace
+from typing import Any
 
 import numpy as np
 import pytest
@@ -121,7 +122,7 @@ def test_sphere_ground_truth_rolls_into_the_groove() -> None:
     ],
 )
 def test_bad_settings_are_refused(
-    pyramid: Scene, pyramid_truth: tuple[Pose, ...], change: dict[str, float], message: str
+    pyramid: Scene, pyramid_truth: tuple[Pose, ...], change: dict[str, Any], message: str
 ) -> None:
     settings = replace(TrackerSettings(), **change)
     problem = settings_problem(settings)
