@@ -20,7 +20,8 @@ class Hypothesis:
 def weights_problem(weights: Sequence[float], expected_count: int) -> str | None:
     """Say what makes a weight vector unusable for ``expected_count`` poses, or return None.
 
-    Refused: wrong length, a non-finite or negative weight, or weights that sum to zero.
+    Refused: wrong length, a non-finite or negative weight, or weights that sum to zero or
+    overflow to infinity.
     """
     if len(weights) != expected_count:
         return f"{len(weights)} weights for {expected_count} poses"
@@ -28,8 +29,11 @@ def weights_problem(weights: Sequence[float], expected_count: int) -> str | None
         return "non-finite weight (NaN or Inf)"
     if any(w < 0.0 for w in weights):
         return "negative weight"
-    if sum(weights) <= 0.0:
+    total = sum(weights)
+    if total <= 0.0:
         return "weights sum to zero"
+    if not math.isfinite(total):
+        return "weights sum to infinity (too large to normalise)"
     return None
 
 

@@ -230,7 +230,12 @@ class PhysicsMapperNode(Node):
 
 def main(args: Sequence[str] | None = None) -> int:
     """Run the node until SIGINT or SIGTERM (exit 0); bad scene or parameters: one error line, exit 2."""
-    rclpy.init(args=list(sys.argv if args is None else args))
+    try:
+        rclpy.init(args=list(sys.argv if args is None else args))
+    except RuntimeError as error:  # rclpy's RCLError: malformed --ros-args, unreadable --params-file
+        reason = str(error).split(" Error: ")[0].removeprefix("failed to initialize rcl: ")
+        print(f"physics_mapper node: error: {reason}", file=sys.stderr)
+        return EXIT_BAD_INPUT
     node = None
     try:
         node = PhysicsMapperNode()

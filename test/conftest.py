@@ -23,6 +23,7 @@ def ros_environment() -> None:
 
     Set in os.environ so that child processes (the node under test) inherit it.
     """
-    os.environ.setdefault("ROS_DOMAIN_ID", str(_domain_id()))
+    # Unconditional: a domain set in the shell would let this run talk to other runs or robots.
+    os.environ["ROS_DOMAIN_ID"] = str(_domain_id())
     os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
     os.environ.setdefault("RMW_IMPLEMENTATION", "rmw_fastrtps_cpp")

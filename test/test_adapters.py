@@ -112,6 +112,7 @@ def test_a_wrong_frame_and_an_empty_array_are_refused() -> None:
     [
         ([0.2, -0.1], "negative weight"),
         ([0.0, 0.0], "weights sum to zero"),
+        ([1e308, 1e308], "weights sum to infinity (too large to normalise)"),
         ([0.5, math.nan], "non-finite weight (NaN or Inf)"),
         ([0.5, math.inf], "non-finite weight (NaN or Inf)"),
         ([], "empty weights array"),
