@@ -21,6 +21,10 @@ from physics_mapper.search import BranchAndBound, SearchResult
 DEADLINE_SLACK = 0.05
 
 
+#: Ticks per second unless the node's ``rate_hz`` parameter says otherwise.
+DEFAULT_RATE_HZ = 2.0
+
+
 @dataclass(frozen=True)
 class MapperSettings:
     """Everything a tick depends on; the node builds it from its parameters at each tick.
@@ -30,7 +34,7 @@ class MapperSettings:
 
     search: SearchParams
     inputs: InputSettings
-    rate_hz: float
+    rate_hz: float = DEFAULT_RATE_HZ
 
 
 def settings_problem(settings: MapperSettings) -> str | None:

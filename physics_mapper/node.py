@@ -31,7 +31,7 @@ from msg_adapters.hypotheses import received_poses, received_weights
 from msg_adapters.results import configuration_msgs, markers_msg
 from physics_mapper.errors import EXIT_BAD_INPUT, InputError
 from physics_mapper.inputs import InputSettings
-from physics_mapper.mapper import Mapper, MapperSettings, TickReport, settings_problem
+from physics_mapper.mapper import DEFAULT_RATE_HZ, Mapper, MapperSettings, TickReport, settings_problem
 from physics_mapper.ros_interface import DIAGNOSTICS_QOS, INPUT_QOS, MAP_QOS, shutdown_ros
 from physics_mapper.scene import FALLBACKS, Fallback, SceneError, SearchParams, load_scene
 from physics_mapper.topics import (
@@ -61,7 +61,9 @@ class ParameterSpec:
 
 
 PARAMETERS = (
-    ParameterSpec("rate_hz", "ticks per second; each tick snapshots the inputs and searches", 2.0, (0.01, 100.0)),
+    ParameterSpec(
+        "rate_hz", "ticks per second; each tick snapshots the inputs and searches", DEFAULT_RATE_HZ, (0.01, 100.0)
+    ),
     ParameterSpec("deadline", "wall-clock seconds of search per tick; must be < 1/rate_hz", None, (0.001, 60.0)),
     ParameterSpec("probability_threshold", "T: nodes with p(C) < T are checked but not expanded", None, (0.0, 1.0)),
     ParameterSpec("penetration_threshold", "deepest allowed overlap between two bodies, metres", None, (0.0, 1.0)),

@@ -17,6 +17,8 @@ import yaml
 from conftest import PROBLEMS, SCENES
 from core_builders import cli
 
+from physics_mapper.inputs import InputSettings
+from physics_mapper.mapper import MapperSettings, settings_problem
 from physics_mapper.scene import SceneError, load_problem, load_scene
 
 Key = tuple[str | int, ...]
@@ -209,3 +211,10 @@ def test_problem_search_overrides_merge_with_the_scene_and_are_validated(tmp_pat
     with pytest.raises(SceneError) as raised:
         load_problem(path)
     assert (raised.value.key, raised.value.problem) == ("search.angular_weight", "must be at least 0, got -0.1")
+
+
+@pytest.mark.parametrize("path", sorted(SCENES.glob("*.yaml")), ids=lambda p: p.stem)
+def test_every_shipped_scene_starts_the_node_at_its_default_rate(path: Path) -> None:
+    """The node refuses a scene whose deadline does not fit in one tick at the default rate_hz."""
+    scene = load_scene(path)
+    assert settings_problem(MapperSettings(scene.search, InputSettings())) is None
