@@ -43,7 +43,11 @@ def _search_level_and_message(report: TickReport) -> tuple[Level, str]:
     if result.code is not None:
         return Level.WARN, f"no valid configuration; fallback settled {code_text(result.code)}"
     ending = "" if result.stats.exhausted else " yet"
-    return Level.WARN, f"no valid configuration found{ending} (fallback: none, nothing published)"
+    if report.settings.search.fallback == "settled":
+        why = "fallback: settled, but no collision-free configuration to settle"
+    else:
+        why = "fallback: none"
+    return Level.WARN, f"no valid configuration found{ending} ({why}; nothing published)"
 
 
 def search_values(report: TickReport) -> list[tuple[str, str]]:

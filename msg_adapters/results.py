@@ -58,17 +58,19 @@ def _top(model: ObjectModel) -> float:
 
 
 def markers_msg(result: SearchResult, scene: Scene, *, stamp: float) -> MarkerArray:
-    """One marker per object in its true shape at its chosen pose, plus a text label ``name J=...``.
+    """One marker per object in its true shape, plus a text label ``name J=...``.
 
-    J is the object's jitter J_i. Valid configurations are green, a fallback orange; empty if
+    A valid configuration is drawn green at its chosen poses; a fallback orange at its settled
+    poses, the corrected estimate (SPEC section 2). J is the object's jitter J_i. Empty if
     nothing was chosen.
     """
-    if result.poses is None or result.object_jitters is None:
+    if result.poses is None or result.settled_poses is None or result.object_jitters is None:
         return MarkerArray()
+    poses = result.settled_poses if result.fallback_used else result.poses
     header = Header(frame_id=scene.frame_id, stamp=stamp_from_seconds(stamp))
     jitters = result.object_jitters
     markers = []
-    for index, (model, pose) in enumerate(zip(scene.objects, result.poses, strict=True)):
+    for index, (model, pose) in enumerate(zip(scene.objects, poses, strict=True)):
         shape = Marker(header=header, ns=SHAPE_NAMESPACE, id=index, action=Marker.ADD, pose=pose_msg(pose))
         _shape(shape, model)
         shape.color = VALID_COLOR if result.valid else FALLBACK_COLOR

@@ -8,7 +8,7 @@ comes from the returned :class:`TickReport`.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from physics_mapper.inputs import InputSettings, InputTracker, Snapshot
 from physics_mapper.physics import PhysicsChecker
@@ -70,6 +70,15 @@ class TickReport:
     settings: MapperSettings
 
 
+def _continuable(running: SearchParams, wanted: SearchParams) -> bool:
+    """Whether a search under ``running`` may go on under ``wanted``.
+
+    The deadline and the fallback change neither which nodes are visited nor their outcomes,
+    so changing them keeps the search's progress; any other parameter starts a new search.
+    """
+    return replace(running, deadline=wanted.deadline, fallback=wanted.fallback) == wanted
+
+
 class Mapper:
     """A scene's physics world, its inputs and the search in progress."""
 
@@ -89,9 +98,12 @@ class Mapper:
         if hypotheses is None:
             return TickReport(snapshot, None, 0.0, False, settings)
         search = self._search
-        resumed = search is not None and search.hypotheses == hypotheses and search.params == settings.search
+        resumed = (
+            search is not None and search.hypotheses == hypotheses and _continuable(search.params, settings.search)
+        )
         if search is None or not resumed:
             search = self._search = BranchAndBound(self._checker, hypotheses, settings.search)
+        search.params = settings.search
         started = time.monotonic()
         result = search.run(settings.search.deadline)
         return TickReport(snapshot, result, time.monotonic() - started, resumed, settings)

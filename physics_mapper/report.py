@@ -6,6 +6,7 @@ from dataclasses import asdict
 from typing import Any
 
 from physics_mapper.geometry import Pose
+from physics_mapper.scene import Fallback
 from physics_mapper.search import Code, SearchResult, TraceEntry
 
 
@@ -92,19 +93,17 @@ def trace_tree(trace: tuple[TraceEntry, ...]) -> str:
     return "\n".join(lines)
 
 
-def summary(result: SearchResult) -> str:
-    """A few lines: chosen code, p(C), J, validity, and how the search went."""
+def summary(result: SearchResult, fallback: Fallback) -> str:
+    """A few lines: chosen code, p(C), J, validity, and how the search went (``fallback``: the search's)."""
     stats = result.stats
     if result.code is None:
-        head = "no valid configuration (fallback: none)"
+        reason = "no collision-free configuration to settle" if fallback == "settled" else "nothing reported"
+        head = f"no valid configuration (fallback: {fallback}, {reason})"
     elif result.valid:
         head = f"valid {code_text(result.code)}  p={result.probability:.4g}  J={result.jitter:.4f}"
     else:
         head = f"no valid configuration; fallback settled {code_text(result.code)}  p={result.probability:.4g}"
-    if stats.stopped_at_deadline:
-        ending = "stopped at the deadline"
-    else:
-        ending = "all nodes visited" if stats.exhausted else "paused"
+    ending = "stopped at the deadline" if stats.stopped_at_deadline else "all nodes visited"
     return (
         f"{head}\n"
         f"visited {stats.visited} (expanded {stats.expanded}, bounded {stats.bounded}); "

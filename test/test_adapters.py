@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 
 import pytest
-from conftest import SCENES
+from conftest import PROBLEMS, SCENES
 from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PoseArray
 from ros_helpers import SPEC_DIAGNOSTIC_KEYS
@@ -21,13 +21,24 @@ from msg_adapters.hypotheses import (
     seconds_from_stamp,
     stamp_from_seconds,
 )
-from msg_adapters.results import LABEL_NAMESPACE, SHAPE_NAMESPACE, configuration_msgs, markers_msg
+from msg_adapters.results import FALLBACK_COLOR, LABEL_NAMESPACE, SHAPE_NAMESPACE, configuration_msgs, markers_msg
 from physics_mapper.geometry import Pose, make_pose
 from physics_mapper.hypotheses import Hypothesis, RankedHypotheses
 from physics_mapper.inputs import InputSettings, Level, ObjectInputs, rank
 from physics_mapper.mapper import Mapper, MapperSettings
 from physics_mapper.physics import PhysicsChecker
-from physics_mapper.scene import Box, Cylinder, ObjectModel, Plane, Scene, SearchParams, Sphere, StaticBody, load_scene
+from physics_mapper.scene import (
+    Box,
+    Cylinder,
+    ObjectModel,
+    Plane,
+    Scene,
+    SearchParams,
+    Sphere,
+    StaticBody,
+    load_problem,
+    load_scene,
+)
 from physics_mapper.search import BranchAndBound
 
 TILTED = make_pose((0.1, -0.2, 0.3), (0.1, 0.2, 0.3, math.sqrt(1.0 - 0.14)))
@@ -192,6 +203,19 @@ def test_markers_show_each_objects_true_shape_and_a_label_with_its_jitter(mixed_
     ]
     assert all(m.type == Marker.TEXT_VIEW_FACING for m in labels)
     assert sum(jitters) == pytest.approx(mixed_result.jitter)
+
+
+def test_a_fallback_is_drawn_orange_at_its_settled_poses() -> None:
+    """With fallback settled, the map shown is the corrected estimate: the ball at rest in the groove."""
+    problem = load_problem(PROBLEMS / "sphere_groove.yaml")
+    with PhysicsChecker(problem.scene) as checker:
+        result = BranchAndBound(checker, problem.hypotheses, problem.scene.search).run(None)
+    assert result.fallback_used and result.settled_poses is not None and result.poses is not None
+    (shape,) = [m for m in markers_msg(result, problem.scene, stamp=0.0).markers if m.ns == SHAPE_NAMESPACE]
+    settled = result.settled_poses[0].position
+    assert (shape.pose.position.x, shape.pose.position.y, shape.pose.position.z) == settled
+    assert settled != result.poses[0].position
+    assert (shape.color.r, shape.color.g, shape.color.b) == (FALLBACK_COLOR.r, FALLBACK_COLOR.g, FALLBACK_COLOR.b)
 
 
 def test_nothing_chosen_gives_no_configuration_and_no_markers() -> None:

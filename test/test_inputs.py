@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from typing import Any
 
 import pytest
 from conftest import SCENES
@@ -267,8 +268,9 @@ def test_the_snapshot_waits_for_every_object_and_carries_the_newest_stamp() -> N
 # --- the tick ---------------------------------------------------------------------------------
 
 
-def pyramid_settings(deadline: float = 0.2) -> MapperSettings:
-    return MapperSettings(SearchParams(deadline=deadline), SETTINGS, rate_hz=2.0)
+def pyramid_settings(deadline: float = 10.0, **search: Any) -> MapperSettings:
+    """Settings for ticks; the default deadline lets a tick finish the 8 configurations on any machine."""
+    return MapperSettings(SearchParams(deadline=deadline, **search), SETTINGS, rate_hz=0.05)
 
 
 def feed_pyramid(mapper: Mapper, received: float, top_z: float = 0.3) -> None:
@@ -287,14 +289,18 @@ def test_unchanged_inputs_resume_the_search_and_changed_ones_restart_it() -> Non
         feed_pyramid(mapper, 1.0)
         first = mapper.tick(1.0, pyramid_settings())
         assert first.result is not None and first.result.valid and first.result.code == (1, 1, 1)
-        assert not first.resumed
+        assert first.result.stats.exhausted and not first.resumed
         feed_pyramid(mapper, 2.0)  # the same hypotheses published again
         again = mapper.tick(2.0, pyramid_settings())
         assert again.resumed
         assert again.result is not None and again.result.stats.visited == first.result.stats.visited
+        # The deadline and the fallback change neither the visits nor their outcomes: progress is kept.
+        assert mapper.tick(2.5, pyramid_settings(deadline=0.1)).resumed
+        kept = mapper.tick(2.5, pyramid_settings(fallback="settled"))
+        assert kept.resumed and kept.result is not None and kept.result.stats.visited == first.result.stats.visited
+        assert not mapper.tick(2.5, pyramid_settings(settle_time=0.4)).resumed  # other rules: a new search
         feed_pyramid(mapper, 3.0, top_z=0.35)  # new contents
         assert not mapper.tick(3.0, pyramid_settings()).resumed
-        assert not mapper.tick(3.0, pyramid_settings(deadline=0.1)).resumed  # new settings
     finally:
         mapper.close()
 

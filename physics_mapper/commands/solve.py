@@ -50,5 +50,5 @@ def run(args: argparse.Namespace) -> int:
     if args.tree:
         print(trace_tree(result.trace))
         print()
-    print(summary(result))
+    print(summary(result, params.fallback))
     return 0
