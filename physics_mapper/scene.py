@@ -17,7 +17,7 @@ from typing import Any, Literal, TypeVar
 import yaml
 
 from physics_mapper.geometry import IDENTITY, ORIGIN, Pose, make_pose
-from physics_mapper.hypotheses import Hypothesis, RankedHypotheses, weights_problem
+from physics_mapper.hypotheses import Hypothesis, RankedHypotheses
 
 T = TypeVar("T")
 Fallback = Literal["none", "settled"]
@@ -341,10 +341,10 @@ def _read_hypotheses(reader: _Reader, value: Any, key: str) -> RankedHypotheses:
         pose = _read_pose(reader, {k: v for k, v in data.items() if k != "weight"}, item_key)
         weight = reader.number(data.get("weight", 1.0), f"{item_key}.weight", minimum=0.0)
         hypotheses.append(Hypothesis(pose, weight))
-    problem = weights_problem([h.weight for h in hypotheses], len(hypotheses))
-    if problem is not None:
-        raise reader.fail(key, problem)
-    return RankedHypotheses.from_weighted(hypotheses)
+    try:
+        return RankedHypotheses.from_weighted(hypotheses)
+    except ValueError as error:  # the weights as a whole: all zero, or a sum that overflows
+        raise reader.fail(key, str(error)) from None
 
 
 def problem_from_dict(data: Any, source: str, base_dir: Path | None = None) -> Problem:

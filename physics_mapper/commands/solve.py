@@ -35,10 +35,10 @@ def run(args: argparse.Namespace) -> int:
     # good, so that a bad input gets one error line (and --help stays fast).
     from physics_mapper.physics import PhysicsChecker
     from physics_mapper.report import result_dict, summary, trace_entry_dict, trace_tree
-    from physics_mapper.search import BranchAndBound
+    from physics_mapper.search import solve
 
     with PhysicsChecker(problem.scene) as checker:
-        result = BranchAndBound(checker, problem.hypotheses, params).run(params.deadline)
+        result = solve(checker, problem.hypotheses, params)
     if args.trace is not None:
         try:
             args.trace.write_text(json.dumps([trace_entry_dict(e) for e in result.trace], indent=1) + "\n")
