@@ -271,17 +271,28 @@ def _read_search(reader: _Reader, value: Any, key: str) -> SearchParams:
     return params
 
 
+#: Inclusive range of each numeric search parameter: checked for files and for the node's
+#: parameters alike (the node declares them as its parameter ranges).
+SEARCH_LIMITS: dict[str, tuple[float, float]] = {
+    "probability_threshold": (0.0, 1.0),
+    "penetration_threshold": (0.0, 1.0),  # metres
+    "jitter_threshold": (0.0, 10.0),  # metres + weighted radians
+    "angular_weight": (0.0, 10.0),  # metres per radian
+    "settle_time": (0.0, 10.0),  # simulated seconds
+    "deadline": (0.0, 3600.0),  # wall-clock seconds, and positive
+}
+
+
 def search_params_problem(params: SearchParams) -> str | None:
-    """Say which search parameter is out of range, or return None."""
-    if not 0.0 <= params.probability_threshold <= 1.0:
-        return f"probability_threshold must be in [0, 1], got {params.probability_threshold:g}"
+    """Say which search parameter is out of range (:data:`SEARCH_LIMITS`), or return None."""
     if params.deadline <= 0.0:
         return f"deadline must be positive, got {params.deadline:g}"
+    for name, (low, high) in SEARCH_LIMITS.items():
+        value = getattr(params, name)
+        if not low <= value <= high:
+            return f"{name} must be in [{low:g}, {high:g}], got {value:g}"
     if params.fallback not in FALLBACKS:
         return f"fallback must be one of {', '.join(FALLBACKS)}, got {params.fallback!r}"
-    for name in ("penetration_threshold", "jitter_threshold", "angular_weight", "settle_time"):
-        if getattr(params, name) < 0.0:
-            return f"{name} must not be negative, got {getattr(params, name):g}"
     return None
 
 
