@@ -104,19 +104,44 @@ def test_fig4_is_reproducible_from_its_seed(reports: tuple[Path, str], tmp_path:
     assert again["visiting_order"] == summary(reports, "fig4")["visiting_order"]
 
 
-def check_tracking_counts(data: dict[str, Any]) -> None:
+def check_comparison(part: dict[str, Any], overall_mean_cm: dict[str, float]) -> None:
+    """The paired test (one pair per run) and the paper's pooled test of one comparison of two estimates."""
+    searches = RUNS * ITERATIONS
+    pooled = part["kruskal_wallis_pooled"]
+    assert pooled["samples_per_group"] == searches and 0.0 <= pooled["p_value"] <= 1.0
+    assert math.isfinite(pooled["statistic"])
+    paired = part["wilcoxon_paired_by_run"]
+    assert paired["test"].startswith("Wilcoxon signed-rank")
+    assert paired["pairs"] == RUNS and 0 <= paired["nonzero_pairs"] <= RUNS
+    assert paired["runs_physics_lower"] + paired["runs_physics_higher"] == paired["nonzero_pairs"]
+    assert math.isfinite(paired["statistic"]) and math.isfinite(paired["p_value"])
+    # Exact and two-sided: n nonzero pairs cannot give p below 2 / 2^n; no nonzero pair gives p = 1.
+    assert min(1.0, 2.0 / 2 ** paired["nonzero_pairs"]) <= paired["p_value"] <= 1.0
+    for estimate, means in paired["per_run_mean_cm"].items():
+        assert len(means) == RUNS
+        # Every run has the same number of iterations: the mean of the per-run means is the overall mean.
+        assert math.isclose(sum(means) / RUNS, overall_mean_cm[estimate])
+    assert part["physics_lower"] + part["physics_higher"] + part["equal"] == searches
+
+
+def check_tracking_counts(data: dict[str, Any], sigma_rotation_degrees: float) -> None:
     searches = RUNS * ITERATIONS
     assert data["runs"] == RUNS and data["particles"] == PARTICLES and data["iterations"] == ITERATIONS
     assert data["searches"] == data["searches_exhausted"] == searches
-    assert data["samples_per_group"] == searches
-    assert data["physics_lower"] + data["physics_higher"] + data["equal"] == searches
-    assert 0.0 <= data["kruskal_wallis_p_value"] <= 1.0
     assert sum(data["root_outcomes"].values()) == searches
+    assert math.isclose(data["sigma_rotation_rad"], math.radians(sigma_rotation_degrees))
+    assert math.isclose(data["sigma_rotation_deg"], sigma_rotation_degrees)
+    spread = data["hypothesis_spread_cm"]
+    top_m = data["top_m"]
+    # Over M points, the mean squared distance between pairs is 2M / (M - 1) times the mean squared from the mean.
+    assert math.isclose(spread["rms_pairwise"], math.sqrt(2 * top_m / (top_m - 1)) * spread["rms_from_mean"])
 
 
 def test_fig6_summary_is_consistent(reports: tuple[Path, str]) -> None:
     data = summary(reports, "fig6")
-    check_tracking_counts(data)
+    check_tracking_counts(data, sigma_rotation_degrees=3.0)
+    check_comparison(data, data["mean_total_cm"])  # the tests compare total errors
+    check_comparison(data["loosened_rules"], data["loosened_rules"]["mean_total_cm"])
     searches = data["searches"]
     assert data["root_valid_searches"] <= data["valid_searches"] <= data["collision_free_searches"] <= searches
     # Without a valid configuration the physics-chosen map is C111 itself.
@@ -133,6 +158,16 @@ def test_fig6_summary_is_consistent(reports: tuple[Path, str]) -> None:
     assert math.isclose(totals["without_physics"], sum(data["without_physics"]["total_cm"]) / ITERATIONS)
     assert math.isclose(totals["with_physics"], sum(data["with_physics"]["total_cm"]) / ITERATIONS)
     assert math.isclose(data["mean_per_object_cm"]["without_physics"] * 3, totals["without_physics"])
+    heights = data["cube_heights"]
+    assert heights["cases"] == searches * len(data["objects"])
+    assert heights["all_hypotheses_too_low"] <= heights["c111_too_low"]
+    assert heights["all_hypotheses_too_high"] <= heights["c111_too_high"]
+    assert heights["c111_too_low"] + heights["c111_too_high"] <= heights["cases"]
+    assert heights["too_low_m"] == data["penetration_threshold_m"]
+    assert heights["too_high_m"] == data["jitter_threshold_m"]
+    markdown = (reports[0] / "fig6.md").read_text()
+    assert f"{heights['all_hypotheses_too_low']} of these" in markdown
+    assert "3° (0.0524 rad) per rotation axis" in markdown
 
 
 def test_fig6_loosened_rules_use_the_same_hypotheses_and_accept_more(reports: tuple[Path, str]) -> None:
@@ -143,18 +178,28 @@ def test_fig6_loosened_rules_use_the_same_hypotheses_and_accept_more(reports: tu
     # Same seeds, same filters: the same C111 errors; every configuration valid under the scene's rules is
     # valid under looser ones.
     assert loosened["mean_total_cm"]["without_physics"] == data["mean_total_cm"]["without_physics"]
+    per_run = "wilcoxon_paired_by_run", "per_run_mean_cm", "without_physics"
+    assert loosened[per_run[0]][per_run[1]][per_run[2]] == data[per_run[0]][per_run[1]][per_run[2]]
     assert loosened["valid_searches"] >= data["valid_searches"]
     assert loosened["collision_free_searches"] >= data["collision_free_searches"]
 
 
 def test_fig8_summary_is_consistent(reports: tuple[Path, str]) -> None:
     data = summary(reports, "fig8")
-    check_tracking_counts(data)
+    check_tracking_counts(data, sigma_rotation_degrees=10.0)
+    check_comparison(data, data["mean_error_cm"])
     searches = data["searches"]
     assert data["valid_searches"] + data["fallback_searches"] + data["no_estimate_searches"] == searches
     settled = searches - data["no_estimate_searches"]
     assert data["settled_in_groove"] + data["settled_elsewhere"] == settled
     assert data["equal"] >= data["no_estimate_searches"]  # nothing to settle: C1 is kept
+    # One object: when all its hypotheses collide, so does C1.
+    assert data["no_estimate_searches"] <= data["root_collision_searches"] <= searches
+    collisions = sum(count for kind, count in data["root_outcomes"].items() if kind.startswith("collision "))
+    assert data["root_collision_searches"] == collisions
+    markdown = (reports[0] / "fig8.md").read_text()
+    assert f"in {data['root_collision_searches']} of {searches} searches, and in" in markdown
+    assert "10° (0.1745 rad) per rotation axis" in markdown
     per_iteration = data["per_iteration_cm"]
     for estimate in ("without_physics", "with_physics"):
         assert len(per_iteration[estimate]) == ITERATIONS
