@@ -12,7 +12,7 @@ from __future__ import annotations
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from std_msgs.msg import Header
 
-from msg_adapters.hypotheses import stamp_from_seconds
+from msg_adapters.hypotheses import stamp_from_nanoseconds
 from physics_mapper.inputs import Level, ObjectStatus
 from physics_mapper.mapper import TickReport
 from physics_mapper.report import code_text
@@ -92,10 +92,13 @@ def _object_status(status: ObjectStatus, node_name: str, hardware_id: str) -> Di
     )
 
 
-def diagnostics_msg(report: TickReport, *, node_name: str, hardware_id: str, stamp: float) -> DiagnosticArray:
-    """The search status (its level the worst of search and inputs), then one status per object."""
+def diagnostics_msg(report: TickReport, *, node_name: str, hardware_id: str, stamp_ns: int) -> DiagnosticArray:
+    """The search status (its level the worst of search and inputs), then one status per object.
+
+    ``stamp_ns``: the header stamp, integer nanoseconds (the node's clock at the tick).
+    """
     level, message = _search_level_and_message(report)
     level = max([level, *(o.level for o in report.snapshot.objects)])
     statuses = [_status(level, f"{node_name}: search", message, hardware_id, search_values(report))]
     statuses += [_object_status(o, node_name, hardware_id) for o in report.snapshot.objects]
-    return DiagnosticArray(header=Header(stamp=stamp_from_seconds(stamp)), status=statuses)
+    return DiagnosticArray(header=Header(stamp=stamp_from_nanoseconds(stamp_ns)), status=statuses)

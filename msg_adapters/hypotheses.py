@@ -2,8 +2,9 @@
 
 Incoming messages become :class:`~physics_mapper.inputs.ReceivedPoses` and
 :class:`~physics_mapper.inputs.ReceivedWeights`, validated by the core (every problem
-collected, none raised); outgoing hypotheses become the same two message types. Times
-are seconds (float) on the ROS side's ``builtin_interfaces/Time`` scale.
+collected, none raised); outgoing hypotheses become the same two message types. Header
+stamps are integer nanoseconds (``stamp_ns``), exact both ways: a float of seconds since the
+epoch resolves only about 0.2 microseconds, and outputs carry their input's stamp (SPEC section 4).
 """
 
 from __future__ import annotations
@@ -22,15 +23,15 @@ from physics_mapper.inputs import RawPose, ReceivedPoses, ReceivedWeights, check
 NANOSECONDS_PER_SECOND = 1_000_000_000
 
 
-def seconds_from_stamp(stamp: Time) -> float:
-    """A ``builtin_interfaces/Time`` as seconds."""
-    return float(stamp.sec) + float(stamp.nanosec) / NANOSECONDS_PER_SECOND
+def nanoseconds_from_stamp(stamp: Time) -> int:
+    """A ``builtin_interfaces/Time`` as integer nanoseconds."""
+    return int(stamp.sec) * NANOSECONDS_PER_SECOND + int(stamp.nanosec)
 
 
-def stamp_from_seconds(seconds: float) -> Time:
-    """Seconds as a ``builtin_interfaces/Time`` (nanosecond resolution)."""
-    nanoseconds = round(seconds * NANOSECONDS_PER_SECOND)
-    return Time(sec=nanoseconds // NANOSECONDS_PER_SECOND, nanosec=nanoseconds % NANOSECONDS_PER_SECOND)
+def stamp_from_nanoseconds(stamp_ns: int) -> Time:
+    """Integer nanoseconds as a ``builtin_interfaces/Time``."""
+    sec, nanosec = divmod(stamp_ns, NANOSECONDS_PER_SECOND)
+    return Time(sec=sec, nanosec=nanosec)
 
 
 def raw_pose(msg: PoseMsg) -> RawPose:
@@ -45,7 +46,7 @@ def received_poses(msg: PoseArray, *, expected_frame: str, received: float) -> R
         [raw_pose(pose) for pose in msg.poses],
         frame_id=msg.header.frame_id,
         expected_frame=expected_frame,
-        stamp=seconds_from_stamp(msg.header.stamp),
+        stamp_ns=nanoseconds_from_stamp(msg.header.stamp),
         received=received,
     )
 
@@ -61,9 +62,9 @@ def pose_msg(pose: Pose) -> PoseMsg:
     return PoseMsg(position=Point(x=x, y=y, z=z), orientation=Quaternion(x=qx, y=qy, z=qz, w=qw))
 
 
-def pose_array_msg(poses: Sequence[Pose], *, frame_id: str, stamp: float) -> PoseArray:
-    """Poses, in order, as one PoseArray in ``frame_id`` stamped ``stamp`` seconds."""
-    header = Header(frame_id=frame_id, stamp=stamp_from_seconds(stamp))
+def pose_array_msg(poses: Sequence[Pose], *, frame_id: str, stamp_ns: int) -> PoseArray:
+    """Poses, in order, as one PoseArray in ``frame_id`` stamped ``stamp_ns`` nanoseconds."""
+    header = Header(frame_id=frame_id, stamp=stamp_from_nanoseconds(stamp_ns))
     return PoseArray(header=header, poses=[pose_msg(p) for p in poses])
 
 
@@ -73,8 +74,8 @@ def weights_msg(weights: Sequence[float]) -> Float64MultiArray:
 
 
 def hypotheses_msgs(
-    hypotheses: RankedHypotheses, *, frame_id: str, stamp: float
+    hypotheses: RankedHypotheses, *, frame_id: str, stamp_ns: int
 ) -> tuple[PoseArray, Float64MultiArray]:
     """An object's hypotheses as the two messages the node reads: poses in rank order, and their weights."""
-    poses = pose_array_msg([h.pose for h in hypotheses.hypotheses], frame_id=frame_id, stamp=stamp)
+    poses = pose_array_msg([h.pose for h in hypotheses.hypotheses], frame_id=frame_id, stamp_ns=stamp_ns)
     return poses, weights_msg([h.weight for h in hypotheses.hypotheses])

@@ -6,7 +6,7 @@ from geometry_msgs.msg import PoseArray, Vector3
 from std_msgs.msg import ColorRGBA, Header
 from visualization_msgs.msg import Marker, MarkerArray
 
-from msg_adapters.hypotheses import pose_array_msg, pose_msg, stamp_from_seconds
+from msg_adapters.hypotheses import pose_array_msg, pose_msg, stamp_from_nanoseconds
 from physics_mapper.geometry import Pose
 from physics_mapper.scene import Box, Cylinder, ObjectModel, Scene, Sphere
 from physics_mapper.search import SearchResult
@@ -20,13 +20,16 @@ FALLBACK_COLOR = ColorRGBA(r=0.95, g=0.6, b=0.1, a=0.8)
 LABEL_COLOR = ColorRGBA(r=1.0, g=1.0, b=1.0, a=1.0)
 
 
-def configuration_msgs(result: SearchResult, *, frame_id: str, stamp: float) -> tuple[PoseArray, PoseArray] | None:
-    """The chosen poses and their settled poses, in scene object order; None if nothing was chosen."""
+def configuration_msgs(result: SearchResult, *, frame_id: str, stamp_ns: int) -> tuple[PoseArray, PoseArray] | None:
+    """The chosen poses and their settled poses, in scene object order; None if nothing was chosen.
+
+    ``stamp_ns``: the header stamp, integer nanoseconds (the newest input stamp used).
+    """
     if result.poses is None or result.settled_poses is None:
         return None
     return (
-        pose_array_msg(result.poses, frame_id=frame_id, stamp=stamp),
-        pose_array_msg(result.settled_poses, frame_id=frame_id, stamp=stamp),
+        pose_array_msg(result.poses, frame_id=frame_id, stamp_ns=stamp_ns),
+        pose_array_msg(result.settled_poses, frame_id=frame_id, stamp_ns=stamp_ns),
     )
 
 
@@ -57,17 +60,17 @@ def _top(model: ObjectModel) -> float:
     return max(shape.length / 2.0, shape.radius)
 
 
-def markers_msg(result: SearchResult, scene: Scene, *, stamp: float) -> MarkerArray:
+def markers_msg(result: SearchResult, scene: Scene, *, stamp_ns: int) -> MarkerArray:
     """One marker per object in its true shape, plus a text label ``name J=...``.
 
     A valid configuration is drawn green at its chosen poses; a fallback orange at its settled
     poses, the corrected estimate (SPEC section 2). J is the object's jitter J_i. Empty if
-    nothing was chosen.
+    nothing was chosen. Headers are stamped ``stamp_ns`` (integer nanoseconds).
     """
     if result.poses is None or result.settled_poses is None or result.object_jitters is None:
         return MarkerArray()
     poses = result.settled_poses if result.fallback_used else result.poses
-    header = Header(frame_id=scene.frame_id, stamp=stamp_from_seconds(stamp))
+    header = Header(frame_id=scene.frame_id, stamp=stamp_from_nanoseconds(stamp_ns))
     jitters = result.object_jitters
     markers = []
     for index, (model, pose) in enumerate(zip(scene.objects, poses, strict=True)):

@@ -3,7 +3,8 @@
 ROS-free. The node's callbacks hand in :class:`ReceivedPoses` and :class:`ReceivedWeights`
 (built from messages by ``msg_adapters``); every tick asks :class:`InputTracker` for a
 :class:`Snapshot`: the ranked hypotheses each object's search uses, or why there are none.
-Times are seconds on the node's clock (``received``) or from message headers (``stamp``).
+Receive times are seconds on the node's clock (``received``); header stamps are integer
+nanoseconds (``stamp_ns``), kept exact because the node's outputs carry them.
 
 Rules:
 
@@ -65,9 +66,10 @@ class ReceivedPoses:
     ``count`` is the number of poses in the message (weights must have this length);
     ``poses`` holds the usable ones as ``(index in the message, pose)``; ``dropped`` says
     what was wrong with the others; ``refusal`` is set when the whole message is unusable.
+    ``stamp_ns``: header stamp, nanoseconds; ``received``: node clock, seconds.
     """
 
-    stamp: float
+    stamp_ns: int
     received: float
     count: int
     poses: tuple[tuple[int, Pose], ...]
@@ -85,15 +87,15 @@ class ReceivedWeights:
 
 
 def check_poses(
-    raw_poses: Sequence[RawPose], *, frame_id: str, expected_frame: str, stamp: float, received: float
+    raw_poses: Sequence[RawPose], *, frame_id: str, expected_frame: str, stamp_ns: int, received: float
 ) -> ReceivedPoses:
     """Validate a PoseArray's contents: frame, emptiness, and each pose (finite, unit quaternion)."""
     count = len(raw_poses)
     if frame_id != expected_frame:
         refusal = f"frame_id {frame_id!r} is not the scene frame {expected_frame!r}"
-        return ReceivedPoses(stamp, received, count, (), refusal=refusal)
+        return ReceivedPoses(stamp_ns, received, count, (), refusal=refusal)
     if count == 0:
-        return ReceivedPoses(stamp, received, 0, (), refusal="empty PoseArray")
+        return ReceivedPoses(stamp_ns, received, 0, (), refusal="empty PoseArray")
     usable: list[tuple[int, Pose]] = []
     dropped: list[str] = []
     for index, (position, orientation) in enumerate(raw_poses):
@@ -103,8 +105,8 @@ def check_poses(
             dropped.append(f"poses[{index}]: {error}")
     if not usable:
         refusal = f"no usable pose ({dropped[0]}{' ...' if len(dropped) > 1 else ''})"
-        return ReceivedPoses(stamp, received, count, (), tuple(dropped), refusal)
-    return ReceivedPoses(stamp, received, count, tuple(usable), tuple(dropped))
+        return ReceivedPoses(stamp_ns, received, count, (), tuple(dropped), refusal)
+    return ReceivedPoses(stamp_ns, received, count, tuple(usable), tuple(dropped))
 
 
 def check_weights(values: Sequence[float], *, received: float) -> ReceivedWeights:
@@ -132,7 +134,7 @@ class ObjectStatus:
     level: Level
     message: str
     hypotheses: RankedHypotheses | None
-    stamp: float | None  # header stamp of the PoseArray in use
+    stamp_ns: int | None  # header stamp of the PoseArray in use, nanoseconds
     details: tuple[tuple[str, str], ...]
 
 
@@ -154,9 +156,9 @@ class Snapshot:
         return ranked if len(ranked) == len(self.objects) else None
 
     @property
-    def stamp(self) -> float | None:
-        """Newest header stamp among the PoseArrays in use (seconds)."""
-        stamps = [o.stamp for o in self.objects if o.stamp is not None]
+    def stamp_ns(self) -> int | None:
+        """Newest header stamp among the PoseArrays in use (nanoseconds): the stamp of the node's outputs."""
+        stamps = [o.stamp_ns for o in self.objects if o.stamp_ns is not None]
         return max(stamps) if stamps else None
 
 
@@ -279,7 +281,7 @@ class ObjectInputs:
                 notes.insert(0, f"{'; '.join(recent)}; older hypotheses stay in use")
         level = Level.WARN if notes else Level.OK
         message = "; ".join(notes) if notes else f"{len(in_use.hypotheses)} hypotheses, weighted"
-        return ObjectStatus(self.name, level, message, in_use.hypotheses, in_use.poses.stamp, tuple(details))
+        return ObjectStatus(self.name, level, message, in_use.hypotheses, in_use.poses.stamp_ns, tuple(details))
 
 
 class InputTracker:

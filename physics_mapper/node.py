@@ -27,7 +27,7 @@ from std_msgs.msg import Float64MultiArray
 from visualization_msgs.msg import MarkerArray
 
 from msg_adapters.diagnostics import diagnostics_msg
-from msg_adapters.hypotheses import received_poses, received_weights
+from msg_adapters.hypotheses import NANOSECONDS_PER_SECOND, received_poses, received_weights
 from msg_adapters.results import configuration_msgs, markers_msg
 from physics_mapper.errors import EXIT_BAD_INPUT, InputError
 from physics_mapper.inputs import InputSettings
@@ -166,8 +166,13 @@ class PhysicsMapperNode(Node):
         except InvalidTopicNameException:
             raise InputError(f"object name {name!r} cannot be part of a ROS topic name") from None
 
+    def _now_ns(self) -> int:
+        """The node clock, integer nanoseconds (exact, for stamps)."""
+        return self.get_clock().now().nanoseconds
+
     def _now(self) -> float:
-        return float(self.get_clock().now().nanoseconds) / 1e9
+        """The node clock, seconds (receive times and ages)."""
+        return self._now_ns() / NANOSECONDS_PER_SECOND
 
     def _settings(self, changes: dict[str, Any]) -> MapperSettings:
         """The settings from the current parameters, with ``changes`` (name -> value) applied."""
@@ -201,21 +206,22 @@ class PhysicsMapperNode(Node):
         if settings.rate_hz != self._rate_hz:
             self._rate_hz = settings.rate_hz
             self._timer.timer_period_ns = round(1e9 / settings.rate_hz)
-        now = self._now()
-        report = self.mapper.tick(now, settings)
-        self._publish(report, now)
+        now_ns = self._now_ns()
+        report = self.mapper.tick(now_ns / NANOSECONDS_PER_SECOND, settings)
+        self._publish(report, now_ns)
 
-    def _publish(self, report: TickReport, now: float) -> None:
+    def _publish(self, report: TickReport, now_ns: int) -> None:
+        """Outputs carry the newest input stamp used (SPEC section 4); diagnostics the tick's time."""
         result, scene = report.result, self.mapper.scene
-        stamp = report.snapshot.stamp
-        if result is not None and stamp is not None:
-            configurations = configuration_msgs(result, frame_id=scene.frame_id, stamp=stamp)
+        stamp_ns = report.snapshot.stamp_ns
+        if result is not None and stamp_ns is not None:
+            configurations = configuration_msgs(result, frame_id=scene.frame_id, stamp_ns=stamp_ns)
             if configurations is not None:
                 self._configuration_pub.publish(configurations[0])
                 self._settled_pub.publish(configurations[1])
-                self._markers_pub.publish(markers_msg(result, scene, stamp=stamp))
+                self._markers_pub.publish(markers_msg(result, scene, stamp_ns=stamp_ns))
         diagnostics = diagnostics_msg(
-            report, node_name=self.get_name(), hardware_id=self.get_fully_qualified_name(), stamp=now
+            report, node_name=self.get_name(), hardware_id=self.get_fully_qualified_name(), stamp_ns=now_ns
         )
         self._diagnostics_pub.publish(diagnostics)
         message = diagnostics.status[0].message

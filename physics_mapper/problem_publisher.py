@@ -49,11 +49,11 @@ class ProblemPublisher:
         return True
 
     def publish(self) -> None:
-        """Publish every object's PoseArray, then its weights, stamped now."""
-        now = self.node.get_clock().now().nanoseconds / 1e9
+        """Publish every object's PoseArray, then its weights, stamped now (exact integer nanoseconds)."""
+        now_ns = self.node.get_clock().now().nanoseconds
         frame_id = self.problem.scene.frame_id
         for hypotheses, poses_pub, weights_pub in zip(self.problem.hypotheses, self._poses, self._weights, strict=True):
-            poses, weights = hypotheses_msgs(hypotheses, frame_id=frame_id, stamp=now)
+            poses, weights = hypotheses_msgs(hypotheses, frame_id=frame_id, stamp_ns=now_ns)
             poses_pub.publish(poses)
             weights_pub.publish(weights)
 

@@ -105,10 +105,6 @@ def _ground_truth(message: BagMessage, scene: Scene) -> tuple[Pose, ...]:
     return poses
 
 
-def _stamp_ns(seconds: float) -> int:
-    return round(seconds * NANOSECONDS)
-
-
 def bag_snapshots(bag: Bag, scene: Scene, settings: InputSettings | None = None) -> list[BagSnapshot]:
     """Feed the bag's hypotheses through the node's input rules; one snapshot per new set of hypotheses.
 
@@ -129,7 +125,7 @@ def bag_snapshots(bag: Bag, scene: Scene, settings: InputSettings | None = None)
                     data.poses,
                     frame_id=data.frame_id,
                     expected_frame=scene.frame_id,
-                    stamp=data.stamp_ns / NANOSECONDS,
+                    stamp_ns=data.stamp_ns,
                     received=received,
                 )
                 tracker.add_poses(poses_of[message.topic], checked)
@@ -140,9 +136,10 @@ def bag_snapshots(bag: Bag, scene: Scene, settings: InputSettings | None = None)
             elif message.topic == topics.GROUND_TRUTH_TOPIC:
                 truth = _ground_truth(message, scene)
         snapshot = tracker.snapshot(burst[-1].time_ns / NANOSECONDS, settings)
-        hypotheses, stamp = snapshot.hypotheses, snapshot.stamp
-        if hypotheses is not None and stamp is not None and (not snapshots or hypotheses != snapshots[-1].hypotheses):
-            snapshots.append(BagSnapshot(burst[-1].time_ns, _stamp_ns(stamp), hypotheses, truth))
+        hypotheses, stamp_ns = snapshot.hypotheses, snapshot.stamp_ns
+        new = not snapshots or hypotheses != snapshots[-1].hypotheses
+        if hypotheses is not None and stamp_ns is not None and new:
+            snapshots.append(BagSnapshot(burst[-1].time_ns, stamp_ns, hypotheses, truth))
     return snapshots
 
 
@@ -202,27 +199,22 @@ def _last_by_stamp(output: Bag, topic: str, count: int) -> dict[int, tuple[Pose,
 def recorded_outcomes(snapshots: Sequence[BagSnapshot], output: Bag, scene: Scene) -> list[Outcome]:
     """What a live node chose for each snapshot: its last configuration stamped with the snapshot's stamp.
 
-    Stamps are compared to the microsecond (the node keeps them as float seconds). A configuration
+    Stamps are compared exactly (the node carries them as integer nanoseconds). A configuration
     that is not made of the snapshot's hypotheses (the node ticked halfway through a burst and
     never again before the next one) counts as no configuration.
     """
     count = len(scene.objects)
-    chosen = {_microseconds(k): v for k, v in _last_by_stamp(output, CONFIGURATION_TOPIC, count).items()}
-    settled = {_microseconds(k): v for k, v in _last_by_stamp(output, SETTLED_TOPIC, count).items()}
+    chosen = _last_by_stamp(output, CONFIGURATION_TOPIC, count)
+    settled = _last_by_stamp(output, SETTLED_TOPIC, count)
     outcomes = []
     for snapshot in snapshots:
-        key = _microseconds(snapshot.stamp_ns)
-        poses = chosen.get(key)
+        poses = chosen.get(snapshot.stamp_ns)
         code = None if poses is None else code_of(poses, snapshot.hypotheses)
         if code is None:
             outcomes.append(Outcome(snapshot, None, None, None))
         else:
-            outcomes.append(Outcome(snapshot, code, poses, settled.get(key)))
+            outcomes.append(Outcome(snapshot, code, poses, settled.get(snapshot.stamp_ns)))
     return outcomes
-
-
-def _microseconds(stamp_ns: int) -> int:
-    return round(stamp_ns / 1000)
 
 
 #: The estimates scored against ground truth: ``top``, every object's most likely hypothesis (the paper's

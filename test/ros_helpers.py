@@ -22,8 +22,9 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
 from std_msgs.msg import Float64MultiArray
-from visualization_msgs.msg import MarkerArray
+from visualization_msgs.msg import Marker, MarkerArray
 
+from msg_adapters.hypotheses import nanoseconds_from_stamp
 from physics_mapper.launch import start_node, stop_node
 from physics_mapper.ros_interface import DIAGNOSTICS_QOS, MAP_QOS
 from physics_mapper.topics import (
@@ -100,8 +101,9 @@ def values(status: DiagnosticStatus) -> dict[str, str]:
     return {kv.key: kv.value for kv in status.values}
 
 
-def stamp_of(msg: PoseArray) -> float:
-    return float(msg.header.stamp.sec) + float(msg.header.stamp.nanosec) / 1e9
+def stamp_ns_of(msg: PoseArray | Marker) -> int:
+    """A message's header stamp, integer nanoseconds (exact)."""
+    return nanoseconds_from_stamp(msg.header.stamp)
 
 
 class RosClient:

@@ -15,16 +15,16 @@ from visualization_msgs.msg import Marker
 from msg_adapters.diagnostics import diagnostics_msg
 from msg_adapters.hypotheses import (
     hypotheses_msgs,
+    nanoseconds_from_stamp,
     pose_array_msg,
     received_poses,
     received_weights,
-    seconds_from_stamp,
-    stamp_from_seconds,
+    stamp_from_nanoseconds,
 )
 from msg_adapters.results import FALLBACK_COLOR, LABEL_NAMESPACE, SHAPE_NAMESPACE, configuration_msgs, markers_msg
 from physics_mapper.geometry import Pose, make_pose
 from physics_mapper.hypotheses import Hypothesis, RankedHypotheses
-from physics_mapper.inputs import InputSettings, Level, ObjectInputs, rank
+from physics_mapper.inputs import InputSettings, InputTracker, Level, ObjectInputs, rank
 from physics_mapper.mapper import Mapper, MapperSettings
 from physics_mapper.physics import PhysicsChecker
 from physics_mapper.scene import (
@@ -46,28 +46,31 @@ TILTED = make_pose((0.1, -0.2, 0.3), (0.1, 0.2, 0.3, math.sqrt(1.0 - 0.14)))
 
 def pose_array(*poses: tuple[tuple[float, ...], tuple[float, ...]], frame: str = "world") -> PoseArray:
     """A PoseArray with raw (unvalidated) values, as a publisher may send them."""
-    msg = pose_array_msg([], frame_id=frame, stamp=12.5)
+    msg = pose_array_msg([], frame_id=frame, stamp_ns=12_500_000_000)
     for position, orientation in poses:
-        pose = pose_array_msg([Pose((0.0, 0.0, 0.0))], frame_id=frame, stamp=0.0).poses[0]
+        pose = pose_array_msg([Pose((0.0, 0.0, 0.0))], frame_id=frame, stamp_ns=0).poses[0]
         pose.position.x, pose.position.y, pose.position.z = position
         pose.orientation.x, pose.orientation.y, pose.orientation.z, pose.orientation.w = orientation
         msg.poses.append(pose)
     return msg
 
 
+#: A stamp of today's epoch magnitude, where float seconds resolve only ~0.2 us.
+REALISTIC_STAMP_NS = 1_732_233_600_123_456_789
+
+
 def test_stamps_round_trip_to_the_nanosecond() -> None:
-    stamp = stamp_from_seconds(1_700_000_000.123456789)
-    assert stamp.sec == 1_700_000_000
-    assert abs(stamp.nanosec - 123_456_789) < 1000  # float64 resolves ~0.2 us at this magnitude
-    assert seconds_from_stamp(stamp) == pytest.approx(1_700_000_000.123456789, abs=1e-6)
-    assert seconds_from_stamp(stamp_from_seconds(2.5)) == 2.5
+    stamp = stamp_from_nanoseconds(REALISTIC_STAMP_NS)
+    assert (stamp.sec, stamp.nanosec) == (1_732_233_600, 123_456_789)
+    assert nanoseconds_from_stamp(stamp) == REALISTIC_STAMP_NS
+    assert nanoseconds_from_stamp(stamp_from_nanoseconds(2_500_000_000)) == 2_500_000_000
 
 
 def test_poses_round_trip_through_a_pose_array() -> None:
-    msg = pose_array_msg([TILTED, Pose((1.0, 2.0, 3.0))], frame_id="world", stamp=7.25)
+    msg = pose_array_msg([TILTED, Pose((1.0, 2.0, 3.0))], frame_id="world", stamp_ns=7_250_000_000)
     assert msg.header.frame_id == "world"
     received = received_poses(msg, expected_frame="world", received=8.0)
-    assert (received.stamp, received.received, received.count, received.refusal) == (7.25, 8.0, 2, None)
+    assert (received.stamp_ns, received.received, received.count, received.refusal) == (7_250_000_000, 8.0, 2, None)
     assert [pose for _, pose in received.poses] == [TILTED, Pose((1.0, 2.0, 3.0))]
 
 
@@ -75,7 +78,7 @@ def test_hypotheses_round_trip_through_pose_array_and_weights() -> None:
     ranked = RankedHypotheses.from_weighted(
         [Hypothesis(TILTED, 0.2), Hypothesis(Pose((0.0, 0.0, 1.0)), 0.5), Hypothesis(Pose((1.0, 0.0, 0.0)), 0.3)]
     )
-    poses_msg, weights = hypotheses_msgs(ranked, frame_id="world", stamp=3.0)
+    poses_msg, weights = hypotheses_msgs(ranked, frame_id="world", stamp_ns=3_000_000_000)
     assert isinstance(weights, Float64MultiArray)
     assert list(weights.data) == [h.weight for h in ranked.hypotheses]
     in_use = rank(
@@ -137,7 +140,7 @@ def test_weights_of_the_wrong_length_and_oversized_arrays_through_messages() -> 
     inputs = ObjectInputs("cube")
     poses = [Pose((0.01 * i, 0.0, 0.1)) for i in range(150)]
     inputs.add_poses(
-        received_poses(pose_array_msg(poses, frame_id="world", stamp=1.0), expected_frame="world", received=1)
+        received_poses(pose_array_msg(poses, frame_id="world", stamp_ns=1), expected_frame="world", received=1)
     )
     inputs.add_weights(received_weights(Float64MultiArray(data=[1.0] * 149), received=1.0))
     status = inputs.status(2.0, InputSettings(max_hypotheses=100))
@@ -173,21 +176,39 @@ def test_configuration_messages_hold_chosen_and_settled_poses(mixed_result: obje
     from physics_mapper.search import SearchResult
 
     assert isinstance(mixed_result, SearchResult) and mixed_result.valid
-    messages = configuration_msgs(mixed_result, frame_id="table", stamp=4.5)
+    messages = configuration_msgs(mixed_result, frame_id="table", stamp_ns=4_500_000_000)
     assert messages is not None
     chosen, settled = messages
     for msg, poses in ((chosen, mixed_result.poses), (settled, mixed_result.settled_poses)):
-        assert msg.header.frame_id == "table" and seconds_from_stamp(msg.header.stamp) == 4.5
+        assert msg.header.frame_id == "table" and nanoseconds_from_stamp(msg.header.stamp) == 4_500_000_000
         back = received_poses(msg, expected_frame="table", received=0.0)
         assert poses is not None
         assert [pose for _, pose in back.poses] == list(poses)
+
+
+def test_a_realistic_stamp_goes_from_input_to_outputs_exactly(mixed_result: object) -> None:
+    """A PoseArray's stamp -> ReceivedPoses -> Snapshot -> configuration, settled and markers headers."""
+    from physics_mapper.search import SearchResult
+
+    assert isinstance(mixed_result, SearchResult)
+    tracker = InputTracker(["crate"])
+    msg = pose_array_msg([TILTED], frame_id="table", stamp_ns=REALISTIC_STAMP_NS)
+    tracker.add_poses("crate", received_poses(msg, expected_frame="table", received=1.0))
+    stamp_ns = tracker.snapshot(1.0, InputSettings()).stamp_ns
+    assert stamp_ns == REALISTIC_STAMP_NS
+    messages = configuration_msgs(mixed_result, frame_id="table", stamp_ns=stamp_ns)
+    assert messages is not None
+    headers = [m.header for m in messages] + [
+        m.header for m in markers_msg(mixed_result, MIXED, stamp_ns=stamp_ns).markers
+    ]
+    assert {(h.stamp.sec, h.stamp.nanosec) for h in headers} == {(1_732_233_600, 123_456_789)}
 
 
 def test_markers_show_each_objects_true_shape_and_a_label_with_its_jitter(mixed_result: object) -> None:
     from physics_mapper.search import SearchResult
 
     assert isinstance(mixed_result, SearchResult)
-    markers = markers_msg(mixed_result, MIXED, stamp=4.5).markers
+    markers = markers_msg(mixed_result, MIXED, stamp_ns=4_500_000_000).markers
     shapes = [m for m in markers if m.ns == SHAPE_NAMESPACE]
     labels = [m for m in markers if m.ns == LABEL_NAMESPACE]
     assert len(shapes) == len(labels) == 3
@@ -211,7 +232,7 @@ def test_a_fallback_is_drawn_orange_at_its_settled_poses() -> None:
     with PhysicsChecker(problem.scene) as checker:
         result = BranchAndBound(checker, problem.hypotheses, problem.scene.search).run(None)
     assert result.fallback_used and result.settled_poses is not None and result.poses is not None
-    (shape,) = [m for m in markers_msg(result, problem.scene, stamp=0.0).markers if m.ns == SHAPE_NAMESPACE]
+    (shape,) = [m for m in markers_msg(result, problem.scene, stamp_ns=0).markers if m.ns == SHAPE_NAMESPACE]
     settled = result.settled_poses[0].position
     assert (shape.pose.position.x, shape.pose.position.y, shape.pose.position.z) == settled
     assert settled != result.poses[0].position
@@ -225,8 +246,8 @@ def test_nothing_chosen_gives_no_configuration_and_no_markers() -> None:
     with PhysicsChecker(MIXED) as checker:
         result = BranchAndBound(checker, floating, MIXED.search).run(None)
     assert result.code is None
-    assert configuration_msgs(result, frame_id="table", stamp=0.0) is None
-    assert markers_msg(result, MIXED, stamp=0.0).markers == []
+    assert configuration_msgs(result, frame_id="table", stamp_ns=0) is None
+    assert markers_msg(result, MIXED, stamp_ns=0).markers == []
 
 
 # --- diagnostics ---------------------------------------------------------------------------------
@@ -238,18 +259,20 @@ def test_diagnostics_hold_the_spec_keys_and_one_status_per_object() -> None:
     settings = MapperSettings(SearchParams(deadline=0.3), InputSettings(), rate_hz=2.0)
     try:
         waiting = diagnostics_msg(
-            mapper.tick(0.0, settings), node_name="physics_mapper", hardware_id="/ns/physics_mapper", stamp=0.0
+            mapper.tick(0.0, settings), node_name="physics_mapper", hardware_id="/ns/physics_mapper", stamp_ns=0
         )
         assert waiting.status[0].level == DiagnosticStatus.ERROR
         assert waiting.status[0].message == "waiting for hypotheses of: cube_left, cube_right, cube_top"
         for name, x, z in (("cube_left", -0.105, 0.1), ("cube_right", 0.105, 0.1), ("cube_top", 0.0, 0.3)):
-            msg = pose_array_msg([Pose((x, 0.0, z))], frame_id="world", stamp=1.0)
+            msg = pose_array_msg([Pose((x, 0.0, z))], frame_id="world", stamp_ns=1_000_000_000)
             mapper.inputs.add_poses(name, received_poses(msg, expected_frame="world", received=1.0))
             mapper.inputs.add_weights(name, received_weights(Float64MultiArray(data=[1.0]), received=1.0))
         report = mapper.tick(1.0, settings)
     finally:
         mapper.close()
-    diagnostics = diagnostics_msg(report, node_name="physics_mapper", hardware_id="/ns/physics_mapper", stamp=1.0)
+    diagnostics = diagnostics_msg(
+        report, node_name="physics_mapper", hardware_id="/ns/physics_mapper", stamp_ns=1_000_000_000
+    )
     search, *objects = diagnostics.status
     values = {kv.key: kv.value for kv in search.values}
     assert set(SPEC_DIAGNOSTIC_KEYS) <= set(values)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import shutil
 import signal
 import subprocess
@@ -17,6 +18,19 @@ from ros_helpers import RosClient, object_status, search_status
 NOT_SOURCES = {".venv", ".git", "build", "install", "log", "reports", ".mypy_cache", ".ruff_cache", ".pytest_cache"}
 COLCON = Path(sys.executable).parent / "colcon"
 PACKAGE = "physics_mapper"
+#: Runs the installed ``node`` script's own code (argv[1]) without starting the node, loads its
+#: entry point as the script does, and prints where the entry point and our packages came from.
+IMPORT_PROBE = """
+import json, os, runpy, sys
+script = sys.argv[1]
+sys.path[0] = os.path.dirname(script)  # as when the script itself runs
+entry = runpy.run_path(script)
+main = entry["load_entry_point"](entry["__requires__"], "console_scripts", "node")
+import msg_adapters, physics_mapper
+files = {"entry point": sys.modules[main.__module__].__file__}
+files.update({m.__name__: m.__file__ for m in (physics_mapper, msg_adapters)})
+print(json.dumps(files))
+"""
 
 
 def _ignore(directory: str, names: list[str]) -> set[str]:
@@ -74,3 +88,26 @@ def test_the_installed_node_runs_with_the_colcon_environment(workspace: Path, tm
     installed_scene = workspace / "install" / PACKAGE / "share" / PACKAGE / "config" / "scenes" / "pyramid.yaml"
     assert f"scene {installed_scene}:" in output
     assert code == 0, output
+
+
+def test_the_installed_node_imports_the_installed_packages(workspace: Path) -> None:
+    """The venv's editable install could stand in for a broken install: the node must not need it."""
+    script = workspace / "install" / PACKAGE / "lib" / PACKAGE / "node"
+    interpreter = script.read_text().splitlines()[0].removeprefix("#!")
+    command = 'source install/setup.bash && exec "$0" -c "$1" "$2"'
+    probe = subprocess.run(
+        ["bash", "-c", command, interpreter, IMPORT_PROBE, str(script)],
+        cwd=workspace,
+        capture_output=True,
+        text=True,
+        timeout=60,
+        check=False,
+    )
+    assert probe.returncode == 0, probe.stderr
+    files = json.loads(probe.stdout.splitlines()[-1])  # pybullet prints its build time first
+    (site_packages,) = (workspace.resolve() / "install" / PACKAGE / "lib").glob("python3*/site-packages")
+    assert files == {
+        "entry point": str(site_packages / PACKAGE / "node.py"),
+        PACKAGE: str(site_packages / PACKAGE / "__init__.py"),
+        "msg_adapters": str(site_packages / "msg_adapters" / "__init__.py"),
+    }

@@ -26,10 +26,10 @@ IDENTITY = (0.0, 0.0, 0.0, 1.0)
 SETTINGS = InputSettings(max_age=10.0, max_hypotheses=100, require_weights=False)
 
 
-def poses(xs: Sequence[float], *, received: float, stamp: float = 0.0, frame: str = "world") -> ReceivedPoses:
-    """A PoseArray of unrotated poses at (x, 0, 0.1), received at ``received`` seconds."""
+def poses(xs: Sequence[float], *, received: float, stamp_ns: int = 0, frame: str = "world") -> ReceivedPoses:
+    """A PoseArray of unrotated poses at (x, 0, 0.1), stamped ``stamp_ns``, received at ``received`` seconds."""
     raw = [((x, 0.0, 0.1), IDENTITY) for x in xs]
-    return check_poses(raw, frame_id=frame, expected_frame="world", stamp=stamp, received=received)
+    return check_poses(raw, frame_id=frame, expected_frame="world", stamp_ns=stamp_ns, received=received)
 
 
 def xs_in_rank_order(inputs: ObjectInputs, now: float, settings: InputSettings = SETTINGS) -> list[float]:
@@ -47,7 +47,9 @@ def test_a_pose_array_in_another_frame_is_refused_as_a_whole() -> None:
 
 
 def test_an_empty_pose_array_is_refused() -> None:
-    assert check_poses([], frame_id="world", expected_frame="world", stamp=0, received=0).refusal == "empty PoseArray"
+    assert (
+        check_poses([], frame_id="world", expected_frame="world", stamp_ns=0, received=0).refusal == "empty PoseArray"
+    )
 
 
 @pytest.mark.parametrize(
@@ -63,7 +65,7 @@ def test_a_bad_pose_is_dropped_and_the_others_kept(
     position: tuple[float, ...], orientation: tuple[float, ...], problem: str
 ) -> None:
     raw = [((0.5, 0.0, 0.1), IDENTITY), (position, orientation), ((0.7, 0.0, 0.1), IDENTITY)]
-    received = check_poses(raw, frame_id="world", expected_frame="world", stamp=0.0, received=0.0)
+    received = check_poses(raw, frame_id="world", expected_frame="world", stamp_ns=0, received=0.0)
     assert received.refusal is None
     assert [index for index, _ in received.poses] == [0, 2]
     assert len(received.dropped) == 1
@@ -72,7 +74,7 @@ def test_a_bad_pose_is_dropped_and_the_others_kept(
 
 def test_a_pose_array_without_any_usable_pose_is_refused() -> None:
     raw = [((0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 0.0))] * 2
-    received = check_poses(raw, frame_id="world", expected_frame="world", stamp=0.0, received=0.0)
+    received = check_poses(raw, frame_id="world", expected_frame="world", stamp_ns=0, received=0.0)
     assert received.refusal == "no usable pose (poses[0]: zero quaternion ...)"
 
 
@@ -198,7 +200,7 @@ def test_only_the_heaviest_hypotheses_are_kept() -> None:
 def test_dropped_poses_lose_their_weights_and_are_reported() -> None:
     raw = [((0.1, 0.0, 0.1), IDENTITY), ((0.2, 0.0, 0.1), (0.0, 0.0, 0.0, 0.0)), ((0.3, 0.0, 0.1), IDENTITY)]
     inputs = ObjectInputs("cube")
-    inputs.add_poses(check_poses(raw, frame_id="world", expected_frame="world", stamp=0.0, received=1.0))
+    inputs.add_poses(check_poses(raw, frame_id="world", expected_frame="world", stamp_ns=0, received=1.0))
     inputs.add_weights(check_weights([0.2, 0.7, 0.1], received=1.0))
     status = inputs.status(1.0, SETTINGS)
     assert status.level == Level.WARN
@@ -254,15 +256,15 @@ def test_hypotheses_older_than_max_age_are_stale_until_fresh_ones_arrive() -> No
 
 def test_the_snapshot_waits_for_every_object_and_carries_the_newest_stamp() -> None:
     tracker = InputTracker(["a", "b"])
-    tracker.add_poses("a", poses([0.1], received=1.0, stamp=100.0))
+    tracker.add_poses("a", poses([0.1], received=1.0, stamp_ns=1_732_233_600_123_456_789))
     snapshot = tracker.snapshot(1.0, SETTINGS)
     assert snapshot.missing == ("b",)
     assert snapshot.hypotheses is None
-    tracker.add_poses("b", poses([0.2], received=1.1, stamp=101.5))
+    tracker.add_poses("b", poses([0.2], received=1.1, stamp_ns=1_732_233_600_123_456_790))
     snapshot = tracker.snapshot(1.2, SETTINGS)
     assert snapshot.missing == ()
     assert snapshot.hypotheses is not None and len(snapshot.hypotheses) == 2
-    assert snapshot.stamp == 101.5
+    assert snapshot.stamp_ns == 1_732_233_600_123_456_790  # exact: one nanosecond newer
 
 
 # --- the tick ---------------------------------------------------------------------------------
@@ -278,7 +280,7 @@ def feed_pyramid(mapper: Mapper, received: float, top_z: float = 0.3) -> None:
     for name, x, z in (("cube_left", -0.105, 0.1), ("cube_right", 0.105, 0.1), ("cube_top", 0.0, top_z)):
         raw = [((x, 0.0, z), IDENTITY), ((x, 0.0, z + 0.05), IDENTITY)]
         mapper.inputs.add_poses(
-            name, check_poses(raw, frame_id="world", expected_frame="world", stamp=received, received=received)
+            name, check_poses(raw, frame_id="world", expected_frame="world", stamp_ns=0, received=received)
         )
 
 
@@ -325,7 +327,7 @@ def test_valid_settings_pass() -> None:
 
 def test_a_refused_pose_array_and_refused_weights_are_both_reported() -> None:
     inputs = ObjectInputs("cube")
-    inputs.add_poses(check_poses([], frame_id="world", expected_frame="world", stamp=0.0, received=1.0))
+    inputs.add_poses(check_poses([], frame_id="world", expected_frame="world", stamp_ns=0, received=1.0))
     inputs.add_weights(check_weights([], received=1.01))
     status = inputs.status(1.1, SETTINGS)
     assert status.message == "PoseArray refused: empty PoseArray; weights refused: empty weights array"

@@ -49,7 +49,8 @@ SNAPSHOTS = (
 )
 EXPECTED_CODES = [[2, 1, 1], [1, 2, 2], [1, 1, 1]]
 SPACING_NS = 2_000_000_000  # bag time between snapshots: the node resumes its search a few ticks on each
-FIRST_NS = 1_000_000_000
+#: Stamp and bag time of the first snapshot: a realistic epoch time, where float seconds would lose nanoseconds.
+FIRST_NS = 1_732_233_600_123_456_789
 NAMESPACE = "/replay_test"
 
 
