@@ -33,7 +33,7 @@ from physics_mapper.errors import EXIT_BAD_INPUT, InputError
 from physics_mapper.inputs import InputSettings
 from physics_mapper.mapper import DEFAULT_RATE_HZ, Mapper, MapperSettings, TickReport, settings_problem
 from physics_mapper.ros_interface import DIAGNOSTICS_QOS, INPUT_QOS, MAP_QOS, shutdown_ros
-from physics_mapper.scene import FALLBACKS, Fallback, SceneError, SearchParams, load_scene
+from physics_mapper.scene import FALLBACKS, SEARCH_LIMITS, Fallback, SceneError, SearchParams, load_scene
 from physics_mapper.topics import (
     CONFIGURATION_TOPIC,
     DIAGNOSTICS_TOPIC,
@@ -52,7 +52,10 @@ SOURCE_ROOT = Path(__file__).resolve().parent.parent
 
 @dataclass(frozen=True)
 class ParameterSpec:
-    """A node parameter: ``default`` None means the scene file's ``search:`` value; ``limits`` inclusive."""
+    """A node parameter: ``default`` None means the scene file's ``search:`` value; ``limits`` inclusive.
+
+    The search parameters' limits are the scene model's (:data:`~physics_mapper.scene.SEARCH_LIMITS`).
+    """
 
     name: str
     description: str
@@ -64,14 +67,12 @@ PARAMETERS = (
     ParameterSpec(
         "rate_hz", "ticks per second; each tick snapshots the inputs and searches", DEFAULT_RATE_HZ, (0.01, 100.0)
     ),
-    ParameterSpec("deadline", "wall-clock seconds of search per tick; must be < 1/rate_hz", None, (0.001, 60.0)),
-    ParameterSpec("probability_threshold", "T: nodes with p(C) < T are checked but not expanded", None, (0.0, 1.0)),
-    ParameterSpec("penetration_threshold", "deepest allowed overlap between two bodies, metres", None, (0.0, 1.0)),
-    ParameterSpec(
-        "jitter_threshold", "largest per-object jitter J_i of a stable object (m + weighted rad)", None, (0.0, 10.0)
-    ),
-    ParameterSpec("angular_weight", "metres per radian of rotation in the jitter J_i", None, (0.0, 10.0)),
-    ParameterSpec("settle_time", "simulated seconds under gravity for the stability test", None, (0.0, 10.0)),
+    ParameterSpec("deadline", "wall-clock seconds of search per tick; must be < 1/rate_hz", None),
+    ParameterSpec("probability_threshold", "T: nodes with p(C) < T are checked but not expanded"),
+    ParameterSpec("penetration_threshold", "deepest allowed overlap between two bodies, metres"),
+    ParameterSpec("jitter_threshold", "largest per-object jitter J_i of a stable object (m + weighted rad)"),
+    ParameterSpec("angular_weight", "metres per radian of rotation in the jitter J_i"),
+    ParameterSpec("settle_time", "simulated seconds under gravity for the stability test"),
     ParameterSpec("fallback", f"when no configuration is valid: {' or '.join(FALLBACKS)}", None),
     ParameterSpec("max_hypotheses_per_object", "hypotheses kept per object (the heaviest)", 100, (1, 100000)),
     ParameterSpec("max_age", "seconds after which received hypotheses are stale", 10.0, (0.01, 86400.0)),
@@ -81,9 +82,10 @@ PARAMETERS = (
 
 def _descriptor(spec: ParameterSpec) -> ParameterDescriptor:
     descriptor = ParameterDescriptor(description=spec.description)
-    if spec.limits is None:
+    limits = SEARCH_LIMITS.get(spec.name, spec.limits)
+    if limits is None:
         return descriptor
-    low, high = spec.limits
+    low, high = limits
     if isinstance(spec.default, int) and not isinstance(spec.default, bool):
         descriptor.integer_range = [IntegerRange(from_value=int(low), to_value=int(high), step=1)]
     else:
