@@ -10,8 +10,21 @@ with p in metres and the rotation angle in radians (SPEC section 2).
 
 The world is built once per :class:`PhysicsChecker`; configurations move the bodies,
 restore a saved solver state and empty the contact caches, so no world is rebuilt per
-configuration and the same configuration always gives the same answer, whatever was
-checked before it.
+configuration and the same configuration gives the same answer whatever was checked before
+it: bit for bit on every configuration of the shipped problems at their settle times. Bullet
+keeps a trace of earlier configurations that neither restoring the state nor emptying the
+caches removes, visible only in long chaotic settlings (one pyramid configuration of 126,
+settled 5 s, ends 1e-7 m apart in a fresh world).
+
+A settling given a deadline (``stop_at``) that passes is interrupted, not abandoned: it returns
+a :class:`PartialSettling` that :meth:`PhysicsChecker.resume_settling` continues where it
+stopped, ending bit for bit where the same settling run uninterrupted on this checker ends.
+Resumed at once, the world simply holds the interrupted simulation and goes on; if the world is
+used for another configuration first, the interrupted simulation is saved (pybullet
+``saveState``, about 0.5 ms) and restored on resume, positions, velocities and contact points,
+measured bit for bit too (BENCHMARKS.md, "Interrupted settlings"). A checker keeps one
+interrupted settling: interrupting another frees the first's saved state, and resuming the
+first then simulates it again from its start (same result, more time).
 """
 
 from __future__ import annotations
@@ -19,6 +32,7 @@ from __future__ import annotations
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import overload
 
 import pybullet
 
@@ -28,7 +42,8 @@ from physics_mapper.scene import Box, Cylinder, Plane, Scene, Shape, Sphere
 #: Bullet's default step, 240 Hz, in seconds.
 TIME_STEP = 1.0 / 240.0
 GRAVITY = -9.81  # m/s^2 along z
-#: Simulation steps between two looks at the wall clock during settling.
+#: Simulation steps between two looks at the wall clock during settling: an interrupted settling
+#: stops at most this many steps after its deadline, and a resumed one advances at least this many.
 CLOCK_CHECK_STEPS = 8
 #: Metres between the spots, far above any scene, where objects wait between configurations.
 PARKING_SPACING = 1000.0
@@ -64,6 +79,21 @@ class Settling:
         return max(self.jitters) <= jitter_threshold
 
 
+@dataclass(frozen=True, eq=False)
+class PartialSettling:
+    """A settling its deadline interrupted, for :meth:`PhysicsChecker.resume_settling`.
+
+    ``steps_done`` of ``steps_total`` :data:`TIME_STEP` steps are simulated from rest at
+    ``poses`` (the start, from which the jitters are measured). Compared by identity: the
+    checker that interrupted it recognises it as the settling it kept.
+    """
+
+    poses: tuple[Pose, ...]
+    angular_weight: float
+    steps_done: int
+    steps_total: int
+
+
 @dataclass(frozen=True)
 class Snapshot:
     """The objects' poses ``time`` seconds into a simulation."""
@@ -83,6 +113,10 @@ class PhysicsChecker:
         self._client = pybullet.connect(pybullet.DIRECT)
         self._bodies: list[int] = []
         self._names: dict[int, str] = {}
+        # The interrupted settling a resume continues, and its saved state once the world was
+        # used for something else (None while the world still holds that simulation).
+        self._interrupted: PartialSettling | None = None
+        self._interrupted_state: int | None = None
         try:
             self._build()
         except Exception:
@@ -138,8 +172,9 @@ class PhysicsChecker:
     def close(self) -> None:
         """Disconnect the pybullet world (idempotent)."""
         if self._client >= 0:
-            pybullet.disconnect(physicsClientId=self._client)
+            pybullet.disconnect(physicsClientId=self._client)  # frees every saved state
             self._client = -1
+            self._interrupted = self._interrupted_state = None
 
     def __enter__(self) -> PhysicsChecker:
         return self
@@ -150,16 +185,34 @@ class PhysicsChecker:
     def _place(self, poses: Sequence[Pose]) -> None:
         if len(poses) != len(self._bodies):
             raise ValueError(f"{len(poses)} poses for {len(self._bodies)} objects")
-        # Restoring the saved state resets velocities, but Bullet keeps its contact points (and
-        # their warm-start impulses) across restoreState. Parking the objects far apart and
-        # running collision detection empties them, so no configuration inherits its predecessor's.
+        self._save_interrupted()
         pybullet.restoreState(self._initial_state, physicsClientId=self._client)
+        self._empty_contact_caches()
+        for uid, pose in zip(self._bodies, poses, strict=True):
+            pybullet.resetBasePositionAndOrientation(uid, pose.position, pose.orientation, physicsClientId=self._client)
+
+    def _empty_contact_caches(self) -> None:
+        """Drop every contact point, so that no simulation inherits another's.
+
+        restoreState restores the contact points (and warm-start impulses) it saved and empties
+        the other touching pairs', unless it saved none (Bullet skips empty manifolds, and the
+        initial state has none): then it keeps every contact point the world holds. Parking the
+        objects far apart and running collision detection empties them.
+        """
         for index, uid in enumerate(self._bodies):
             parking = (PARKING_SPACING * (index + 1), PARKING_SPACING, PARKING_SPACING)
             pybullet.resetBasePositionAndOrientation(uid, parking, IDENTITY, physicsClientId=self._client)
         pybullet.performCollisionDetection(physicsClientId=self._client)
-        for uid, pose in zip(self._bodies, poses, strict=True):
-            pybullet.resetBasePositionAndOrientation(uid, pose.position, pose.orientation, physicsClientId=self._client)
+
+    def _save_interrupted(self) -> None:
+        """Save the interrupted simulation the world holds, before the world is used for something else."""
+        if self._interrupted is not None and self._interrupted_state is None:
+            self._interrupted_state = pybullet.saveState(physicsClientId=self._client)
+
+    def _forget_interrupted(self) -> None:
+        if self._interrupted_state is not None:
+            pybullet.removeState(self._interrupted_state, physicsClientId=self._client)
+        self._interrupted = self._interrupted_state = None
 
     def _poses(self) -> tuple[Pose, ...]:
         poses = []
@@ -192,21 +245,64 @@ class PhysicsChecker:
         first, second = sorted((body_a, body_b), key=lambda uid: order.get(uid, len(order) + uid))
         return self._names[first], self._names[second]
 
+    @overload
+    def settle(self, poses: Sequence[Pose], settle_time: float, angular_weight: float) -> Settling: ...
+
+    @overload
+    def settle(
+        self, poses: Sequence[Pose], settle_time: float, angular_weight: float, stop_at: float | None
+    ) -> Settling | PartialSettling: ...
+
     def settle(
         self, poses: Sequence[Pose], settle_time: float, angular_weight: float, stop_at: float | None = None
-    ) -> Settling | None:
+    ) -> Settling | PartialSettling:
         """Rule 2: simulate ``settle_time`` seconds from rest at ``poses``; measure each J_i.
 
-        ``stop_at`` is a ``time.monotonic()`` instant; if it passes before settling ends the
-        simulation is abandoned and None is returned, so a caller never overruns its deadline
-        by more than :data:`CLOCK_CHECK_STEPS` steps.
+        ``stop_at`` is a ``time.monotonic()`` instant. The clock is read every
+        :data:`CLOCK_CHECK_STEPS` steps; once it has passed, the simulation stops and a
+        :class:`PartialSettling` is returned, so a caller overruns its deadline by at most that
+        many steps. :meth:`resume_settling` continues it.
         """
         self._place(poses)
-        steps = round(settle_time / TIME_STEP)
-        for step in range(steps):
-            if stop_at is not None and step % CLOCK_CHECK_STEPS == 0 and time.monotonic() >= stop_at:
-                return None
-            pybullet.stepSimulation(physicsClientId=self._client)
+        return self._simulate(tuple(poses), angular_weight, 0, round(settle_time / TIME_STEP), stop_at)
+
+    @overload
+    def resume_settling(self, partial: PartialSettling) -> Settling: ...
+
+    @overload
+    def resume_settling(self, partial: PartialSettling, stop_at: float | None) -> Settling | PartialSettling: ...
+
+    def resume_settling(self, partial: PartialSettling, stop_at: float | None = None) -> Settling | PartialSettling:
+        """Continue an interrupted settling where it stopped, until done or ``stop_at`` (as :meth:`settle`).
+
+        The settled poses are bit for bit those of the settling run uninterrupted, also when
+        other configurations were checked in between (see the module docstring). Each call
+        simulates at least :data:`CLOCK_CHECK_STEPS` steps, so repeated calls finish. A partial
+        this checker no longer keeps (it interrupted another settling since, or the partial is
+        another checker's) is simulated again from its start.
+        """
+        if partial is not self._interrupted:
+            self._place(partial.poses)
+            return self._simulate(partial.poses, partial.angular_weight, 0, partial.steps_total, stop_at)
+        if self._interrupted_state is not None:
+            self._empty_contact_caches()
+            pybullet.restoreState(self._interrupted_state, physicsClientId=self._client)
+        self._forget_interrupted()
+        return self._simulate(partial.poses, partial.angular_weight, partial.steps_done, partial.steps_total, stop_at)
+
+    def _simulate(
+        self, poses: tuple[Pose, ...], angular_weight: float, steps_done: int, steps_total: int, stop_at: float | None
+    ) -> Settling | PartialSettling:
+        """Step the world from ``steps_done`` to ``steps_total``, or until ``stop_at`` (see :meth:`settle`)."""
+        while steps_done < steps_total:
+            batch_end = min(steps_done + CLOCK_CHECK_STEPS, steps_total)
+            for _ in range(steps_done, batch_end):
+                pybullet.stepSimulation(physicsClientId=self._client)
+            steps_done = batch_end
+            if stop_at is not None and steps_done < steps_total and time.monotonic() >= stop_at:
+                self._forget_interrupted()
+                self._interrupted = PartialSettling(poses, angular_weight, steps_done, steps_total)
+                return self._interrupted
         settled = self._poses()
         jitters = tuple(pose_displacement(a, b, angular_weight) for a, b in zip(poses, settled, strict=True))
         return Settling(settled, jitters)

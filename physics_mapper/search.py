@@ -27,7 +27,7 @@ from typing import Literal
 
 from physics_mapper.geometry import Pose
 from physics_mapper.hypotheses import RankedHypotheses
-from physics_mapper.physics import PhysicsChecker, Settling
+from physics_mapper.physics import Collision, PartialSettling, PhysicsChecker, Settling
 from physics_mapper.scene import SearchParams
 
 Code = tuple[int, ...]
@@ -136,6 +136,8 @@ class BranchAndBound:
         self._enqueued: set[Code] = set()
         self._best: Candidate | None = None
         self._first_collision_free: Candidate | None = None
+        # The node whose settling the deadline interrupted (first in the queue), and that settling.
+        self._interrupted: tuple[Code, PartialSettling] | None = None
         self._push(tuple(1 for _ in self.hypotheses), None)
 
     def probability(self, code: Code) -> float:
@@ -164,8 +166,12 @@ class BranchAndBound:
     def run(self, budget: float | None = None) -> SearchResult:
         """Search for at most ``budget`` wall-clock seconds (None: until the queue empties).
 
-        A node whose simulation the deadline interrupts is put back and checked first
-        on the next run, so resuming loses nothing.
+        A node whose settling the deadline interrupts is put back and checked first on the
+        next run, which continues its simulation where it stopped
+        (:meth:`PhysicsChecker.resume_settling`), so resuming loses nothing: the runs together
+        visit the same nodes with the same outcomes as one uninterrupted run. A run that gets
+        to that node simulates at least :data:`~physics_mapper.physics.CLOCK_CHECK_STEPS` steps
+        of it, so a settling longer than the budget still ends after enough runs.
         """
         start = time.monotonic()
         stop_at = None if budget is None else start + budget
@@ -186,25 +192,35 @@ class BranchAndBound:
         return self.result()
 
     def _visit(self, item: _QueueItem, stop_at: float | None) -> bool:
-        """Check one node and expand it; False if the deadline interrupted its simulation."""
+        """Check one node and expand it; False if the deadline interrupted its settling."""
         code, probability = item.code, item.probability
-        poses = self.poses(code)
-        params = self.params
-        bounded = probability < params.probability_threshold
-        collision = self.checker.find_collision(poses, params.penetration_threshold)
-        if collision is not None:
-            entry = TraceEntry(code, probability, "collision", bounded, pair=collision.pair, depth=collision.depth)
+        bounded = probability < self.params.probability_threshold
+        check = self._check(code, stop_at)
+        if isinstance(check, PartialSettling):
+            self._interrupted = (code, check)
+            return False
+        if isinstance(check, Collision):
+            entry = TraceEntry(code, probability, "collision", bounded, pair=check.pair, depth=check.depth)
         else:
-            settling = self.checker.settle(poses, params.settle_time, params.angular_weight, stop_at)
-            if settling is None:
-                return False
-            entry = self._judge(Candidate(code, probability, settling), bounded)
+            entry = self._judge(Candidate(code, probability, check), bounded)
         self._record(replace(entry, parent=item.parent))
         if not bounded:
             for child in self._children(code):
                 self._push(child, code)
             self.stats.expanded += 1
         return True
+
+    def _check(self, code: Code, stop_at: float | None) -> Collision | Settling | PartialSettling:
+        """Rule 1, then Rule 2 if no collision; an interrupted node's settling is continued."""
+        interrupted, self._interrupted = self._interrupted, None
+        if interrupted is not None and interrupted[0] == code:
+            return self.checker.resume_settling(interrupted[1], stop_at)
+        poses = self.poses(code)
+        params = self.params
+        collision = self.checker.find_collision(poses, params.penetration_threshold)
+        if collision is not None:
+            return collision
+        return self.checker.settle(poses, params.settle_time, params.angular_weight, stop_at)
 
     def _judge(self, candidate: Candidate, bounded: bool) -> TraceEntry:
         settling = candidate.settling

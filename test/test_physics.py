@@ -2,13 +2,15 @@
 
 from __future__ import annotations
 
+import itertools
 import math
 
+import pybullet
 import pytest
 from core_builders import CUBE_SIZE, ON_FLOOR, cube, floor_scene, ground_truth, moved, shipped_scene, unrotated
 
 from physics_mapper.geometry import Pose, rotation_angle, translation_distance
-from physics_mapper.physics import PhysicsChecker
+from physics_mapper.physics import CLOCK_CHECK_STEPS, TIME_STEP, PartialSettling, PhysicsChecker, Settling
 from physics_mapper.scene import Scene, SearchParams
 
 JITTER_THRESHOLD = SearchParams().jitter_threshold
@@ -19,7 +21,6 @@ def settle(checker: PhysicsChecker, poses: tuple[Pose, ...]) -> tuple[tuple[Pose
     """Settle with the scene's own parameters; (settled poses, per-object jitters)."""
     params = checker.scene.search
     settling = checker.settle(poses, params.settle_time, params.angular_weight)
-    assert settling is not None  # no deadline given
     return settling.settled_poses, settling.jitters
 
 
@@ -52,7 +53,6 @@ def test_cube_10cm_above_the_floor_is_unstable() -> None:
         floating = (unrotated(0.0, 0.0, ON_FLOOR + 0.1),)
         assert checker.find_collision(floating, PENETRATION_THRESHOLD) is None
         settling = checker.settle(floating, settle_time=0.5, angular_weight=0.1)
-        assert settling is not None
         assert not settling.is_stable(JITTER_THRESHOLD)
         assert math.isclose(settling.jitters[0], 0.1, abs_tol=0.005)
         assert math.isclose(settling.settled_poses[0].position[2], ON_FLOOR, abs_tol=0.001)
@@ -64,7 +64,6 @@ def test_correct_three_cube_pyramid_is_valid() -> None:
         truth = ground_truth(scene)
         assert checker.find_collision(truth, scene.search.penetration_threshold) is None
         settling = checker.settle(truth, scene.search.settle_time, scene.search.angular_weight)
-        assert settling is not None
         assert settling.is_stable(scene.search.jitter_threshold)
         assert settling.total_jitter < scene.search.jitter_threshold
 
@@ -154,3 +153,125 @@ def test_same_configuration_gives_identical_results_whatever_was_checked_before(
     with PhysicsChecker(scene) as fresh:
         assert check(fresh, leaning) == first_leaning
         assert check(fresh, truth) == first_truth
+
+
+#: Long enough (1200 steps) for the pyramid's cubes to fall, slide and come to rest.
+LONG_SETTLE_TIME = 5.0
+#: A ``time.monotonic()`` instant long past: every look at the clock interrupts the settling.
+PAST = 0.0
+
+
+def pyramid_starts() -> dict[str, tuple[Pose, ...]]:
+    """Pyramid configurations that stay put, slide, fall and topple during :data:`LONG_SETTLE_TIME`."""
+    truth = ground_truth(shipped_scene("pyramid.yaml"))
+    tilted = Pose(truth[2].position, (0.258819, 0.0, 0.0, 0.965926))  # 30 degrees about x, one edge down
+    return {
+        "truth": truth,
+        "leaning": (moved(truth[0], dx=0.03), moved(truth[1], dx=-0.03), truth[2]),
+        "floating": (truth[0], truth[1], moved(truth[2], dz=0.06)),
+        "tilted": (truth[0], moved(truth[1], dx=0.05), Pose(moved(truth[2], dz=0.04).position, tilted.orientation)),
+    }
+
+
+def settle_long(checker: PhysicsChecker, poses: tuple[Pose, ...]) -> Settling:
+    return checker.settle(poses, LONG_SETTLE_TIME, checker.scene.search.angular_weight)
+
+
+def interrupt_long(checker: PhysicsChecker, poses: tuple[Pose, ...]) -> PartialSettling:
+    partial = checker.settle(poses, LONG_SETTLE_TIME, checker.scene.search.angular_weight, PAST)
+    assert isinstance(partial, PartialSettling)
+    return partial
+
+
+def advance(checker: PhysicsChecker, partial: PartialSettling, resumes: int) -> PartialSettling:
+    """Resume ``partial`` this many times, each for CLOCK_CHECK_STEPS steps."""
+    for _ in range(resumes):
+        outcome = checker.resume_settling(partial, PAST)
+        assert isinstance(outcome, PartialSettling)
+        partial = outcome
+    return partial
+
+
+def test_a_settling_interrupted_at_every_clock_check_ends_exactly_where_an_uninterrupted_one_does() -> None:
+    scene = shipped_scene("pyramid.yaml")
+    starts = pyramid_starts()
+    # Twin worlds given the same configurations in the same order: one settles each at once,
+    # the other is interrupted every CLOCK_CHECK_STEPS steps and resumed straight away.
+    with PhysicsChecker(scene) as uninterrupted, PhysicsChecker(scene) as interrupted:
+        for poses in starts.values():
+            reference = settle_long(uninterrupted, poses)
+            assert reference.settled_poses != poses  # the settling is not trivial: every start moves
+            outcome: Settling | PartialSettling = interrupt_long(interrupted, poses)
+            steps_done = []
+            while isinstance(outcome, PartialSettling):
+                steps_done.append(outcome.steps_done)
+                outcome = interrupted.resume_settling(outcome, PAST)
+            # A deadline long past stops each call after exactly CLOCK_CHECK_STEPS steps: the overrun
+            # bound, and the least progress a resumed settling makes.
+            total = round(LONG_SETTLE_TIME / TIME_STEP)
+            assert steps_done == list(range(CLOCK_CHECK_STEPS, total, CLOCK_CHECK_STEPS))
+            assert outcome == reference  # bit for bit: same poses, same jitters
+
+
+def test_an_interrupted_settling_resumes_exactly_after_other_configurations_used_the_world() -> None:
+    scene = shipped_scene("pyramid.yaml")
+    starts = pyramid_starts()
+    params = scene.search
+    with PhysicsChecker(scene) as fresh:
+        references = {name: settle_long(fresh, poses) for name, poses in starts.items()}
+    with PhysicsChecker(scene) as checker:
+        for name, poses in starts.items():
+            partial = advance(checker, interrupt_long(checker, poses), 20)
+            assert partial.steps_done == 21 * CLOCK_CHECK_STEPS
+            for other_name, other in starts.items():
+                if other_name != name:
+                    checker.find_collision(other, params.penetration_threshold)
+                    settle_long(checker, other)
+            checker.trajectory(starts["floating"], 0.2, 0.05)
+            assert checker.resume_settling(partial) == references[name]
+
+
+def test_resuming_a_settling_the_checker_no_longer_keeps_starts_it_over_with_the_same_result() -> None:
+    scene = shipped_scene("pyramid.yaml")
+    starts = pyramid_starts()
+    with PhysicsChecker(scene) as fresh:
+        leaning_reference = settle_long(fresh, starts["leaning"])
+        floating_reference = settle_long(fresh, starts["floating"])
+    with PhysicsChecker(scene) as checker:
+        leaning = interrupt_long(checker, starts["leaning"])
+        floating = interrupt_long(checker, starts["floating"])  # the checker keeps this one only
+        assert checker.resume_settling(leaning) == leaning_reference  # simulated again from its start
+        assert checker.resume_settling(floating) == floating_reference  # restored after that
+    with PhysicsChecker(scene) as other:
+        assert other.resume_settling(leaning) == leaning_reference  # another checker's partial
+
+
+def next_saved_state_id(checker: PhysicsChecker) -> int:
+    """The id pybullet gives the next saved state of the checker's world, then frees it.
+
+    pybullet reuses freed ids, so only states the checker leaked would push it up.
+    """
+    client = checker._client  # the test inspects pybullet itself, not the checker's bookkeeping
+    state = int(pybullet.saveState(physicsClientId=client))
+    pybullet.removeState(state, physicsClientId=client)
+    return state
+
+
+def test_interrupted_settlings_never_hold_more_than_one_saved_state() -> None:
+    scene = shipped_scene("pyramid.yaml")
+    starts = list(pyramid_starts().values())
+    with PhysicsChecker(scene) as checker:
+        ids = [next_saved_state_id(checker)]
+        for _ in range(10):
+            for poses, other in itertools.pairwise(starts):
+                # Interrupt, use the world for another configuration (which saves the interrupted one),
+                # interrupt that one too (which frees the first's state), resume the first (started
+                # over, which saves the second) and the second (started over, to the end).
+                first = interrupt_long(checker, poses)
+                checker.find_collision(other, scene.search.penetration_threshold)
+                second = interrupt_long(checker, other)
+                checker.resume_settling(first, PAST)
+                checker.resume_settling(second)
+                ids.append(next_saved_state_id(checker))
+    # The initial state holds id 0 and an interrupted settling at most one more.
+    assert ids[0] == 1 and max(ids) <= 2

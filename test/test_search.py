@@ -9,7 +9,9 @@ from __future__ import annotations
 
 import itertools
 import math
+from dataclasses import replace
 
+from conftest import PROBLEMS
 from core_builders import (
     FIG4_ORDER,
     FIG4_THRESHOLD,
@@ -24,8 +26,8 @@ from core_builders import (
     unrotated,
 )
 
-from physics_mapper.physics import PhysicsChecker
-from physics_mapper.scene import SearchParams
+from physics_mapper.physics import CLOCK_CHECK_STEPS, TIME_STEP, PhysicsChecker
+from physics_mapper.scene import SearchParams, load_problem
 from physics_mapper.search import BranchAndBound, Code, SearchResult, TraceEntry
 
 #: A 4 x 3 x 3 problem with distinct, unequal weights (normalised by the ranking).
@@ -149,6 +151,37 @@ def test_tiny_deadline_returns_best_so_far_and_resuming_continues_the_same_trace
     assert final.trace == reference.trace
     assert (final.code, final.jitter) == (reference.code, reference.jitter)
     assert final.stats.visited == reference.stats.visited == 64
+
+
+def test_settlings_longer_than_the_budget_continue_across_runs_to_the_uninterrupted_trace() -> None:
+    problem = load_problem(PROBLEMS / "pyramid.yaml")
+    settle_time = 5.0  # seconds, 1200 steps: tens of milliseconds per settling
+    params = replace(problem.scene.search, settle_time=settle_time)
+    reference = run_search(problem.scene, problem.hypotheses, params)
+    settlings = sum(entry.outcome != "collision" for entry in reference.trace)
+    assert settlings >= 10 and reference.valid
+    budget = 0.002  # seconds per run, far less than one settling takes
+    # Every run visits a node or simulates CLOCK_CHECK_STEPS steps of one: a generous cap.
+    steps = settlings * round(settle_time / TIME_STEP)
+    max_runs = 3 * (len(reference.trace) + steps // CLOCK_CHECK_STEPS)
+
+    with PhysicsChecker(problem.scene) as checker:
+        search = BranchAndBound(checker, problem.hypotheses, params)
+        results = [search.run(budget)]
+        while not search.done and len(results) < max_runs:
+            results.append(search.run(budget))
+
+    assert search.done, f"{len(results)} runs visited {len(results[-1].trace)} of {len(reference.trace)} nodes"
+    # Runs that ended inside a settling added nothing to the trace: settlings spanned several runs.
+    runs_inside_a_settling = [len(b.trace) == len(a.trace) for a, b in itertools.pairwise(results)]
+    assert sum(runs_inside_a_settling) >= settlings
+    for result in results:
+        assert result.trace == reference.trace[: len(result.trace)]
+    final = results[-1]
+    assert final.trace == reference.trace  # same codes, outcomes and jitters, bit for bit
+    assert (final.code, final.jitter) == (reference.code, reference.jitter)
+    assert final.settled_poses == reference.settled_poses
+    assert final.stats.exhausted and final.stats.visited == reference.stats.visited
 
 
 def one_cube_search(heights: tuple[float, ...], params: SearchParams) -> SearchResult:
