@@ -9,13 +9,15 @@ this module read each other's bags. Topics (absolute names, as ``ros2 bag record
 * ``/ground_truth``: ``geometry_msgs/msg/PoseArray``, every object's true pose, in scene order.
 
 Messages are kept as raw CDR bytes (what a publisher sends); :func:`pose_array_from_cdr` and
-:func:`weights_from_cdr` turn one into core values, the only conversion from bag messages here.
-Reading is all in memory: the bags this tool makes are small. Time stamps are integer nanoseconds.
+:func:`weights_from_cdr` turn one into core values, the only conversion from bag messages here;
+:func:`decoding` names the bag, topic and time of a message that cannot be used. Reading is in
+memory, of every topic or only of the topics a caller needs. Time stamps are integer nanoseconds.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Collection, Iterator, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from types import TracebackType
@@ -38,6 +40,7 @@ BAG_VERSION: Final = 9
 
 POSE_ARRAY = "geometry_msgs/msg/PoseArray"
 WEIGHTS = "std_msgs/msg/Float64MultiArray"
+DIAGNOSTIC_ARRAY = "diagnostic_msgs/msg/DiagnosticArray"
 
 TYPESTORE = get_typestore(Stores.ROS2_JAZZY)
 _Time = TYPESTORE.types["builtin_interfaces/msg/Time"]
@@ -79,7 +82,7 @@ class BagMessage:
 
 @dataclass(frozen=True)
 class Bag:
-    """A whole bag in memory: every topic's type (even without messages) and the messages by time."""
+    """A bag in memory: every topic's type (even without messages) and the messages read, by time."""
 
     path: Path
     topics: dict[str, str]
@@ -211,24 +214,43 @@ class BagWriter:
         self.write(weights_topic(object_name), WEIGHTS, time_ns + 1, weights_cdr(weights))
 
 
-def read_bag(path: str | Path) -> Bag:
-    """Read a whole mcap or sqlite3 bag; raises BagError if it is missing, corrupt or truncated."""
+def read_bag(path: str | Path, topics: Collection[str] | None = None) -> Bag:
+    """Read an mcap or sqlite3 bag: the messages of ``topics`` (absolute names; None: of every topic).
+
+    :attr:`Bag.topics` lists every topic of the bag with its type, read or not. Raises BagError
+    if the bag is missing, corrupt or truncated.
+    """
     path = Path(path)
     if not path.exists():
         raise BagError(f"{path}: no such bag")
     try:
         with Reader(path) as reader:
-            topics = {recorded(c.topic): c.msgtype for c in reader.connections}
-            messages = [
-                BagMessage(recorded(connection.topic), connection.msgtype, time_ns, bytes(raw))
-                for connection, time_ns, raw in reader.messages()
-            ]
+            types = {recorded(c.topic): c.msgtype for c in reader.connections}
+            wanted = [c for c in reader.connections if topics is None or recorded(c.topic) in topics]
+            # rosbags reads every connection when given none; no wanted connection means no message.
+            messages = (
+                [
+                    BagMessage(recorded(connection.topic), connection.msgtype, time_ns, bytes(raw))
+                    for connection, time_ns, raw in reader.messages(connections=wanted)
+                ]
+                if wanted
+                else []
+            )
     except Exception as error:
         # A damaged file surfaces as whatever layer notices it first (ReaderError, apsw's CorruptError,
         # struct.error, OverflowError, ...); the try holds only rosbags calls. One line: YAML errors span several.
         raise BagError(f"{path}: cannot read bag (corrupt or truncated?): {' '.join(str(error).split())}") from None
     messages.sort(key=lambda m: m.time_ns)
-    return Bag(path, topics, tuple(messages))
+    return Bag(path, types, tuple(messages))
+
+
+@contextmanager
+def decoding(bag: Bag, message: BagMessage) -> Iterator[None]:
+    """Re-raise a BagError raised while using ``message`` as one naming the bag, the topic and the time."""
+    try:
+        yield
+    except BagError as error:
+        raise BagError(f"{bag.path}: {message.topic} at {message.time_ns} ns: {error}") from None
 
 
 def check_hypothesis_topics(bag: Bag, object_names: Sequence[str]) -> None:

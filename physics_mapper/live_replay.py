@@ -1,8 +1,10 @@
 """Play a bag into the live ROS 2 graph and record the node's outputs: ``ros2 bag play`` + ``record``.
 
 The bag's messages are published as the raw CDR bytes stored in the bag (no conversion), at
-their recorded times scaled by a rate. The node's outputs are recorded, also as raw bytes, into
-a new bag, stamped with the receive time. The topic names are those of :mod:`physics_mapper.replay`;
+their recorded times scaled by a rate, except on the topics recorded here: a bag recorded with
+``ros2 bag record -a`` while a node ran holds that node's outputs, which would be recorded again
+as this replay's. The node's outputs are recorded, also as raw bytes, into a new bag, stamped
+with the receive time. The topic names are those of :mod:`physics_mapper.replay`;
 for a node in a namespace, the bag's topics and the node's outputs are taken inside that namespace
 (``/diagnostics`` stays global) and recorded under their root-namespace names, so that recordings
 compare.
@@ -23,23 +25,23 @@ from rclpy.publisher import Publisher
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.subscription import Subscription
 
-from physics_mapper.bags import NANOSECONDS, Bag, BagWriter
+from physics_mapper.bags import DIAGNOSTIC_ARRAY, NANOSECONDS, POSE_ARRAY, Bag, BagWriter
 from physics_mapper.replay import CONFIGURATION_TOPIC, DIAGNOSTICS_TOPIC, SETTLED_TOPIC
 from physics_mapper.ros_interface import shutdown_ros
+from physics_mapper.topics import MARKERS_TOPIC, recorded
 
-#: The node's outputs that are recorded, with their types.
+#: The node's outputs that are recorded, with their types; a bag's messages on these topics are not played.
+#: The node's markers, as a bag records them: never played back, like the recorded outputs.
+NODE_MARKERS_TOPIC = recorded(MARKERS_TOPIC)
 RECORDED = (
-    (CONFIGURATION_TOPIC, "geometry_msgs/msg/PoseArray"),
-    (SETTLED_TOPIC, "geometry_msgs/msg/PoseArray"),
-    (DIAGNOSTICS_TOPIC, "diagnostic_msgs/msg/DiagnosticArray"),
+    (CONFIGURATION_TOPIC, POSE_ARRAY),
+    (SETTLED_TOPIC, POSE_ARRAY),
+    (DIAGNOSTICS_TOPIC, DIAGNOSTIC_ARRAY),
 )
-# Reliable publishers match both reliable and best-effort subscribers (the node's inputs are best effort).
-# QoSProfile.__init__ is unannotated in rclpy 7.
-PLAY_QOS = QoSProfile(  # type: ignore[no-untyped-call]
-    depth=100, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE
-)
-# Volatile: a latched map from before the replay is not part of it.
-RECORD_QOS = QoSProfile(  # type: ignore[no-untyped-call]
+#: For playing and recording alike. Reliable publishers match both reliable and best-effort
+#: subscribers (the node's inputs are best effort); volatile subscribers do not receive a map
+#: latched before the replay. QoSProfile.__init__ is unannotated in rclpy 7.
+RELIABLE_VOLATILE_QOS = QoSProfile(  # type: ignore[no-untyped-call]
     depth=100, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE
 )
 #: Seconds between two progress lines.
@@ -86,7 +88,11 @@ class _Recorder:
         self.counts = {topic: 0 for topic, _ in RECORDED}
         self.subscriptions: list[Subscription] = [
             node.create_subscription(
-                message_class(msgtype), _in_namespace(topic), self._callback(topic, msgtype), RECORD_QOS, raw=True
+                message_class(msgtype),
+                _in_namespace(topic),
+                self._callback(topic, msgtype),
+                RELIABLE_VOLATILE_QOS,
+                raw=True,
             )
             for topic, msgtype in RECORDED
         ]
@@ -100,13 +106,19 @@ class _Recorder:
 
 
 def _publishers(node: Node, bag: Bag, skipped: list[str]) -> dict[str, Publisher]:
+    """A publisher per topic of the bag to play; ``skipped`` gets the others, each with the reason."""
+    recorded_here = {topic for topic, _ in RECORDED}
     publishers: dict[str, Publisher] = {}
     for topic, msgtype in bag.topics.items():
         cls = message_class(msgtype)
-        if cls is None:
+        if topic in recorded_here:
+            skipped.append(f"{topic} (recorded by this replay)")
+        elif topic == NODE_MARKERS_TOPIC:
+            skipped.append(f"{topic} (an old run's map: the node under test publishes its own)")
+        elif cls is None:
             skipped.append(f"{topic} ({msgtype}: message package not installed)")
         else:
-            publishers[topic] = node.create_publisher(cls, _in_namespace(topic), PLAY_QOS)
+            publishers[topic] = node.create_publisher(cls, _in_namespace(topic), RELIABLE_VOLATILE_QOS)
     return publishers
 
 

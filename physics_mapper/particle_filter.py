@@ -24,7 +24,8 @@ Model, for one object whose true pose (p*, q*) does not move:
 * **Resampling**: filterpy's systematic resampling when the effective sample size
   N_eff = 1 / sum(w^2) falls below N/2; weights are then equal again.
 
-Everything draws from the given :class:`numpy.random.Generator`, so a seed reproduces a run.
+Everything draws from the given :class:`numpy.random.Generator`, so a seed reproduces a run;
+:func:`run_generators` gives each of several runs its own (``generate`` and the experiments).
 """
 
 from __future__ import annotations
@@ -85,6 +86,14 @@ def settings_problem(settings: TrackerSettings) -> str | None:
         if not (math.isfinite(value) and value > 0.0):
             return f"{name} must be a positive number, got {value:g}"
     return None
+
+
+def run_generators(seed: int, runs: int) -> list[np.random.Generator]:
+    """One generator per run: run k draws from child k of ``numpy.random.SeedSequence(seed)``.
+
+    The children are independent streams, and a run's draws do not depend on how many runs there are.
+    """
+    return [np.random.default_rng(child) for child in np.random.SeedSequence(seed).spawn(runs)]
 
 
 def settle_ground_truth(

@@ -31,18 +31,20 @@ from physics_mapper.bags import (
     BagError,
     BagMessage,
     BagWriter,
+    decoding,
     hypotheses_topic,
     pose_array_cdr,
     pose_array_from_cdr,
     weights_from_cdr,
     weights_topic,
 )
-from physics_mapper.geometry import Pose, pose_displacement, translation_distance
+from physics_mapper.geometry import Pose, translation_distance
 from physics_mapper.hypotheses import RankedHypotheses
 from physics_mapper.inputs import InputSettings, InputTracker, check_poses, check_weights
 from physics_mapper.physics import PhysicsChecker
 from physics_mapper.report import code_text
 from physics_mapper.scene import Scene
+from physics_mapper.scoring import position_errors, rank_one_poses
 from physics_mapper.search import BranchAndBound, Code, SearchResult
 
 #: Messages closer together than this (ns) form one burst, after which the node's inputs are snapshot.
@@ -53,8 +55,12 @@ MAX_BURST_NS = 500_000_000
 CONFIGURATION_TOPIC = topics.recorded(topics.CONFIGURATION_TOPIC)
 SETTLED_TOPIC = topics.recorded(topics.SETTLED_TOPIC)
 DIAGNOSTICS_TOPIC = topics.recorded(topics.DIAGNOSTICS_TOPIC)
-#: A published pose is the hypothesis it lies this close to (metres + radians); both went through make_pose.
-SAME_POSE = 1e-9
+#: A published pose is a hypothesis whose position is this close (metres) and whose orientation q'
+#: has 1 - |q . q'| at most :data:`SAME_ORIENTATION` (an angle of 2.8e-6 rad). Not a tolerance on the
+#: angle: both quaternions went through make_pose, and after a CDR round trip and a second
+#: normalisation |q . q'| can be 1 - 2^-52, which acos turns into an angle of 4e-8 rad.
+SAME_POSITION = 1e-9
+SAME_ORIENTATION = 1e-12
 
 
 @dataclass(frozen=True)
@@ -69,10 +75,6 @@ class BagSnapshot:
     stamp_ns: int
     hypotheses: tuple[RankedHypotheses, ...]
     ground_truth: tuple[Pose, ...] | None
-
-    def top_poses(self) -> tuple[Pose, ...]:
-        """C111: every object's most likely hypothesis."""
-        return tuple(h.pose(1) for h in self.hypotheses)
 
 
 @dataclass(frozen=True)
@@ -101,40 +103,50 @@ def _bursts(messages: Sequence[BagMessage]) -> Iterator[list[BagMessage]]:
 def _ground_truth(message: BagMessage, scene: Scene) -> tuple[Pose, ...]:
     poses = pose_array_from_cdr(message.raw).checked_poses()
     if len(poses) != len(scene.objects):
-        raise BagError(f"{topics.GROUND_TRUTH_TOPIC} has {len(poses)} poses for {len(scene.objects)} scene objects")
+        raise BagError(f"{len(poses)} poses for {len(scene.objects)} scene objects")
     return poses
+
+
+def input_topics(scene: Scene) -> tuple[str, ...]:
+    """The topics a replay of ``scene`` reads from a bag: every object's hypotheses and weights, the ground truth."""
+    per_object = ((hypotheses_topic(name), weights_topic(name)) for name in scene.object_names)
+    return (*(topic for pair in per_object for topic in pair), topics.GROUND_TRUTH_TOPIC)
 
 
 def bag_snapshots(bag: Bag, scene: Scene, settings: InputSettings | None = None) -> list[BagSnapshot]:
     """Feed the bag's hypotheses through the node's input rules; one snapshot per new set of hypotheses.
 
-    Raises BagError for a message that cannot be decoded or a malformed ground truth.
+    Only the messages on :func:`input_topics` count, also for the bursts: other topics of the bag
+    (a recording's camera or TF) neither decide nor cut a burst. Raises BagError, naming the bag,
+    topic and time, for a message that cannot be decoded or a malformed ground truth.
     """
     settings = settings or InputSettings()
     tracker = InputTracker(scene.object_names)
     poses_of = {hypotheses_topic(name): name for name in scene.object_names}
     weights_of = {weights_topic(name): name for name in scene.object_names}
+    wanted = set(input_topics(scene))
     truth: tuple[Pose, ...] | None = None
     snapshots: list[BagSnapshot] = []
-    for burst in _bursts(bag.messages):
+    for burst in _bursts([m for m in bag.messages if m.topic in wanted]):
         for message in burst:
             received = message.time_ns / NANOSECONDS
-            if message.topic in poses_of:
-                data = pose_array_from_cdr(message.raw)
-                checked = check_poses(
-                    data.poses,
-                    frame_id=data.frame_id,
-                    expected_frame=scene.frame_id,
-                    stamp_ns=data.stamp_ns,
-                    received=received,
-                )
-                tracker.add_poses(poses_of[message.topic], checked)
-            elif message.topic in weights_of:
-                tracker.add_weights(
-                    weights_of[message.topic], check_weights(weights_from_cdr(message.raw), received=received)
-                )
-            elif message.topic == topics.GROUND_TRUTH_TOPIC:
-                truth = _ground_truth(message, scene)
+            with decoding(bag, message):
+                if message.topic in poses_of:
+                    data = pose_array_from_cdr(message.raw)
+                    checked = check_poses(
+                        data.poses,
+                        frame_id=data.frame_id,
+                        expected_frame=scene.frame_id,
+                        stamp_ns=data.stamp_ns,
+                        received=received,
+                    )
+                    tracker.add_poses(poses_of[message.topic], checked)
+                elif message.topic in weights_of:
+                    tracker.add_weights(
+                        weights_of[message.topic], check_weights(weights_from_cdr(message.raw), received=received)
+                    )
+                else:
+                    truth = _ground_truth(message, scene)
         snapshot = tracker.snapshot(burst[-1].time_ns / NANOSECONDS, settings)
         hypotheses, stamp_ns = snapshot.hypotheses, snapshot.stamp_ns
         new = not snapshots or hypotheses != snapshots[-1].hypotheses
@@ -175,14 +187,20 @@ def write_outcomes(writer: BagWriter, outcomes: Sequence[Outcome], frame_id: str
         writer.write(SETTLED_TOPIC, POSE_ARRAY, snapshot.time_ns, settled)
 
 
+def is_same_pose(published: Pose, hypothesis: Pose) -> bool:
+    """Whether a published pose is ``hypothesis``: :data:`SAME_POSITION` and :data:`SAME_ORIENTATION`."""
+    dot = abs(sum(a * b for a, b in zip(published.orientation, hypothesis.orientation, strict=True)))
+    return translation_distance(published, hypothesis) <= SAME_POSITION and 1.0 - dot <= SAME_ORIENTATION
+
+
 def code_of(poses: Sequence[Pose], hypotheses: Sequence[RankedHypotheses]) -> Code | None:
     """The code whose hypotheses are ``poses`` (None if some pose is none of its object's hypotheses)."""
     code = []
     for pose, ranked in zip(poses, hypotheses, strict=True):
-        ranks = [r for r in range(1, len(ranked) + 1) if pose_displacement(pose, ranked.pose(r), 1.0) <= SAME_POSE]
-        if not ranks:
+        rank = next((r for r in range(1, len(ranked) + 1) if is_same_pose(pose, ranked.pose(r))), None)
+        if rank is None:
             return None
-        code.append(ranks[0])
+        code.append(rank)
     return tuple(code)
 
 
@@ -190,9 +208,10 @@ def _last_by_stamp(output: Bag, topic: str, count: int) -> dict[int, tuple[Pose,
     """The last PoseArray of ``count`` poses recorded on ``topic`` for each header stamp (ns)."""
     latest: dict[int, tuple[Pose, ...]] = {}
     for message in output.on(topic):
-        data = pose_array_from_cdr(message.raw)
-        if len(data.poses) == count:
-            latest[data.stamp_ns] = data.checked_poses()
+        with decoding(output, message):
+            data = pose_array_from_cdr(message.raw)
+            if len(data.poses) == count:
+                latest[data.stamp_ns] = data.checked_poses()
     return latest
 
 
@@ -224,7 +243,7 @@ ESTIMATES = ("top", "chosen", "settled")
 
 def _estimates(outcome: Outcome) -> tuple[tuple[Pose, ...] | None, ...]:
     """The poses of each of :data:`ESTIMATES` (None where nothing was chosen)."""
-    return outcome.snapshot.top_poses(), outcome.chosen, outcome.settled
+    return rank_one_poses(outcome.snapshot.hypotheses), outcome.chosen, outcome.settled
 
 
 def _position_errors(outcome: Outcome) -> dict[str, tuple[float, ...]] | None:
@@ -233,10 +252,7 @@ def _position_errors(outcome: Outcome) -> dict[str, tuple[float, ...]] | None:
     estimates = _estimates(outcome)
     if truth is None or any(poses is None for poses in estimates):
         return None
-    return {
-        name: tuple(translation_distance(pose, true) for pose, true in zip(poses or (), truth, strict=True))
-        for name, poses in zip(ESTIMATES, estimates, strict=True)
-    }
+    return {name: position_errors(poses or (), truth) for name, poses in zip(ESTIMATES, estimates, strict=True)}
 
 
 def mean_errors(outcomes: Sequence[Outcome]) -> dict[str, tuple[float, ...]] | None:

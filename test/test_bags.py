@@ -16,13 +16,17 @@ from conftest import REPO, SCENES
 from rosbags.rosbag2 import Reader, StoragePlugin, Writer
 from rosbags.typesys import Stores, get_typestore
 
-from physics_mapper.bags import BagWriter, read_bag
+from physics_mapper.bags import BagError, BagWriter, read_bag
 from physics_mapper.cli import main
 from physics_mapper.errors import EXIT_BAD_INPUT
+from physics_mapper.experiments.common import ExperimentOptions
+from physics_mapper.experiments.tracking import track_and_search
 from physics_mapper.geometry import make_pose
 from physics_mapper.hypotheses import Hypothesis, RankedHypotheses
-from physics_mapper.replay import bag_snapshots
+from physics_mapper.particle_filter import TrackerSettings
+from physics_mapper.replay import CONFIGURATION_TOPIC, bag_snapshots, input_topics, recorded_outcomes
 from physics_mapper.scene import load_scene
+from physics_mapper.scoring import position_errors, rank_one_poses
 
 TYPESTORE = get_typestore(Stores.ROS2_JAZZY)
 POSE_ARRAY = "geometry_msgs/msg/PoseArray"
@@ -164,12 +168,21 @@ def test_shipped_bags_are_small() -> None:
 # ---- bad bags and bad arguments: one error line, exit 2, no traceback ------------------------------------
 
 
-def write_bag(path: Path, topics: dict[str, tuple[str, Any]], storage: StoragePlugin = StoragePlugin.MCAP) -> Path:
-    """A bag written with rosbags: topic -> (type, message), one message each."""
+def write_bag(
+    path: Path,
+    topics: dict[str, tuple[str, Any]],
+    storage: StoragePlugin = StoragePlugin.MCAP,
+    garbage: str | None = None,
+) -> Path:
+    """A bag written with rosbags: topic -> (type, message), one message each at 1, 2, ... ns.
+
+    The message on topic ``garbage`` is replaced by bytes that are not CDR.
+    """
     with Writer(path, version=9, storage_plugin=storage) as writer:
         for time_ns, (topic, (msgtype, message)) in enumerate(topics.items(), start=1):
             connection = writer.add_connection(topic, msgtype, typestore=TYPESTORE)
-            writer.write(connection, time_ns, TYPESTORE.serialize_cdr(message, msgtype))
+            raw = b"\x00\x01\x00\x00\xff" if topic == garbage else TYPESTORE.serialize_cdr(message, msgtype)
+            writer.write(connection, time_ns, raw)
     return path
 
 
@@ -252,16 +265,26 @@ def test_ground_truth_of_the_wrong_size(tmp_path: Path, capsys: pytest.CaptureFi
     topics = {f"/hypotheses/{name}": (POSE_ARRAY, pose_array(1)) for name in PYRAMID}
     topics["/ground_truth"] = (POSE_ARRAY, pose_array(2))
     bag = write_bag(tmp_path / "truth", topics)
-    assert "/ground_truth has 2 poses for 3 scene objects" in replay_error(capsys, bag)
+    assert replay_error(capsys, bag).endswith(f"error: {bag}: /ground_truth at 4 ns: 2 poses for 3 scene objects")
 
 
-def test_message_bytes_that_are_not_cdr(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    path = tmp_path / "garbage"
-    with Writer(path, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
-        for time_ns, name in enumerate(PYRAMID, start=1):
-            connection = writer.add_connection(f"/hypotheses/{name}", POSE_ARRAY, typestore=TYPESTORE)
-            writer.write(connection, time_ns, b"\x00\x01\x00\x00\xff")
-    assert "a geometry_msgs/msg/PoseArray message is not valid CDR" in replay_error(capsys, path)
+@pytest.mark.parametrize(
+    ("topic", "msgtype"),
+    [("/hypotheses/cube_right", POSE_ARRAY), ("/hypotheses/cube_top/weights", WEIGHTS), ("/ground_truth", POSE_ARRAY)],
+)
+def test_message_bytes_that_are_not_cdr(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], topic: str, msgtype: str
+) -> None:
+    """One message of a good bag replaced by garbage: the error names the bag, the topic and the time."""
+    topics = {f"/hypotheses/{name}": (POSE_ARRAY, pose_array(1)) for name in PYRAMID}
+    layout = TYPESTORE.types["std_msgs/msg/MultiArrayLayout"](dim=[], data_offset=0)
+    topics["/hypotheses/cube_top/weights"] = (WEIGHTS, TYPESTORE.types[WEIGHTS](layout=layout, data=np.array([1.0])))
+    topics["/ground_truth"] = (POSE_ARRAY, pose_array(3))
+    path = write_bag(tmp_path / "garbage", topics, garbage=topic)
+    time_ns = list(topics).index(topic) + 1
+    assert replay_error(capsys, path).startswith(
+        f"physics-mapper replay: error: {path}: {topic} at {time_ns} ns: a {msgtype} message is not valid CDR ("
+    )
 
 
 def test_relative_topic_names_read_as_absolute(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
@@ -333,6 +356,8 @@ def test_generate_needs_a_ground_truth(tmp_path: Path, capsys: pytest.CaptureFix
         (["--sigma", "-1"], "sigma_position must be a positive"),
         (["--runs", "0"], "--runs must be at least 1"),
         (["--period", "0"], "--period must be positive"),
+        (["--period", "inf"], "--period must be positive and finite"),
+        (["--period", "6e-9"], "--period 6e-09 s is 6 ns: an iteration's 7 messages take 7 ns (1 ns apart)"),
         (["--seed", "-1"], "--seed must not be negative"),
     ],
 )
@@ -390,3 +415,76 @@ def test_a_continuous_stream_is_snapshot_like_a_ticking_node(tmp_path: Path) -> 
     assert all(b - a <= 500_000_000 + 33_333_333 for a, b in pairwise(times))
     # Each snapshot is stamped with the newest PoseArray it uses, as the node stamps its output.
     assert all(s.stamp_ns <= s.time_ns for s in snapshots)
+
+
+def test_the_shortest_period_keeps_iterations_apart_and_warns(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """7 ns: three cubes' poses and weights and the ground truth at 7 consecutive nanoseconds per iteration."""
+    generate(tmp_path / "short", "--period", "7e-9")
+    assert "warning: --period 7e-09 s leaves less than 0.05 s between iterations" in capsys.readouterr().err
+    bag = read_with_rosbags(tmp_path / "short")
+    times = [t for _, t, _ in bag.messages]
+    assert times == list(range(times[0], times[0] + 7 * RUNS * ITERATIONS))
+    # The warning's point: offline replay sees all iterations as one burst.
+    assert len(bag_snapshots(read_bag(tmp_path / "short"), load_scene(SCENES / "pyramid.yaml"))) == 1
+
+
+def test_the_default_period_gives_no_warning(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    generate(tmp_path / "default")
+    assert "warning" not in capsys.readouterr().err
+
+
+def test_read_bag_reads_only_the_topics_asked_for() -> None:
+    everything = read_bag(DATA / "pyramid")
+    truth_only = read_bag(DATA / "pyramid", ["/ground_truth"])
+    assert truth_only.topics == everything.topics  # every topic's type, for the type checks
+    assert len(everything.topics) == 7
+    assert truth_only.messages == everything.on("/ground_truth") and len(truth_only.messages) == 20
+    assert read_bag(DATA / "pyramid", []).messages == ()
+
+
+def test_other_topics_change_no_snapshot(tmp_path: Path) -> None:
+    """A recording's busy unrelated topic (100 Hz, never a 50 ms gap) is not read offline nor counted in bursts."""
+    scene = load_scene(SCENES / "pyramid.yaml")
+    plain = read_bag(DATA / "pyramid")
+    with BagWriter(tmp_path / "busy") as writer:
+        for message in plain.messages:
+            writer.write(message.topic, message.msgtype, message.time_ns, message.raw)
+        for time_ns in range(plain.messages[0].time_ns, plain.messages[-1].time_ns, 10_000_000):
+            writer.write("/camera/points", "sensor_msgs/msg/PointCloud2", time_ns + 3, b"not read")
+    busy = read_bag(tmp_path / "busy", input_topics(scene))
+    assert "/camera/points" in busy.topics and not busy.on("/camera/points")
+    expected = bag_snapshots(plain, scene)
+    assert len(expected) == 20
+    assert bag_snapshots(busy, scene) == bag_snapshots(read_bag(tmp_path / "busy"), scene) == expected
+
+
+def test_undecodable_recorded_output_names_the_bag_and_topic(tmp_path: Path) -> None:
+    scene = load_scene(SCENES / "pyramid.yaml")
+    snapshots = bag_snapshots(read_bag(DATA / "pyramid"), scene)
+    with BagWriter(tmp_path / "out") as writer:
+        writer.write(CONFIGURATION_TOPIC, POSE_ARRAY, 42, b"\x00\x01\x00\x00\xff")
+    with pytest.raises(BagError) as raised:
+        recorded_outcomes(snapshots, read_bag(tmp_path / "out"), scene)
+    assert str(raised.value).startswith(f"{tmp_path / 'out'}: {CONFIGURATION_TOPIC} at 42 ns: a {POSE_ARRAY} message")
+
+
+def test_generate_draws_each_run_as_the_experiments_do(tmp_path: Path) -> None:
+    """``generate --seed S`` then the offline replay's snapshots: the hypotheses and C111 errors of the experiments."""
+    scene = load_scene(SCENES / "pyramid.yaml")
+    assert scene.ground_truth is not None
+    generate(tmp_path / "bag", "--seed", "11")  # RUNS runs of ITERATIONS iterations, 200 particles, top TOP_M
+    settings = TrackerSettings(particles=200, iterations=ITERATIONS, top_m=TOP_M)
+    options = ExperimentOptions(output_dir=tmp_path, seed=11, runs=RUNS)
+    (experiment,) = track_and_search(
+        scene, scene.ground_truth, settings, options, "test", lambda _: None, [scene.search]
+    )
+    snapshots = bag_snapshots(read_bag(tmp_path / "bag", input_topics(scene)), scene)
+    assert len(snapshots) == RUNS * ITERATIONS
+    positions = [[[h.pose.position for h in ranked.hypotheses] for ranked in s.hypotheses] for s in snapshots]
+    assert np.array_equal(np.array(positions), experiment.hypothesis_positions.reshape(RUNS * ITERATIONS, 3, TOP_M, 3))
+    top_errors_cm = [
+        [100.0 * e for e in position_errors(rank_one_poses(s.hypotheses), s.ground_truth or ())] for s in snapshots
+    ]
+    assert np.array_equal(np.array(top_errors_cm), experiment.without_physics_errors.reshape(RUNS * ITERATIONS, 3))

@@ -24,6 +24,7 @@ CORE_MODULES = (
     "physics_mapper.particle_filter",
     "physics_mapper.bags",
     "physics_mapper.replay",
+    "physics_mapper.scoring",
     "physics_mapper.experiments.fig4",
     "physics_mapper.experiments.fig6",
     "physics_mapper.experiments.fig8",

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from conftest import SCENES
 
-from physics_mapper.geometry import Pose, make_pose, translation_distance
+from physics_mapper.geometry import Pose, make_pose, rotation_angle, translation_distance
 from physics_mapper.particle_filter import TrackerSettings, settings_problem, settle_ground_truth, track
 from physics_mapper.physics import PhysicsChecker
 from physics_mapper.scene import Scene, load_scene
@@ -19,6 +19,11 @@ from physics_mapper.scene import Scene, load_scene
 def mean_error(estimate: list[Pose], truth: tuple[Pose, ...]) -> float:
     """Mean position error (m) over objects."""
     return float(np.mean([translation_distance(e, t) for e, t in zip(estimate, truth, strict=True)]))
+
+
+def mean_rotation_error(estimate: list[Pose], truth: tuple[Pose, ...]) -> float:
+    """Mean rotation error (rad) over objects."""
+    return float(np.mean([rotation_angle(e.orientation, t.orientation) for e, t in zip(estimate, truth, strict=True)]))
 
 
 @pytest.fixture(scope="module")
@@ -83,6 +88,28 @@ def test_error_shrinks_over_iterations(pyramid: Scene, pyramid_truth: tuple[Pose
     assert np.mean(per_iteration[-3:]) < 0.75 * per_iteration[0]
     # The filter refines well below the 3 cm measurement noise per axis (5.2 cm in 3-D).
     assert np.mean(per_iteration[-3:]) < 0.035
+
+
+def test_orientations_converge(pyramid: Scene, pyramid_truth: tuple[Pose, ...]) -> None:
+    """Mean rotation error of the best hypothesis, over objects and seeds, in units of sigma_rotation.
+
+    One measurement is off by 2 sqrt(2/pi) = 1.6 sigma on average (the mean length of a 3-D
+    Gaussian rotation vector). A wrong sign in the rotation likelihood makes the error grow; a
+    missing term or sigma in the wrong unit leaves it at about 2 sigma; an angle in degrees makes
+    the likelihood so sharp that one particle takes all the weight.
+    """
+    settings = TrackerSettings()
+    errors, weight_ratios = [], []
+    for seed in range(24):
+        history = track(pyramid, pyramid_truth, settings, np.random.default_rng(seed))
+        errors.append([mean_rotation_error([h.pose(1) for h in snapshot], pyramid_truth) for snapshot in history])
+        weight_ratios += [h.weight(settings.top_m) / h.weight(1) for snapshot in history for h in snapshot]
+    per_iteration = np.mean(errors, axis=0) / settings.sigma_rotation
+    late = np.mean(per_iteration[-5:])
+    assert per_iteration[0] > 1.1
+    assert late < 0.7 * per_iteration[0]
+    assert late < 0.95  # 0.86 here; a measurement alone: 1.6
+    assert np.median(weight_ratios) > 0.1  # 0.75 here
 
 
 def test_global_numpy_random_state_is_left_alone(pyramid: Scene, pyramid_truth: tuple[Pose, ...]) -> None:

@@ -3,7 +3,10 @@
 The bag holds three snapshots of two hypotheses per pyramid cube. In each, exactly one
 configuration is physically valid: a cube 2 cm into the floor, a cube pushed 2 cm into its
 neighbour, or a top cube hovering 3 cm high invalidates every other one. So the expected code of
-each snapshot is known, and the live node and the offline search must both find it.
+each snapshot is known, and the live node and the offline search must both find it. The cubes
+are turned by random rotations that leave them resting on a face, with quaternions that a
+second normalisation changes in the last bits, as a round trip through the node does. Like a
+bag recorded with ``ros2 bag record -a`` while a node ran, it also holds an old run's outputs.
 """
 
 from __future__ import annotations
@@ -22,14 +25,18 @@ from conftest import REPO, SCENES
 from ros_helpers import NodeProcess, run_cli
 from rosbags.rosbag2 import Reader, StoragePlugin, Writer
 from rosbags.typesys import Stores, get_typestore
+from scipy.spatial.transform import Rotation
 
 from physics_mapper import bags, replay, topics
-from physics_mapper.geometry import Pose
+from physics_mapper.geometry import Pose, Quaternion, make_pose, rotation_angle
+from physics_mapper.hypotheses import Hypothesis, RankedHypotheses
 from physics_mapper.scene import load_scene
 
 TYPESTORE = get_typestore(Stores.ROS2_JAZZY)
 POSE_ARRAY = "geometry_msgs/msg/PoseArray"
 WEIGHTS = "std_msgs/msg/Float64MultiArray"
+MARKER_ARRAY = "visualization_msgs/msg/MarkerArray"
+MARKERS = "/physics_mapper/markers"
 SCENE = SCENES / "pyramid.yaml"
 NAMES = ("cube_left", "cube_right", "cube_top")
 TRUTH = load_scene(SCENE).ground_truth or ()
@@ -40,7 +47,32 @@ def moved(pose: Pose, dx: float = 0.0, dz: float = 0.0) -> Pose:
     return replace(pose, position=(x + dx, y, z + dz))
 
 
-BAD = (moved(TRUTH[0], dz=-0.02), moved(TRUTH[1], dx=-0.03), moved(TRUTH[2], dz=0.03))
+def renormalising_moves(orientation: Quaternion) -> bool:
+    """Whether normalising a normalised quaternion again turns it by more than 1e-9 rad (in float arithmetic)."""
+    once = make_pose((0.0, 0.0, 0.0), orientation).orientation
+    return rotation_angle(once, make_pose((0.0, 0.0, 0.0), once).orientation) > 1e-9
+
+
+def resting_orientation(rng: np.random.Generator, max_yaw: float) -> Quaternion:
+    """A random rotation of a cube that leaves it resting on a face: one of its 24 symmetries, a yaw
+    within +-max_yaw (rad) and a tilt of about a milliradian. Drawn again until the quaternion is
+    one whose second normalisation moves it (a few in 10000 are)."""
+    symmetries = Rotation.create_group("O")
+    while True:
+        tilt = Rotation.from_rotvec(rng.normal(0.0, 1e-3, 3))
+        yaw = Rotation.from_euler("z", rng.uniform(-max_yaw, max_yaw))
+        x, y, z, w = (float(v) for v in (tilt * yaw * symmetries[int(rng.integers(len(symmetries)))]).as_quat())
+        if renormalising_moves((x, y, z, w)):
+            return (x, y, z, w)
+
+
+# The cubes on the floor stand 1 cm apart; yaws of 1 degree narrow the gap by at most 0.35 cm.
+_RNG = np.random.default_rng(2024)
+ORIENTATIONS = tuple(resting_orientation(_RNG, max_yaw) for max_yaw in (0.0175, 0.0175, np.pi))
+GOOD = tuple(replace(pose, orientation=q) for pose, q in zip(TRUTH, ORIENTATIONS, strict=True))
+BAD = (moved(GOOD[0], dz=-0.02), moved(GOOD[1], dx=-0.03), moved(GOOD[2], dz=0.03))
+#: An old run's configuration, 1 m off to the side: no configuration the node chooses from the bag.
+STALE = tuple(moved(pose, dx=1.0) for pose in TRUTH)
 # Per snapshot and object: the weights of (good, bad); a heavier bad hypothesis is ranked first.
 SNAPSHOTS = (
     ((0.4, 0.6), (0.7, 0.3), (0.8, 0.2)),
@@ -85,7 +117,9 @@ def handmade_bag(tmp_path_factory: pytest.TempPathFactory) -> Path:
             for name in NAMES
             for topic, msgtype in ((f"/hypotheses/{name}", POSE_ARRAY), (f"/hypotheses/{name}/weights", WEIGHTS))
         }
-        connections["/ground_truth"] = writer.add_connection("/ground_truth", POSE_ARRAY, typestore=TYPESTORE)
+        for topic in ("/ground_truth", replay.CONFIGURATION_TOPIC, replay.SETTLED_TOPIC):
+            connections[topic] = writer.add_connection(topic, POSE_ARRAY, typestore=TYPESTORE)
+        connections[MARKERS] = writer.add_connection(MARKERS, MARKER_ARRAY, typestore=TYPESTORE)
 
         def write(topic: str, time_ns: int, message: Any) -> None:
             writer.write(connections[topic], time_ns, TYPESTORE.serialize_cdr(message, connections[topic].msgtype))
@@ -93,13 +127,17 @@ def handmade_bag(tmp_path_factory: pytest.TempPathFactory) -> Path:
         for index, snapshot in enumerate(SNAPSHOTS):
             stamp = FIRST_NS + index * SPACING_NS
             for offset, (name, (good_weight, bad_weight), good, bad) in enumerate(
-                zip(NAMES, snapshot, TRUTH, BAD, strict=True)
+                zip(NAMES, snapshot, GOOD, BAD, strict=True)
             ):
                 order = [(good, good_weight), (bad, bad_weight)]
                 order.sort(key=lambda item: -item[1])
                 write(f"/hypotheses/{name}", stamp + 1000 * offset, pose_array(stamp, [p for p, _ in order]))
                 write(f"/hypotheses/{name}/weights", stamp + 1000 * offset + 1, weights([w for _, w in order]))
             write("/ground_truth", stamp + 5000, pose_array(stamp, list(TRUTH)))
+            # The old run's outputs, stamped like the node's new ones will be.
+            write(replay.CONFIGURATION_TOPIC, stamp + 300_000_000, pose_array(stamp, list(STALE)))
+            write(replay.SETTLED_TOPIC, stamp + 300_000_001, pose_array(stamp, list(STALE)))
+            write(MARKERS, stamp + 300_000_002, TYPESTORE.types[MARKER_ARRAY](markers=[]))
     return path
 
 
@@ -131,6 +169,25 @@ def offline(handmade_bag: Path, tmp_path_factory: pytest.TempPathFactory) -> tup
     args = ["replay", str(handmade_bag), "--scene", str(SCENE), "--offline", "--exhaustive"]
     completed = run_cli(*args, "-o", str(folder / "out"), "--json", str(folder / "result.json"))
     return completed, folder / "out", folder / "result.json"
+
+
+def test_code_of_recognises_published_poses_after_a_cdr_round_trip() -> None:
+    """Random poses come back through CDR and make_pose; near twins 1 um or 1e-5 rad away stay apart."""
+    rng = np.random.default_rng(5)
+    hypotheses, chosen, code = [], [], []
+    for _ in range(1000):
+        quaternion = rng.normal(size=4)
+        pose = make_pose(tuple(rng.uniform(-1.0, 1.0, 3)), tuple(quaternion / np.linalg.norm(quaternion)))
+        turned = (Rotation.from_rotvec([1e-5, 0.0, 0.0]) * Rotation.from_quat(pose.orientation)).as_quat()
+        twins = [moved(pose, dx=1e-6), make_pose(pose.position, tuple(turned))]
+        rank = int(rng.integers(1, 4))
+        twins.insert(rank - 1, pose)
+        hypotheses.append(RankedHypotheses.from_weighted([Hypothesis(p, 1.0) for p in twins]))  # ties keep order
+        chosen.append(pose)
+        code.append(rank)
+    published = bags.pose_array_from_cdr(bags.pose_array_cdr(0, "world", chosen)).checked_poses()
+    assert replay.code_of(published, hypotheses) == tuple(code)
+    assert replay.code_of([moved(published[0], dz=1e-8), *published[1:]], hypotheses) is None
 
 
 def test_offline_replay_finds_the_valid_configurations(offline: tuple[Any, Path, Path]) -> None:
@@ -204,6 +261,32 @@ def test_live_replay_yields_configurations_recorded_in_the_output_bag(live: tupl
     assert any(status.name.startswith("physics_mapper") for m in messages["/diagnostics"] for status in m.status)
 
 
+def made_of_hypotheses(poses: list[Pose], snapshots: list[replay.BagSnapshot]) -> bool:
+    """Whether each pose is one of its object's hypotheses in one of ``snapshots``."""
+    return all(
+        any(replay.code_of([pose], [snapshot.hypotheses[index]]) is not None for snapshot in snapshots)
+        for index, pose in enumerate(poses)
+    )
+
+
+def test_live_replay_records_only_the_node_s_new_outputs(handmade_bag: Path, live: tuple[Any, Path, Path]) -> None:
+    """The bag's old configurations are not played, so the recorder does not take them for the node's."""
+    completed, out, _ = live
+    assert (
+        f"not played: {replay.CONFIGURATION_TOPIC} (recorded by this replay), "
+        f"{replay.SETTLED_TOPIC} (recorded by this replay)" in completed.stderr
+    )
+    assert f"{MARKERS} (an old run's map: the node under test publishes its own)" in completed.stderr
+    snapshots = replay.bag_snapshots(bags.read_bag(handmade_bag), load_scene(SCENE))
+    output = bags.read_bag(out, (replay.CONFIGURATION_TOPIC,))
+    assert output.messages
+    for message in output.messages:
+        poses = list(bags.pose_array_from_cdr(message.raw).checked_poses())
+        assert made_of_hypotheses(poses, snapshots), f"not the node's: {poses}"
+    settled_x = [pose.position.x for message in recorded(out)[replay.SETTLED_TOPIC] for pose in message.poses]
+    assert settled_x and max(settled_x) < 0.5  # the old run's are 1 m to the side
+
+
 def test_live_and_offline_choose_the_same_codes(live: tuple[Any, Path, Path], offline: tuple[Any, Path, Path]) -> None:
     assert codes(live[2]) == codes(offline[2]) == EXPECTED_CODES
 
@@ -234,5 +317,14 @@ def test_start_node_replays_the_shipped_bag(tmp_path: Path) -> None:
     )
     assert completed.returncode == 0, completed.stderr
     assert "started the node" in completed.stderr
-    assert recorded(tmp_path / "out")[replay.CONFIGURATION_TOPIC]
     assert "total" in completed.stdout.splitlines()[-1]
+    snapshots = replay.bag_snapshots(bags.read_bag(REPO / "test" / "data" / "pyramid"), load_scene(SCENE))
+    index_of = {snapshot.stamp_ns: index for index, snapshot in enumerate(snapshots)}
+    configurations = bags.read_bag(tmp_path / "out", (replay.CONFIGURATION_TOPIC,)).messages
+    assert configurations
+    for message in configurations:
+        data = bags.pose_array_from_cdr(message.raw)
+        poses, index = list(data.checked_poses()), index_of[data.stamp_ns]
+        # A tick while a burst arrives mixes it with the one before (replay.recorded_outcomes counts no code).
+        mixed = made_of_hypotheses(poses, snapshots[max(0, index - 1) : index + 1])
+        assert replay.code_of(poses, snapshots[index].hypotheses) is not None or mixed, data.stamp_ns

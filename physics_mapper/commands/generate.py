@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from dataclasses import replace
 from pathlib import Path
@@ -42,7 +43,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--particles", type=int, help="particles per object (default: 1000)")
     parser.add_argument("--iterations", type=int, help="measurement updates per run (default: 10)")
     parser.add_argument("--top-m", type=int, help="hypotheses per object and iteration (default: 5)")
-    parser.add_argument("--seed", type=int, default=0, help="random seed (default: 0)")
+    parser.add_argument(
+        "--seed", type=int, default=0, help="random seed; run k uses child k of SeedSequence(seed) (default: 0)"
+    )
     parser.add_argument("--storage", choices=("mcap", "sqlite3"), default="mcap", help="bag format (default: mcap)")
     parser.add_argument(
         "--period", type=float, default=0.5, metavar="SECONDS", help="bag time between iterations (default: 0.5)"
@@ -59,22 +62,20 @@ _SETTING_OPTIONS = {
 
 
 def run(args: argparse.Namespace) -> int:
-    import numpy as np
-
     from physics_mapper.bags import BagError, BagWriter
-    from physics_mapper.particle_filter import settle_ground_truth
+    from physics_mapper.particle_filter import run_generators, settle_ground_truth
     from physics_mapper.scene import load_scene
 
     scene = load_scene(args.scene)
     if scene.ground_truth is None:
         raise InputError(f"{args.scene}: ground_truth: missing: generate needs every object's true pose")
     settings = _settings(args)
+    period_ns = _period_ns(args.period, len(scene.objects))
     truth = settle_ground_truth(scene, scene.ground_truth)
-    rng = np.random.default_rng(args.seed)
     try:
         with BagWriter(args.output, args.storage) as writer:
-            for run_index in range(args.runs):
-                _write_run(writer, scene, truth, settings, rng, run_index, args.period)
+            for run_index, rng in enumerate(run_generators(args.seed, args.runs)):
+                _write_run(writer, scene, truth, settings, rng, run_index, period_ns)
                 print(f"generate: run {run_index + 1}/{args.runs} written", file=sys.stderr)
     except BagError as error:
         raise InputError(str(error)) from None
@@ -86,6 +87,34 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
+def _period_ns(period: float, objects: int) -> int:
+    """``--period`` in whole nanoseconds; InputError if iterations would collide, a warning if they would merge.
+
+    An iteration writes 2 * objects + 1 messages at consecutive nanoseconds, so the next one
+    must start at least that many nanoseconds later. Offline replay takes messages less than
+    BURST_GAP_NS apart as one burst, so a shorter gap between iterations puts several into one snapshot.
+    """
+    from physics_mapper.bags import NANOSECONDS
+    from physics_mapper.replay import BURST_GAP_NS
+
+    if not (math.isfinite(period) and period > 0.0):
+        raise InputError(f"--period must be positive and finite, got {period}")
+    period_ns = round(period * NANOSECONDS)
+    messages = 2 * objects + 1
+    if period_ns < messages:
+        raise InputError(
+            f"--period {period:g} s is {period_ns} ns: an iteration's {messages} messages take {messages} ns "
+            f"(1 ns apart), so iterations would collide; use at least {messages} ns"
+        )
+    if period_ns - (messages - 1) < BURST_GAP_NS:
+        print(
+            f"generate: warning: --period {period:g} s leaves less than {BURST_GAP_NS / NANOSECONDS:g} s between "
+            "iterations: offline replay takes several iterations as one snapshot",
+            file=sys.stderr,
+        )
+    return period_ns
+
+
 def _settings(args: argparse.Namespace) -> TrackerSettings:
     """Tracker settings from the options given; InputError for values out of range."""
     from physics_mapper.particle_filter import TrackerSettings, settings_problem
@@ -95,8 +124,6 @@ def _settings(args: argparse.Namespace) -> TrackerSettings:
     problem = settings_problem(settings)
     if problem is None and args.runs < 1:
         problem = f"--runs must be at least 1, got {args.runs}"
-    if problem is None and not args.period > 0.0:
-        problem = f"--period must be positive, got {args.period}"
     if problem is None and args.seed < 0:
         problem = f"--seed must not be negative, got {args.seed}"
     if problem is not None:
@@ -111,18 +138,17 @@ def _write_run(
     settings: TrackerSettings,
     rng: np.random.Generator,
     run_index: int,
-    period: float,
+    period_ns: int,
 ) -> None:
     """One particle-filter run: per iteration, every object's hypotheses and weights, then the ground truth.
 
-    Iteration k of run r is stamped START_TIME_NS + (r * iterations + k) * period; within an
-    iteration the messages get distinct, increasing bag times so their order is unambiguous.
+    Iteration k of run r is stamped START_TIME_NS + (r * iterations + k) * period_ns; within an
+    iteration the messages get distinct, increasing bag times (1 ns apart) so their order is unambiguous.
     """
-    from physics_mapper.bags import NANOSECONDS, POSE_ARRAY, pose_array_cdr
+    from physics_mapper.bags import POSE_ARRAY, pose_array_cdr
     from physics_mapper.particle_filter import track
     from physics_mapper.topics import GROUND_TRUTH_TOPIC
 
-    period_ns = round(period * NANOSECONDS)
     for iteration, snapshot in enumerate(track(scene, truth, settings, rng)):
         stamp = START_TIME_NS + (run_index * settings.iterations + iteration) * period_ns
         for index, (model, hypotheses) in enumerate(zip(scene.objects, snapshot, strict=True)):

@@ -63,7 +63,7 @@ def _progress(text: str) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from physics_mapper.bags import BagError, check_hypothesis_topics, read_bag
-    from physics_mapper.replay import bag_snapshots, summary
+    from physics_mapper.replay import bag_snapshots, input_topics, summary
     from physics_mapper.scene import load_scene
 
     if not args.rate > 0.0:
@@ -74,7 +74,8 @@ def run(args: argparse.Namespace) -> int:
         raise InputError("--deadline and --exhaustive are for --offline; a live node has its own deadline parameter")
     scene = load_scene(args.scene)
     try:
-        bag = read_bag(args.bag)
+        # Offline needs only the scene's topics; live plays every topic of the bag.
+        bag = read_bag(args.bag, input_topics(scene) if args.offline else None)
         check_hypothesis_topics(bag, scene.object_names)
         snapshots = bag_snapshots(bag, scene)
         _progress(f"{args.bag}: {len(bag.messages)} messages, {len(snapshots)} snapshots of hypotheses")
@@ -130,7 +131,7 @@ def _live(args: argparse.Namespace, scene: Scene, bag: Bag, snapshots: Sequence[
     from physics_mapper.bags import BagWriter, hypotheses_topic, read_bag
     from physics_mapper.launch import start_node, stop_node
     from physics_mapper.live_replay import Playback, ReplayError, play_and_record
-    from physics_mapper.replay import recorded_outcomes
+    from physics_mapper.replay import CONFIGURATION_TOPIC, SETTLED_TOPIC, recorded_outcomes
 
     try:
         validate_namespace(args.namespace)
@@ -160,7 +161,7 @@ def _live(args: argparse.Namespace, scene: Scene, bag: Bag, snapshots: Sequence[
                 print(f"node output:\n{log.read()}", file=sys.stderr)
             return None
     _progress(f"recorded into {output}: " + ", ".join(f"{n} on {t}" for t, n in counts.items()))
-    return recorded_outcomes(snapshots, read_bag(output), scene)
+    return recorded_outcomes(snapshots, read_bag(output, (CONFIGURATION_TOPIC, SETTLED_TOPIC)), scene)
 
 
 def _write_json(path: Path, mode: str, outcomes: Sequence[Outcome], object_names: Sequence[str]) -> None:

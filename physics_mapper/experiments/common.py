@@ -22,10 +22,11 @@ from matplotlib.patches import Polygon
 from numpy.typing import NDArray
 from scipy.stats import kruskal, wilcoxon
 
-from physics_mapper.geometry import Pose, translation_distance
+from physics_mapper.geometry import Pose
 from physics_mapper.hypotheses import RankedHypotheses
 from physics_mapper.physics import PhysicsChecker
 from physics_mapper.scene import Box, Cylinder, Scene, SceneError, SearchParams, StaticBody, load_scene
+from physics_mapper.scoring import position_errors
 from physics_mapper.search import SearchResult, solve
 
 #: The shipped scenes, in the source tree next to this package.
@@ -86,12 +87,8 @@ def reproduce_command(name: str, options: ExperimentOptions, *, sized: bool = Tr
 
 
 def position_errors_cm(estimate: Sequence[Pose], truth: Sequence[Pose]) -> tuple[float, ...]:
-    """Per object, the distance in centimetres between estimated and true centre positions.
-
-    e_i = 100 * |p_i - p_i_true|, with positions in metres. Orientation is not scored:
-    the paper's Figs. 6 and 8 estimate and score object centres.
-    """
-    return tuple(100.0 * translation_distance(e, t) for e, t in zip(estimate, truth, strict=True))
+    """:func:`physics_mapper.scoring.position_errors` in centimetres: e_i = 100 * |p_i - p_i_true|."""
+    return tuple(100.0 * error for error in position_errors(estimate, truth))
 
 
 def exhaustive_search(
@@ -99,11 +96,6 @@ def exhaustive_search(
 ) -> SearchResult:
     """Run the branch and bound with :data:`EXHAUSTIVE_DEADLINE` seconds, enough to empty its queue."""
     return solve(checker, hypotheses, replace(params, deadline=EXHAUSTIVE_DEADLINE))
-
-
-def rank_one_poses(hypotheses: Sequence[RankedHypotheses]) -> tuple[Pose, ...]:
-    """The configuration C11..1: every object's most likely hypothesis."""
-    return tuple(h.pose(1) for h in hypotheses)
 
 
 def new_figure(width_inches: float, height_inches: float) -> Figure:

@@ -12,8 +12,9 @@ each iteration two estimates of the scene are scored against that truth:
 The filters run once; their hypotheses are searched under each of the given rule sets
 (:class:`~physics_mapper.scene.SearchParams`), so that rule sets are compared on the same hypotheses.
 
-Run k draws from child k of ``numpy.random.SeedSequence(seed)``, so a run's numbers do not
-depend on how many runs were asked for.
+Run k draws from child k of ``numpy.random.SeedSequence(seed)``
+(:func:`~physics_mapper.particle_filter.run_generators`, as ``generate`` does), so a run's numbers
+do not depend on how many runs were asked for, and ``generate --seed S`` makes the same hypotheses.
 """
 
 from __future__ import annotations
@@ -26,12 +27,13 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from physics_mapper.experiments.common import ExperimentOptions, exhaustive_search, position_errors_cm, rank_one_poses
+from physics_mapper.experiments.common import ExperimentOptions, exhaustive_search, position_errors_cm
 from physics_mapper.geometry import Pose, Vector3
 from physics_mapper.hypotheses import RankedHypotheses
-from physics_mapper.particle_filter import TrackerSettings, settle_ground_truth, track
+from physics_mapper.particle_filter import TrackerSettings, run_generators, settle_ground_truth, track
 from physics_mapper.physics import PhysicsChecker
 from physics_mapper.scene import Scene, SearchParams
+from physics_mapper.scoring import rank_one_poses
 from physics_mapper.search import SearchResult, TraceEntry
 
 #: The paper's sizes: 20 runs of a 1000-particle filter.
@@ -152,9 +154,9 @@ def track_and_search(
     settled_truth = settle_ground_truth(scene, truth)
     scored: list[list[list[_Scored]]] = [[] for _ in rule_sets]
     with PhysicsChecker(scene) as checker:
-        for run, seed in enumerate(np.random.SeedSequence(options.seed).spawn(runs)):
+        for run, rng in enumerate(run_generators(options.seed, runs)):
             options.progress(f"{name}: run {run + 1}/{runs}")
-            history = track(scene, settled_truth, settings, np.random.default_rng(seed))
+            history = track(scene, settled_truth, settings, rng)
             for rules, scored_runs in zip(rule_sets, scored, strict=True):
                 scored_runs.append(
                     [_score(checker, hypotheses, settled_truth, rules, physics_estimate) for hypotheses in history]
