@@ -31,6 +31,8 @@ def _search_state(report: TickReport) -> str:
         return "waiting for inputs"
     stats = result.stats
     state = "exhausted (every node visited)" if stats.exhausted else "stopped at the deadline"
+    if report.settling_in_progress is not None:
+        state += f", settling {code_text(report.settling_in_progress)} continues next tick"
     return f"{'resumed' if report.resumed else 'new'}, {state}"
 
 

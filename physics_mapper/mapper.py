@@ -13,7 +13,7 @@ from dataclasses import dataclass, replace
 from physics_mapper.inputs import InputSettings, InputTracker, Snapshot
 from physics_mapper.physics import PhysicsChecker
 from physics_mapper.scene import Scene, SearchParams, search_params_problem
-from physics_mapper.search import BranchAndBound, SearchResult
+from physics_mapper.search import BranchAndBound, Code, SearchResult
 
 #: Seconds a tick's search may run past its deadline: the search looks at the clock every
 #: few simulation steps and then assembles its result. The overrun measured here is about a
@@ -61,6 +61,8 @@ class TickReport:
     ``result`` is None while some object has no usable hypotheses. ``search_time`` is the
     wall-clock seconds this tick spent in the search (at most ``deadline`` plus a small slack).
     ``resumed`` says the tick continued the previous search (same inputs and settings).
+    ``settling_in_progress`` is the configuration whose settling the deadline cut short (a
+    settling longer than one tick's search): the next tick continues it.
     """
 
     snapshot: Snapshot
@@ -68,6 +70,7 @@ class TickReport:
     search_time: float
     resumed: bool
     settings: MapperSettings
+    settling_in_progress: Code | None = None
 
 
 def _continuable(running: SearchParams, wanted: SearchParams) -> bool:
@@ -106,4 +109,5 @@ class Mapper:
         search.params = settings.search
         started = time.monotonic()
         result = search.run(settings.search.deadline)
-        return TickReport(snapshot, result, time.monotonic() - started, resumed, settings)
+        elapsed = time.monotonic() - started
+        return TickReport(snapshot, result, elapsed, resumed, settings, search.settling_in_progress)

@@ -159,6 +159,11 @@ class BranchAndBound:
         return [(*code[:i], rank + 1, *code[i + 1 :]) for i, rank in enumerate(code) if rank < len(self.hypotheses[i])]
 
     @property
+    def settling_in_progress(self) -> Code | None:
+        """The node whose settling the deadline interrupted; the next run continues it first."""
+        return None if self._interrupted is None else self._interrupted[0]
+
+    @property
     def done(self) -> bool:
         """True once every reachable node has been visited."""
         return not self._queue

@@ -285,3 +285,31 @@ def test_diagnostics_hold_the_spec_keys_and_one_status_per_object() -> None:
     assert all(s.level == DiagnosticStatus.OK for s in objects)
     assert {s.hardware_id for s in diagnostics.status} == {"/ns/physics_mapper"}
     assert dict((kv.key, kv.value) for kv in objects[0].values)["weights"] == "paired"
+
+
+def test_diagnostics_say_when_a_settling_continues_over_ticks() -> None:
+    """A settling far longer than one tick's search (10 s simulated, 1 ms per tick) is named until it ends."""
+    scene = load_scene(SCENES / "pyramid.yaml")
+    mapper = Mapper(scene)
+    settings = MapperSettings(SearchParams(deadline=0.001, settle_time=10.0), InputSettings(), rate_hz=2.0)
+    try:
+        for name, x, z in (("cube_left", -0.105, 0.1), ("cube_right", 0.105, 0.1), ("cube_top", 0.0, 0.3)):
+            msg = pose_array_msg([Pose((x, 0.0, z))], frame_id="world", stamp_ns=1_000_000_000)
+            mapper.inputs.add_poses(name, received_poses(msg, expected_frame="world", received=1.0))
+        first = mapper.tick(1.0, settings)
+        states = [first]
+        while states[-1].settling_in_progress is not None and len(states) < 10_000:
+            states.append(mapper.tick(1.0, settings))
+    finally:
+        mapper.close()
+    assert first.settling_in_progress == (1, 1, 1)
+    values = {
+        kv.key: kv.value for kv in diagnostics_msg(first, node_name="n", hardware_id="/n", stamp_ns=0).status[0].values
+    }
+    assert values["search"] == "new, stopped at the deadline, settling C111 continues next tick"
+    last = states[-1]
+    assert last.settling_in_progress is None and last.result is not None and last.result.valid
+    values = {
+        kv.key: kv.value for kv in diagnostics_msg(last, node_name="n", hardware_id="/n", stamp_ns=0).status[0].values
+    }
+    assert values["search"] == "resumed, exhausted (every node visited)"
