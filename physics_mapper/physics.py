@@ -143,6 +143,8 @@ class PhysicsChecker:
             )
             self._names[uid] = model.name
             self._bodies.append(uid)
+        # Object uid -> scene index: which contacts count for Rule 1, and how a pair is ordered.
+        self._object_index = {uid: index for index, uid in enumerate(self._bodies)}
         self._initial_state = pybullet.saveState(physicsClientId=client)
 
     def _create(self, shape: Shape, mass: float, pose: Pose) -> int:
@@ -228,11 +230,10 @@ class PhysicsChecker:
         """
         self._place(poses)
         pybullet.performCollisionDetection(physicsClientId=self._client)
-        objects = set(self._bodies)
         deepest: Collision | None = None
         for contact in pybullet.getContactPoints(physicsClientId=self._client):
             body_a, body_b, distance = contact[1], contact[2], contact[8]
-            if body_a not in objects and body_b not in objects:
+            if body_a not in self._object_index and body_b not in self._object_index:
                 continue
             depth = -float(distance)
             if depth > penetration_threshold and (deepest is None or depth > deepest.depth):
@@ -241,7 +242,7 @@ class PhysicsChecker:
 
     def _pair(self, body_a: int, body_b: int) -> tuple[str, str]:
         """Names of a colliding pair, objects before statics, objects in scene order."""
-        order = {uid: i for i, uid in enumerate(self._bodies)}
+        order = self._object_index
         first, second = sorted((body_a, body_b), key=lambda uid: order.get(uid, len(order) + uid))
         return self._names[first], self._names[second]
 
