@@ -19,18 +19,17 @@ from std_msgs.msg import Float64MultiArray, Header
 from physics_mapper.geometry import Pose
 from physics_mapper.hypotheses import RankedHypotheses
 from physics_mapper.inputs import RawPose, ReceivedPoses, ReceivedWeights, check_poses, check_weights
-
-NANOSECONDS_PER_SECOND = 1_000_000_000
+from physics_mapper.stamps import time_parts, to_nanoseconds
 
 
 def nanoseconds_from_stamp(stamp: Time) -> int:
     """A ``builtin_interfaces/Time`` as integer nanoseconds."""
-    return int(stamp.sec) * NANOSECONDS_PER_SECOND + int(stamp.nanosec)
+    return to_nanoseconds(stamp.sec, stamp.nanosec)
 
 
 def stamp_from_nanoseconds(stamp_ns: int) -> Time:
     """Integer nanoseconds as a ``builtin_interfaces/Time``."""
-    sec, nanosec = divmod(stamp_ns, NANOSECONDS_PER_SECOND)
+    sec, nanosec = time_parts(stamp_ns)
     return Time(sec=sec, nanosec=nanosec)
 
 

@@ -30,6 +30,7 @@ from rosbags.typesys import Stores, get_typestore
 
 from physics_mapper.geometry import Pose, Quaternion, Vector3, make_pose
 from physics_mapper.hypotheses import RankedHypotheses
+from physics_mapper.stamps import time_parts, to_nanoseconds
 from physics_mapper.topics import GROUND_TRUTH_TOPIC, poses_topic, recorded
 from physics_mapper.topics import weights_topic as node_weights_topic
 
@@ -52,8 +53,6 @@ _PoseArray = TYPESTORE.types[POSE_ARRAY]
 _Dimension = TYPESTORE.types["std_msgs/msg/MultiArrayDimension"]
 _Layout = TYPESTORE.types["std_msgs/msg/MultiArrayLayout"]
 _Float64MultiArray = TYPESTORE.types[WEIGHTS]
-
-NANOSECONDS = 1_000_000_000
 
 
 class BagError(ValueError):
@@ -116,11 +115,6 @@ class PoseArrayData:
         return tuple(checked)
 
 
-def time_to_ns(sec: int, nanosec: int) -> int:
-    """A ``builtin_interfaces/Time`` as integer nanoseconds."""
-    return sec * NANOSECONDS + nanosec
-
-
 def _deserialize(raw: bytes, msgtype: str) -> Any:
     try:
         return TYPESTORE.deserialize_cdr(raw, msgtype)
@@ -140,7 +134,7 @@ def pose_array_from_cdr(raw: bytes) -> PoseArrayData:
         )
         for p in message.poses
     )
-    return PoseArrayData(time_to_ns(stamp.sec, stamp.nanosec), message.header.frame_id, poses)
+    return PoseArrayData(to_nanoseconds(stamp.sec, stamp.nanosec), message.header.frame_id, poses)
 
 
 def weights_from_cdr(raw: bytes) -> tuple[float, ...]:
@@ -150,7 +144,8 @@ def weights_from_cdr(raw: bytes) -> tuple[float, ...]:
 
 def pose_array_cdr(stamp_ns: int, frame_id: str, poses: Sequence[Pose]) -> bytes:
     """A CDR ``geometry_msgs/msg/PoseArray`` with header stamp ``stamp_ns`` and ``frame_id``."""
-    stamp = _Time(sec=stamp_ns // NANOSECONDS, nanosec=stamp_ns % NANOSECONDS)
+    sec, nanosec = time_parts(stamp_ns)
+    stamp = _Time(sec=sec, nanosec=nanosec)
     header = _Header(stamp=stamp, frame_id=frame_id)
     message = _PoseArray(
         header=header,

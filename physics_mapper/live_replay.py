@@ -25,9 +25,10 @@ from rclpy.publisher import Publisher
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.subscription import Subscription
 
-from physics_mapper.bags import DIAGNOSTIC_ARRAY, NANOSECONDS, POSE_ARRAY, Bag, BagWriter
+from physics_mapper.bags import DIAGNOSTIC_ARRAY, POSE_ARRAY, Bag, BagWriter
 from physics_mapper.replay import CONFIGURATION_TOPIC, DIAGNOSTICS_TOPIC, SETTLED_TOPIC
 from physics_mapper.ros_interface import shutdown_ros
+from physics_mapper.stamps import NANOSECONDS_PER_SECOND
 from physics_mapper.topics import MARKERS_TOPIC, recorded
 
 #: The node's outputs that are recorded, with their types; a bag's messages on these topics are not played.
@@ -198,10 +199,10 @@ def _play(
     if not bag.messages:
         return
     first = bag.messages[0].time_ns
-    duration = (bag.messages[-1].time_ns - first) / NANOSECONDS / playback.rate
+    duration = (bag.messages[-1].time_ns - first) / NANOSECONDS_PER_SECOND / playback.rate
     start = next_report = time.monotonic()
     for index, message in enumerate(bag.messages):
-        _spin_until(executor, start + (message.time_ns - first) / NANOSECONDS / playback.rate)
+        _spin_until(executor, start + (message.time_ns - first) / NANOSECONDS_PER_SECOND / playback.rate)
         if not alive():
             raise ReplayError("the node exited during the replay")
         publisher = publishers.get(message.topic)

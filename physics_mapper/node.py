@@ -27,13 +27,14 @@ from std_msgs.msg import Float64MultiArray
 from visualization_msgs.msg import MarkerArray
 
 from msg_adapters.diagnostics import diagnostics_msg
-from msg_adapters.hypotheses import NANOSECONDS_PER_SECOND, received_poses, received_weights
+from msg_adapters.hypotheses import received_poses, received_weights
 from msg_adapters.results import configuration_msgs, markers_msg
 from physics_mapper.errors import EXIT_BAD_INPUT, InputError
 from physics_mapper.inputs import InputSettings
 from physics_mapper.mapper import DEFAULT_RATE_HZ, Mapper, MapperSettings, TickReport, settings_problem
 from physics_mapper.ros_interface import DIAGNOSTICS_QOS, INPUT_QOS, MAP_QOS, shutdown_ros
 from physics_mapper.scene import FALLBACKS, SEARCH_LIMITS, Fallback, SceneError, SearchParams, load_scene
+from physics_mapper.stamps import NANOSECONDS_PER_SECOND
 from physics_mapper.topics import (
     CONFIGURATION_TOPIC,
     DIAGNOSTICS_TOPIC,

@@ -25,7 +25,6 @@ import numpy as np
 
 from physics_mapper import topics
 from physics_mapper.bags import (
-    NANOSECONDS,
     POSE_ARRAY,
     Bag,
     BagError,
@@ -46,6 +45,7 @@ from physics_mapper.report import code_text
 from physics_mapper.scene import Scene
 from physics_mapper.scoring import position_errors, rank_one_poses
 from physics_mapper.search import BranchAndBound, Code, SearchResult
+from physics_mapper.stamps import NANOSECONDS_PER_SECOND
 
 #: Messages closer together than this (ns) form one burst, after which the node's inputs are snapshot.
 BURST_GAP_NS = 50_000_000
@@ -129,7 +129,7 @@ def bag_snapshots(bag: Bag, scene: Scene, settings: InputSettings | None = None)
     snapshots: list[BagSnapshot] = []
     for burst in _bursts([m for m in bag.messages if m.topic in wanted]):
         for message in burst:
-            received = message.time_ns / NANOSECONDS
+            received = message.time_ns / NANOSECONDS_PER_SECOND
             with decoding(bag, message):
                 if message.topic in poses_of:
                     data = pose_array_from_cdr(message.raw)
@@ -147,7 +147,7 @@ def bag_snapshots(bag: Bag, scene: Scene, settings: InputSettings | None = None)
                     )
                 else:
                     truth = _ground_truth(message, scene)
-        snapshot = tracker.snapshot(burst[-1].time_ns / NANOSECONDS, settings)
+        snapshot = tracker.snapshot(burst[-1].time_ns / NANOSECONDS_PER_SECOND, settings)
         hypotheses, stamp_ns = snapshot.hypotheses, snapshot.stamp_ns
         new = not snapshots or hypotheses != snapshots[-1].hypotheses
         if hypotheses is not None and stamp_ns is not None and new:

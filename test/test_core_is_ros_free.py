@@ -18,6 +18,7 @@ CORE_MODULES = (
     "physics_mapper.report",
     "physics_mapper.errors",
     "physics_mapper.topics",
+    "physics_mapper.stamps",
     "physics_mapper.bench",
     "physics_mapper.inputs",
     "physics_mapper.mapper",

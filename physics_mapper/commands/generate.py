@@ -94,12 +94,12 @@ def _period_ns(period: float, objects: int) -> int:
     must start at least that many nanoseconds later. Offline replay takes messages less than
     BURST_GAP_NS apart as one burst, so a shorter gap between iterations puts several into one snapshot.
     """
-    from physics_mapper.bags import NANOSECONDS
     from physics_mapper.replay import BURST_GAP_NS
+    from physics_mapper.stamps import NANOSECONDS_PER_SECOND
 
     if not (math.isfinite(period) and period > 0.0):
         raise InputError(f"--period must be positive and finite, got {period}")
-    period_ns = round(period * NANOSECONDS)
+    period_ns = round(period * NANOSECONDS_PER_SECOND)
     messages = 2 * objects + 1
     if period_ns < messages:
         raise InputError(
@@ -108,7 +108,8 @@ def _period_ns(period: float, objects: int) -> int:
         )
     if period_ns - (messages - 1) < BURST_GAP_NS:
         print(
-            f"generate: warning: --period {period:g} s leaves less than {BURST_GAP_NS / NANOSECONDS:g} s between "
+            f"generate: warning: --period {period:g} s leaves less than "
+            f"{BURST_GAP_NS / NANOSECONDS_PER_SECOND:g} s between "
             "iterations: offline replay takes several iterations as one snapshot",
             file=sys.stderr,
         )
