@@ -60,16 +60,24 @@ def result_dict(result: SearchResult, names: tuple[str, ...]) -> dict[str, Any]:
     }
 
 
+def outcome_kind(entry: TraceEntry) -> str:
+    """A node's outcome with who caused it: ``collision a-b``, ``unstable (a moved)`` or ``valid``."""
+    if entry.outcome == "collision":
+        assert entry.pair is not None
+        return f"collision {entry.pair[0]}-{entry.pair[1]}"
+    if entry.outcome == "unstable":
+        return f"unstable ({entry.moved} moved)"
+    return "valid"
+
+
 def describe_entry(entry: TraceEntry) -> str:
     """One line: outcome and its evidence, e.g. ``collision cube_a-cube_b 3.1 cm``."""
     if entry.outcome == "collision":
-        assert entry.pair is not None and entry.depth is not None
-        text = f"collision {entry.pair[0]}-{entry.pair[1]} {entry.depth * 100:.1f} cm"
-    elif entry.outcome == "unstable":
-        text = f"unstable ({entry.moved} moved) J={entry.jitter:.4f}"
+        assert entry.depth is not None
+        evidence = f"{entry.depth * 100:.1f} cm"
     else:
-        text = f"valid J={entry.jitter:.4f}"
-    return text + (" [bounded]" if entry.bounded else "")
+        evidence = f"J={entry.jitter:.4f}"
+    return f"{outcome_kind(entry)} {evidence}" + (" [bounded]" if entry.bounded else "")
 
 
 def trace_tree(trace: tuple[TraceEntry, ...]) -> str:

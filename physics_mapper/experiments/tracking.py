@@ -32,9 +32,10 @@ from physics_mapper.geometry import Pose, Vector3
 from physics_mapper.hypotheses import RankedHypotheses
 from physics_mapper.particle_filter import TrackerSettings, run_generators, settle_ground_truth, track
 from physics_mapper.physics import PhysicsChecker
+from physics_mapper.report import outcome_kind
 from physics_mapper.scene import Scene, SearchParams
 from physics_mapper.scoring import rank_one_poses
-from physics_mapper.search import SearchResult, TraceEntry
+from physics_mapper.search import SearchResult
 
 #: The paper's sizes: 20 runs of a 1000-particle filter.
 PAPER_RUNS = 20
@@ -188,16 +189,6 @@ def _outcome(truth: tuple[Pose, ...], settings: TrackerSettings, scored: list[li
         exhausted=flags[:, :, 6],
         root_outcomes=dict(Counter(item.root_outcome for run in scored for item in run).most_common()),
     )
-
-
-def outcome_kind(entry: TraceEntry) -> str:
-    """A node's outcome with who caused it: ``collision a-b``, ``unstable (a moved)`` or ``valid``."""
-    if entry.outcome == "collision":
-        assert entry.pair is not None
-        return f"collision {entry.pair[0]}-{entry.pair[1]}"
-    if entry.outcome == "unstable":
-        return f"unstable ({entry.moved} moved)"
-    return "valid"
 
 
 def hypothesis_spread_cm(hypothesis_positions: NDArray[np.float64]) -> dict[str, float]:
