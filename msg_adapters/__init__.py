@@ -1,0 +1,51 @@
+"""ROS messages <-> core types, and nothing else: hypotheses in, maps, markers and diagnostics out."""
+
+from __future__ import annotations
+
+from msg_adapters.diagnostics import (
+    diagnostics_msg,
+    search_values,
+)
+from msg_adapters.hypotheses import (
+    hypotheses_msgs,
+    nanoseconds_from_stamp,
+    pose_array_msg,
+    pose_msg,
+    raw_pose,
+    received_poses,
+    received_weights,
+    stamp_from_nanoseconds,
+    weights_msg,
+)
+from msg_adapters.results import (
+    FALLBACK_COLOR,
+    LABEL_COLOR,
+    LABEL_HEIGHT,
+    LABEL_NAMESPACE,
+    SHAPE_NAMESPACE,
+    VALID_COLOR,
+    configuration_msgs,
+    markers_msg,
+)
+
+__all__ = [
+    "FALLBACK_COLOR",
+    "LABEL_COLOR",
+    "LABEL_HEIGHT",
+    "LABEL_NAMESPACE",
+    "SHAPE_NAMESPACE",
+    "VALID_COLOR",
+    "configuration_msgs",
+    "diagnostics_msg",
+    "hypotheses_msgs",
+    "markers_msg",
+    "nanoseconds_from_stamp",
+    "pose_array_msg",
+    "pose_msg",
+    "raw_pose",
+    "received_poses",
+    "received_weights",
+    "search_values",
+    "stamp_from_nanoseconds",
+    "weights_msg",
+]

@@ -13,10 +13,10 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from std_msgs.msg import Header
 
 from msg_adapters.hypotheses import stamp_from_nanoseconds
-from physics_mapper.inputs import Level, ObjectStatus
-from physics_mapper.mapper import TickReport
-from physics_mapper.report import code_text
-from physics_mapper.search import SearchResult, SearchStats
+from physics_mapper.core.report import code_text
+from physics_mapper.core.search import SearchResult, SearchStats
+from physics_mapper.mapping.inputs import Level, ObjectStatus
+from physics_mapper.mapping.mapper import TickReport
 
 LEVELS = {Level.OK: DiagnosticStatus.OK, Level.WARN: DiagnosticStatus.WARN, Level.ERROR: DiagnosticStatus.ERROR}
 

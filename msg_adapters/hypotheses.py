@@ -16,10 +16,10 @@ from geometry_msgs.msg import Point, PoseArray, Quaternion
 from geometry_msgs.msg import Pose as PoseMsg
 from std_msgs.msg import Float64MultiArray, Header
 
-from physics_mapper.geometry import Pose
-from physics_mapper.hypotheses import RankedHypotheses
-from physics_mapper.inputs import RawPose, ReceivedPoses, ReceivedWeights, check_poses, check_weights
-from physics_mapper.stamps import time_parts, to_nanoseconds
+from physics_mapper.core.geometry import Pose
+from physics_mapper.core.hypotheses import RankedHypotheses
+from physics_mapper.mapping.inputs import RawPose, ReceivedPoses, ReceivedWeights, check_poses, check_weights
+from physics_mapper.mapping.stamps import time_parts, to_nanoseconds
 
 
 def nanoseconds_from_stamp(stamp: Time) -> int:

@@ -7,9 +7,9 @@ from std_msgs.msg import ColorRGBA, Header
 from visualization_msgs.msg import Marker, MarkerArray
 
 from msg_adapters.hypotheses import pose_array_msg, pose_msg, stamp_from_nanoseconds
-from physics_mapper.geometry import Pose
-from physics_mapper.scene import Box, Cylinder, ObjectModel, Scene, Sphere
-from physics_mapper.search import SearchResult
+from physics_mapper.core.geometry import Pose
+from physics_mapper.core.scene import Box, Cylinder, ObjectModel, Scene, Sphere
+from physics_mapper.core.search import SearchResult
 
 #: Marker namespaces: one shape and one label per object, ``id`` = object index.
 SHAPE_NAMESPACE = "objects"

@@ -6,20 +6,12 @@ Exit codes: 0 success, 1 a run-time failure, 2 bad arguments or input files.
 from __future__ import annotations
 
 import argparse
-import importlib
 import sys
 from collections.abc import Sequence
-from types import ModuleType
 
-from physics_mapper.errors import EXIT_BAD_INPUT, InputError
-from physics_mapper.scene import SceneError
-
-#: Subcommand name -> module under ``physics_mapper.commands``.
-COMMANDS = ("solve", "generate", "replay", "node", "publish", "demo", "experiment", "bench")
-
-
-def _command(name: str) -> ModuleType:
-    return importlib.import_module(f"physics_mapper.commands.{name}")
+from physics_mapper.commands import COMMANDS, command_module
+from physics_mapper.core.errors import EXIT_BAD_INPUT, InputError
+from physics_mapper.core.scene_files import SceneError
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -29,7 +21,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     subparsers = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for name in COMMANDS:
-        module = _command(name)
+        module = command_module(name)
         sub = subparsers.add_parser(name, help=module.HELP, description=module.HELP)
         module.add_arguments(sub)
         sub.set_defaults(run=module.run)

@@ -1,6 +1,6 @@
 """Shared helpers for tests over real DDS: the node as a subprocess, and an in-test rclpy client.
 
-The node under test runs in its own process (``physics_mapper.launch``); the test talks to
+The node under test runs in its own process (``physics_mapper.ros.child_process``); the test talks to
 it through :class:`RosClient`, an rclpy node with its own context, on the ROS domain that
 conftest.py chose for this pytest run.
 """
@@ -25,9 +25,7 @@ from std_msgs.msg import Float64MultiArray
 from visualization_msgs.msg import Marker, MarkerArray
 
 from msg_adapters.hypotheses import nanoseconds_from_stamp
-from physics_mapper.launch import start_node, stop_node
-from physics_mapper.ros_interface import DIAGNOSTICS_QOS, MAP_QOS
-from physics_mapper.topics import (
+from physics_mapper.mapping.topics import (
     CONFIGURATION_TOPIC,
     DIAGNOSTICS_TOPIC,
     MARKERS_TOPIC,
@@ -37,6 +35,8 @@ from physics_mapper.topics import (
     poses_topic,
     weights_topic,
 )
+from physics_mapper.ros.child_process import start_node, stop_node
+from physics_mapper.ros.qos import DIAGNOSTICS_QOS, MAP_QOS
 
 #: The search status keys SPEC section 4 requires.
 SPEC_DIAGNOSTIC_KEYS = (

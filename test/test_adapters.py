@@ -22,24 +22,14 @@ from msg_adapters.hypotheses import (
     stamp_from_nanoseconds,
 )
 from msg_adapters.results import FALLBACK_COLOR, LABEL_NAMESPACE, SHAPE_NAMESPACE, configuration_msgs, markers_msg
-from physics_mapper.geometry import Pose, make_pose
-from physics_mapper.hypotheses import Hypothesis, RankedHypotheses
-from physics_mapper.inputs import InputSettings, InputTracker, Level, ObjectInputs, rank
-from physics_mapper.mapper import Mapper, MapperSettings
-from physics_mapper.physics import PhysicsChecker
-from physics_mapper.scene import (
-    Box,
-    Cylinder,
-    ObjectModel,
-    Plane,
-    Scene,
-    SearchParams,
-    Sphere,
-    StaticBody,
-    load_problem,
-    load_scene,
-)
-from physics_mapper.search import BranchAndBound
+from physics_mapper.core.geometry import Pose, make_pose
+from physics_mapper.core.hypotheses import Hypothesis, RankedHypotheses
+from physics_mapper.core.physics import PhysicsChecker
+from physics_mapper.core.scene import Box, Cylinder, ObjectModel, Plane, Scene, SearchParams, Sphere, StaticBody
+from physics_mapper.core.scene_files import load_problem, load_scene
+from physics_mapper.core.search import BranchAndBound
+from physics_mapper.mapping.inputs import InputSettings, InputTracker, Level, ObjectInputs, rank
+from physics_mapper.mapping.mapper import Mapper, MapperSettings
 
 TILTED = make_pose((0.1, -0.2, 0.3), (0.1, 0.2, 0.3, math.sqrt(1.0 - 0.14)))
 
@@ -173,7 +163,7 @@ def mixed_result() -> object:
 
 
 def test_configuration_messages_hold_chosen_and_settled_poses(mixed_result: object) -> None:
-    from physics_mapper.search import SearchResult
+    from physics_mapper.core.search import SearchResult
 
     assert isinstance(mixed_result, SearchResult) and mixed_result.valid
     messages = configuration_msgs(mixed_result, frame_id="table", stamp_ns=4_500_000_000)
@@ -187,8 +177,8 @@ def test_configuration_messages_hold_chosen_and_settled_poses(mixed_result: obje
 
 
 def test_a_realistic_stamp_goes_from_input_to_outputs_exactly(mixed_result: object) -> None:
-    """A PoseArray's stamp -> ReceivedPoses -> Snapshot -> configuration, settled and markers headers."""
-    from physics_mapper.search import SearchResult
+    """A PoseArray's stamp -> ReceivedPoses -> InputSnapshot -> configuration, settled and markers headers."""
+    from physics_mapper.core.search import SearchResult
 
     assert isinstance(mixed_result, SearchResult)
     tracker = InputTracker(["crate"])
@@ -205,7 +195,7 @@ def test_a_realistic_stamp_goes_from_input_to_outputs_exactly(mixed_result: obje
 
 
 def test_markers_show_each_objects_true_shape_and_a_label_with_its_jitter(mixed_result: object) -> None:
-    from physics_mapper.search import SearchResult
+    from physics_mapper.core.search import SearchResult
 
     assert isinstance(mixed_result, SearchResult)
     markers = markers_msg(mixed_result, MIXED, stamp_ns=4_500_000_000).markers

@@ -16,17 +16,19 @@ from conftest import REPO, SCENES
 from rosbags.rosbag2 import Reader, StoragePlugin, Writer
 from rosbags.typesys import Stores, get_typestore
 
-from physics_mapper.bags import BagError, BagWriter, read_bag
+from physics_mapper.bags.evaluation import recorded_results
+from physics_mapper.bags.snapshots import bag_snapshots, input_topics
+from physics_mapper.bags.storage import BagError, BagWriter, read_bag
 from physics_mapper.cli import main
-from physics_mapper.errors import EXIT_BAD_INPUT
+from physics_mapper.core.errors import EXIT_BAD_INPUT
+from physics_mapper.core.geometry import make_pose
+from physics_mapper.core.hypotheses import Hypothesis, RankedHypotheses
+from physics_mapper.core.scene_files import load_scene
+from physics_mapper.core.scoring import position_errors, rank_one_poses
 from physics_mapper.experiments.common import ExperimentOptions
 from physics_mapper.experiments.tracking import track_and_search
-from physics_mapper.geometry import make_pose
-from physics_mapper.hypotheses import Hypothesis, RankedHypotheses
-from physics_mapper.particle_filter import TrackerSettings
-from physics_mapper.replay import CONFIGURATION_TOPIC, bag_snapshots, input_topics, recorded_outcomes
-from physics_mapper.scene import load_scene
-from physics_mapper.scoring import position_errors, rank_one_poses
+from physics_mapper.mapping.topics import RECORDED_CONFIGURATION_TOPIC
+from physics_mapper.perception.particle_filter import TrackerSettings
 
 TYPESTORE = get_typestore(Stores.ROS2_JAZZY)
 POSE_ARRAY = "geometry_msgs/msg/PoseArray"
@@ -464,10 +466,12 @@ def test_undecodable_recorded_output_names_the_bag_and_topic(tmp_path: Path) -> 
     scene = load_scene(SCENES / "pyramid.yaml")
     snapshots = bag_snapshots(read_bag(DATA / "pyramid"), scene)
     with BagWriter(tmp_path / "out") as writer:
-        writer.write(CONFIGURATION_TOPIC, POSE_ARRAY, 42, b"\x00\x01\x00\x00\xff")
+        writer.write(RECORDED_CONFIGURATION_TOPIC, POSE_ARRAY, 42, b"\x00\x01\x00\x00\xff")
     with pytest.raises(BagError) as raised:
-        recorded_outcomes(snapshots, read_bag(tmp_path / "out"), scene)
-    assert str(raised.value).startswith(f"{tmp_path / 'out'}: {CONFIGURATION_TOPIC} at 42 ns: a {POSE_ARRAY} message")
+        recorded_results(snapshots, read_bag(tmp_path / "out"), scene)
+    assert str(raised.value).startswith(
+        f"{tmp_path / 'out'}: {RECORDED_CONFIGURATION_TOPIC} at 42 ns: a {POSE_ARRAY} message"
+    )
 
 
 def test_generate_draws_each_run_as_the_experiments_do(tmp_path: Path) -> None:

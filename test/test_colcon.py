@@ -104,10 +104,10 @@ def test_the_installed_node_imports_the_installed_packages(workspace: Path) -> N
         check=False,
     )
     assert probe.returncode == 0, probe.stderr
-    files = json.loads(probe.stdout.splitlines()[-1])  # pybullet prints its build time first
+    files = json.loads(probe.stdout.splitlines()[-1])
     (site_packages,) = (workspace.resolve() / "install" / PACKAGE / "lib").glob("python3*/site-packages")
     assert files == {
-        "entry point": str(site_packages / PACKAGE / "node.py"),
+        "entry point": str(site_packages / PACKAGE / "ros" / "node.py"),
         PACKAGE: str(site_packages / PACKAGE / "__init__.py"),
         "msg_adapters": str(site_packages / "msg_adapters" / "__init__.py"),
     }

@@ -9,7 +9,9 @@ from typing import Any
 import pytest
 from conftest import SCENES
 
-from physics_mapper.inputs import (
+from physics_mapper.core.scene import SearchParams
+from physics_mapper.core.scene_files import load_scene
+from physics_mapper.mapping.inputs import (
     WEIGHTS_GRACE,
     InputSettings,
     InputTracker,
@@ -19,8 +21,7 @@ from physics_mapper.inputs import (
     check_poses,
     check_weights,
 )
-from physics_mapper.mapper import Mapper, MapperSettings, settings_problem
-from physics_mapper.scene import SearchParams, load_scene
+from physics_mapper.mapping.mapper import Mapper, MapperSettings, mapper_settings_problem
 
 IDENTITY = (0.0, 0.0, 0.0, 1.0)
 SETTINGS = InputSettings(max_age=10.0, max_hypotheses=100, require_weights=False)
@@ -317,12 +318,12 @@ def test_unchanged_inputs_resume_the_search_and_changed_ones_restart_it() -> Non
     ],
 )
 def test_invalid_settings_are_named(settings: MapperSettings, problem: str) -> None:
-    text = settings_problem(settings)
+    text = mapper_settings_problem(settings)
     assert text is not None and problem in text
 
 
 def test_valid_settings_pass() -> None:
-    assert settings_problem(pyramid_settings()) is None
+    assert mapper_settings_problem(pyramid_settings()) is None
 
 
 def test_a_refused_pose_array_and_refused_weights_are_both_reported() -> None:

@@ -39,10 +39,11 @@ from visualization_msgs.msg import Marker
 
 from msg_adapters.hypotheses import hypotheses_msgs, pose_array_msg
 from msg_adapters.results import SHAPE_NAMESPACE
-from physics_mapper.geometry import Pose
-from physics_mapper.hypotheses import Hypothesis, RankedHypotheses
-from physics_mapper.mapper import DEADLINE_SLACK
-from physics_mapper.scene import Problem, load_problem, load_scene
+from physics_mapper.core.geometry import Pose
+from physics_mapper.core.hypotheses import Hypothesis, RankedHypotheses
+from physics_mapper.core.scene import Problem
+from physics_mapper.core.scene_files import load_problem, load_scene
+from physics_mapper.mapping.mapper import DEADLINE_SLACK
 
 PYRAMID_SCENE = SCENES / "pyramid.yaml"
 PYRAMID_PROBLEM = PROBLEMS / "pyramid.yaml"

@@ -10,10 +10,16 @@ import numpy as np
 import pytest
 from conftest import SCENES
 
-from physics_mapper.geometry import Pose, make_pose, rotation_angle, translation_distance
-from physics_mapper.particle_filter import TrackerSettings, settings_problem, settle_ground_truth, track
-from physics_mapper.physics import PhysicsChecker
-from physics_mapper.scene import Scene, load_scene
+from physics_mapper.core.geometry import Pose, make_pose, rotation_angle, translation_distance
+from physics_mapper.core.physics import PhysicsChecker
+from physics_mapper.core.scene import Scene
+from physics_mapper.core.scene_files import load_scene
+from physics_mapper.perception.particle_filter import (
+    TrackerSettings,
+    settle_ground_truth,
+    track,
+    tracker_settings_problem,
+)
 
 
 def mean_error(estimate: list[Pose], truth: tuple[Pose, ...]) -> float:
@@ -152,7 +158,7 @@ def test_bad_settings_are_refused(
     pyramid: Scene, pyramid_truth: tuple[Pose, ...], change: dict[str, Any], message: str
 ) -> None:
     settings = replace(TrackerSettings(), **change)
-    problem = settings_problem(settings)
+    problem = tracker_settings_problem(settings)
     assert problem is not None and problem.startswith(message)
     with pytest.raises(ValueError, match="must"):
         track(pyramid, pyramid_truth, settings, np.random.default_rng(0))

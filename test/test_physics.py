@@ -9,9 +9,9 @@ import pybullet
 import pytest
 from core_builders import CUBE_SIZE, ON_FLOOR, cube, floor_scene, ground_truth, moved, shipped_scene, unrotated
 
-from physics_mapper.geometry import Pose, rotation_angle, translation_distance
-from physics_mapper.physics import CLOCK_CHECK_STEPS, TIME_STEP, PartialSettling, PhysicsChecker, Settling
-from physics_mapper.scene import Scene, SearchParams
+from physics_mapper.core.geometry import Pose, rotation_angle, translation_distance
+from physics_mapper.core.physics import CLOCK_CHECK_STEPS, TIME_STEP, PartialSettling, PhysicsChecker, Settling
+from physics_mapper.core.scene import Scene, SearchParams
 
 JITTER_THRESHOLD = SearchParams().jitter_threshold
 PENETRATION_THRESHOLD = SearchParams().penetration_threshold

@@ -27,10 +27,12 @@ from rosbags.rosbag2 import Reader, StoragePlugin, Writer
 from rosbags.typesys import Stores, get_typestore
 from scipy.spatial.transform import Rotation
 
-from physics_mapper import bags, replay, topics
-from physics_mapper.geometry import Pose, Quaternion, make_pose, rotation_angle
-from physics_mapper.hypotheses import Hypothesis, RankedHypotheses
-from physics_mapper.scene import load_scene
+from physics_mapper.bags import evaluation, storage
+from physics_mapper.bags.snapshots import BagSnapshot, bag_snapshots
+from physics_mapper.core.geometry import Pose, Quaternion, make_pose, rotation_angle
+from physics_mapper.core.hypotheses import Hypothesis, RankedHypotheses
+from physics_mapper.core.scene_files import load_scene
+from physics_mapper.mapping import topics
 
 TYPESTORE = get_typestore(Stores.ROS2_JAZZY)
 POSE_ARRAY = "geometry_msgs/msg/PoseArray"
@@ -117,7 +119,7 @@ def handmade_bag(tmp_path_factory: pytest.TempPathFactory) -> Path:
             for name in NAMES
             for topic, msgtype in ((f"/hypotheses/{name}", POSE_ARRAY), (f"/hypotheses/{name}/weights", WEIGHTS))
         }
-        for topic in ("/ground_truth", replay.CONFIGURATION_TOPIC, replay.SETTLED_TOPIC):
+        for topic in ("/ground_truth", topics.RECORDED_CONFIGURATION_TOPIC, topics.RECORDED_SETTLED_TOPIC):
             connections[topic] = writer.add_connection(topic, POSE_ARRAY, typestore=TYPESTORE)
         connections[MARKERS] = writer.add_connection(MARKERS, MARKER_ARRAY, typestore=TYPESTORE)
 
@@ -135,8 +137,8 @@ def handmade_bag(tmp_path_factory: pytest.TempPathFactory) -> Path:
                 write(f"/hypotheses/{name}/weights", stamp + 1000 * offset + 1, weights([w for _, w in order]))
             write("/ground_truth", stamp + 5000, pose_array(stamp, list(TRUTH)))
             # The old run's outputs, stamped like the node's new ones will be.
-            write(replay.CONFIGURATION_TOPIC, stamp + 300_000_000, pose_array(stamp, list(STALE)))
-            write(replay.SETTLED_TOPIC, stamp + 300_000_001, pose_array(stamp, list(STALE)))
+            write(topics.RECORDED_CONFIGURATION_TOPIC, stamp + 300_000_000, pose_array(stamp, list(STALE)))
+            write(topics.RECORDED_SETTLED_TOPIC, stamp + 300_000_001, pose_array(stamp, list(STALE)))
             write(MARKERS, stamp + 300_000_002, TYPESTORE.types[MARKER_ARRAY](markers=[]))
     return path
 
@@ -156,10 +158,13 @@ def recorded(path: Path) -> dict[str, list[Any]]:
 
 def test_recorded_topic_names_are_those_the_node_resolves_in_the_root_namespace() -> None:
     assert topics.recorded("hypotheses/a") == topics.recorded("/hypotheses/a") == "/hypotheses/a"
-    assert bags.hypotheses_topic("a") == "/hypotheses/a" and bags.weights_topic("a") == "/hypotheses/a/weights"
-    assert replay.CONFIGURATION_TOPIC == "/physics_mapper/configuration"
-    assert replay.SETTLED_TOPIC == "/physics_mapper/settled_configuration"
-    assert replay.DIAGNOSTICS_TOPIC == "/diagnostics"
+    assert (
+        topics.recorded_poses_topic("a") == "/hypotheses/a"
+        and topics.recorded_weights_topic("a") == "/hypotheses/a/weights"
+    )
+    assert topics.RECORDED_CONFIGURATION_TOPIC == "/physics_mapper/configuration"
+    assert topics.RECORDED_SETTLED_TOPIC == "/physics_mapper/settled_configuration"
+    assert topics.DIAGNOSTICS_TOPIC == "/diagnostics"
     assert topics.output_topic(topics.CONFIGURATION_TOPIC, "/robot1") == "/robot1/physics_mapper/configuration"
 
 
@@ -185,9 +190,9 @@ def test_code_of_recognises_published_poses_after_a_cdr_round_trip() -> None:
         hypotheses.append(RankedHypotheses.from_weighted([Hypothesis(p, 1.0) for p in twins]))  # ties keep order
         chosen.append(pose)
         code.append(rank)
-    published = bags.pose_array_from_cdr(bags.pose_array_cdr(0, "world", chosen)).checked_poses()
-    assert replay.code_of(published, hypotheses) == tuple(code)
-    assert replay.code_of([moved(published[0], dz=1e-8), *published[1:]], hypotheses) is None
+    published = storage.pose_array_from_cdr(storage.pose_array_cdr(0, "world", chosen)).checked_poses()
+    assert evaluation.code_of(published, hypotheses) == tuple(code)
+    assert evaluation.code_of([moved(published[0], dz=1e-8), *published[1:]], hypotheses) is None
 
 
 def test_offline_replay_finds_the_valid_configurations(offline: tuple[Any, Path, Path]) -> None:
@@ -200,8 +205,8 @@ def test_offline_replay_finds_the_valid_configurations(offline: tuple[Any, Path,
 def test_offline_output_bag_holds_the_chosen_poses(offline: tuple[Any, Path, Path]) -> None:
     _, out, _ = offline
     messages = recorded(out)
-    configurations = messages[replay.CONFIGURATION_TOPIC]
-    assert len(configurations) == len(messages[replay.SETTLED_TOPIC]) == 3
+    configurations = messages[topics.RECORDED_CONFIGURATION_TOPIC]
+    assert len(configurations) == len(messages[topics.RECORDED_SETTLED_TOPIC]) == 3
     first = configurations[0]
     assert [p.position.z for p in first.poses] == pytest.approx([t.position[2] for t in TRUTH])
 
@@ -254,17 +259,19 @@ def test_live_replay_yields_configurations_recorded_in_the_output_bag(live: tupl
     completed, out, _ = live
     assert completed.returncode == 0, completed.stderr
     messages = recorded(out)
-    stamps = {m.header.stamp.sec * 10**9 + m.header.stamp.nanosec for m in messages[replay.CONFIGURATION_TOPIC]}
+    stamps = {
+        m.header.stamp.sec * 10**9 + m.header.stamp.nanosec for m in messages[topics.RECORDED_CONFIGURATION_TOPIC]
+    }
     assert {FIRST_NS + k * SPACING_NS for k in range(3)} <= stamps
-    assert all(len(m.poses) == 3 for m in messages[replay.CONFIGURATION_TOPIC])
-    assert messages[replay.SETTLED_TOPIC]
+    assert all(len(m.poses) == 3 for m in messages[topics.RECORDED_CONFIGURATION_TOPIC])
+    assert messages[topics.RECORDED_SETTLED_TOPIC]
     assert any(status.name.startswith("physics_mapper") for m in messages["/diagnostics"] for status in m.status)
 
 
-def made_of_hypotheses(poses: list[Pose], snapshots: list[replay.BagSnapshot]) -> bool:
+def made_of_hypotheses(poses: list[Pose], snapshots: list[BagSnapshot]) -> bool:
     """Whether each pose is one of its object's hypotheses in one of ``snapshots``."""
     return all(
-        any(replay.code_of([pose], [snapshot.hypotheses[index]]) is not None for snapshot in snapshots)
+        any(evaluation.code_of([pose], [snapshot.hypotheses[index]]) is not None for snapshot in snapshots)
         for index, pose in enumerate(poses)
     )
 
@@ -273,17 +280,17 @@ def test_live_replay_records_only_the_node_s_new_outputs(handmade_bag: Path, liv
     """The bag's old configurations are not played, so the recorder does not take them for the node's."""
     completed, out, _ = live
     assert (
-        f"not played: {replay.CONFIGURATION_TOPIC} (recorded by this replay), "
-        f"{replay.SETTLED_TOPIC} (recorded by this replay)" in completed.stderr
+        f"not played: {topics.RECORDED_CONFIGURATION_TOPIC} (recorded by this replay), "
+        f"{topics.RECORDED_SETTLED_TOPIC} (recorded by this replay)" in completed.stderr
     )
     assert f"{MARKERS} (an old run's map: the node under test publishes its own)" in completed.stderr
-    snapshots = replay.bag_snapshots(bags.read_bag(handmade_bag), load_scene(SCENE))
-    output = bags.read_bag(out, (replay.CONFIGURATION_TOPIC,))
+    snapshots = bag_snapshots(storage.read_bag(handmade_bag), load_scene(SCENE))
+    output = storage.read_bag(out, (topics.RECORDED_CONFIGURATION_TOPIC,))
     assert output.messages
     for message in output.messages:
-        poses = list(bags.pose_array_from_cdr(message.raw).checked_poses())
+        poses = list(storage.pose_array_from_cdr(message.raw).checked_poses())
         assert made_of_hypotheses(poses, snapshots), f"not the node's: {poses}"
-    settled_x = [pose.position.x for message in recorded(out)[replay.SETTLED_TOPIC] for pose in message.poses]
+    settled_x = [pose.position.x for message in recorded(out)[topics.RECORDED_SETTLED_TOPIC] for pose in message.poses]
     assert settled_x and max(settled_x) < 0.5  # the old run's are 1 m to the side
 
 
@@ -318,14 +325,14 @@ def test_start_node_replays_the_shipped_bag(tmp_path: Path) -> None:
     assert completed.returncode == 0, completed.stderr
     assert "started the node" in completed.stderr
     assert "total" in completed.stdout.splitlines()[-1]
-    snapshots = replay.bag_snapshots(bags.read_bag(REPO / "test" / "data" / "pyramid"), load_scene(SCENE))
+    snapshots = bag_snapshots(storage.read_bag(REPO / "test" / "data" / "pyramid"), load_scene(SCENE))
     index_of = {snapshot.stamp_ns: index for index, snapshot in enumerate(snapshots)}
-    configurations = bags.read_bag(tmp_path / "out", (replay.CONFIGURATION_TOPIC,)).messages
+    configurations = storage.read_bag(tmp_path / "out", (topics.RECORDED_CONFIGURATION_TOPIC,)).messages
     assert configurations
     for message in configurations:
-        data = bags.pose_array_from_cdr(message.raw)
+        data = storage.pose_array_from_cdr(message.raw)
         poses, index = list(data.checked_poses()), index_of[data.stamp_ns]
         # A tick while bursts arrive (4x speed: 8 per second) mixes the newest with hypotheses still in
         # use from earlier ones (an object's poses wait for their weights); recorded_outcomes counts no code.
         mixed = made_of_hypotheses(poses, snapshots[: index + 1])
-        assert replay.code_of(poses, snapshots[index].hypotheses) is not None or mixed, data.stamp_ns
+        assert evaluation.code_of(poses, snapshots[index].hypotheses) is not None or mixed, data.stamp_ns

@@ -17,9 +17,9 @@ import yaml
 from conftest import PROBLEMS, SCENES
 from core_builders import cli
 
-from physics_mapper.inputs import InputSettings
-from physics_mapper.mapper import MapperSettings, settings_problem
-from physics_mapper.scene import SceneError, load_problem, load_scene
+from physics_mapper.core.scene_files import SceneError, load_problem, load_scene
+from physics_mapper.mapping.inputs import InputSettings
+from physics_mapper.mapping.mapper import MapperSettings, mapper_settings_problem
 
 Key = tuple[str | int, ...]
 
@@ -217,4 +217,4 @@ def test_problem_search_overrides_merge_with_the_scene_and_are_validated(tmp_pat
 def test_every_shipped_scene_starts_the_node_at_its_default_rate(path: Path) -> None:
     """The node refuses a scene whose deadline does not fit in one tick at the default rate_hz."""
     scene = load_scene(path)
-    assert settings_problem(MapperSettings(scene.search, InputSettings())) is None
+    assert mapper_settings_problem(MapperSettings(scene.search, InputSettings())) is None

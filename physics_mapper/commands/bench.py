@@ -5,8 +5,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from physics_mapper.errors import InputError
-from physics_mapper.scene import load_problem
+from physics_mapper.core.errors import InputError
+from physics_mapper.core.scene_files import load_problem
 
 HELP = "time the physics checks (Rule 1, Rule 2, rebuilt world) and an exhaustive search on a problem file"
 
@@ -26,7 +26,7 @@ def run(args: argparse.Namespace) -> int:
     if args.repeats < 1:
         raise InputError(f"--repeats must be at least 1, got {args.repeats}")
     problem = load_problem(args.problem)
-    from physics_mapper.bench import costs_text, measure
+    from physics_mapper.bench.physics_costs import costs_text, measure
 
     scene = problem.scene
     print(

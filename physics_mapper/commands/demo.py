@@ -14,7 +14,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from physics_mapper.commands import replay
-from physics_mapper.errors import EXIT_FAILURE
+from physics_mapper.core.errors import EXIT_FAILURE
 
 if TYPE_CHECKING:
     from diagnostic_msgs.msg import DiagnosticArray
@@ -54,11 +54,11 @@ def _last_map(recorded: Path) -> tuple[PoseArray | None, DiagnosticArray | None]
     from geometry_msgs.msg import PoseArray
     from rclpy.serialization import deserialize_message
 
-    from physics_mapper.bags import read_bag
-    from physics_mapper.replay import CONFIGURATION_TOPIC, DIAGNOSTICS_TOPIC
+    from physics_mapper.bags.storage import read_bag
+    from physics_mapper.mapping.topics import DIAGNOSTICS_TOPIC, RECORDED_CONFIGURATION_TOPIC
 
     bag = read_bag(recorded)
-    configurations = bag.on(CONFIGURATION_TOPIC)
+    configurations = bag.on(RECORDED_CONFIGURATION_TOPIC)
     if not configurations:
         return None, None
     last = configurations[-1]
@@ -72,7 +72,7 @@ def _last_map(recorded: Path) -> tuple[PoseArray | None, DiagnosticArray | None]
 
 
 def run(args: argparse.Namespace) -> int:
-    from physics_mapper.scene import load_scene
+    from physics_mapper.core.scene_files import load_scene
 
     names = load_scene(args.scene).object_names
     with tempfile.TemporaryDirectory(prefix="physics_mapper_demo_") as folder:

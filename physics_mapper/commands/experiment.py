@@ -8,7 +8,7 @@ import time
 from dataclasses import replace
 from pathlib import Path
 
-from physics_mapper.errors import InputError
+from physics_mapper.core.errors import InputError
 
 HELP = "reproduce the paper's experiments (Figs. 4, 6, 8 and the peg in a hole) as PNG plots and summaries"
 
@@ -43,11 +43,11 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(f"{args.output} exists and is not a folder")
     if args.scenes is not None and not args.scenes.is_dir():
         raise InputError(f"--scenes {args.scenes} is not a folder")
-    # Heavy imports (pybullet, matplotlib, scipy) only once the arguments are known to be usable.
+    # matplotlib only once the arguments are known to be usable.
     import importlib
 
     from physics_mapper.experiments.common import ExperimentOptions
-    from physics_mapper.particle_filter import TrackerSettings
+    from physics_mapper.perception.particle_filter import TrackerSettings
 
     top_m = TrackerSettings().top_m
     if args.particles is not None and args.particles < top_m:

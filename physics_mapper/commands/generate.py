@@ -9,15 +9,15 @@ from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from physics_mapper.errors import InputError
+from physics_mapper.core.errors import InputError
 
 if TYPE_CHECKING:
     import numpy as np
 
-    from physics_mapper.bags import BagWriter
-    from physics_mapper.geometry import Pose
-    from physics_mapper.particle_filter import TrackerSettings
-    from physics_mapper.scene import Scene
+    from physics_mapper.bags.storage import BagWriter
+    from physics_mapper.core.geometry import Pose
+    from physics_mapper.core.scene import Scene
+    from physics_mapper.perception.particle_filter import TrackerSettings
 
 HELP = "simulate noisy measurements and a particle filter per object; write the hypotheses to a bag"
 
@@ -26,8 +26,7 @@ START_TIME_NS = 1_000_000_000
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    # Tracker defaults live in TrackerSettings; an option left out (None) keeps them. They are not
-    # imported here because the particle filter pulls in pybullet, which --help must not load.
+    # Tracker defaults live in TrackerSettings; an option left out (None) keeps them.
     parser.add_argument("scene", type=Path, help="scene YAML with a ground_truth: section")
     parser.add_argument("-o", "--output", type=Path, required=True, metavar="BAG", help="bag directory to create")
     parser.add_argument("--runs", type=int, default=1, help="independent particle-filter runs (default: 1)")
@@ -62,9 +61,9 @@ _SETTING_OPTIONS = {
 
 
 def run(args: argparse.Namespace) -> int:
-    from physics_mapper.bags import BagError, BagWriter
-    from physics_mapper.particle_filter import run_generators, settle_ground_truth
-    from physics_mapper.scene import load_scene
+    from physics_mapper.bags.storage import BagError, BagWriter
+    from physics_mapper.core.scene_files import load_scene
+    from physics_mapper.perception.particle_filter import run_generators, settle_ground_truth
 
     scene = load_scene(args.scene)
     if scene.ground_truth is None:
@@ -94,8 +93,8 @@ def _period_ns(period: float, objects: int) -> int:
     must start at least that many nanoseconds later. Offline replay takes messages less than
     BURST_GAP_NS apart as one burst, so a shorter gap between iterations puts several into one snapshot.
     """
-    from physics_mapper.replay import BURST_GAP_NS
-    from physics_mapper.stamps import NANOSECONDS_PER_SECOND
+    from physics_mapper.bags.snapshots import BURST_GAP_NS
+    from physics_mapper.mapping.stamps import NANOSECONDS_PER_SECOND
 
     if not (math.isfinite(period) and period > 0.0):
         raise InputError(f"--period must be positive and finite, got {period}")
@@ -118,11 +117,11 @@ def _period_ns(period: float, objects: int) -> int:
 
 def _settings(args: argparse.Namespace) -> TrackerSettings:
     """Tracker settings from the options given; InputError for values out of range."""
-    from physics_mapper.particle_filter import TrackerSettings, settings_problem
+    from physics_mapper.perception.particle_filter import TrackerSettings, tracker_settings_problem
 
     given = {setting: getattr(args, option) for setting, option in _SETTING_OPTIONS.items()}
     settings = replace(TrackerSettings(), **{setting: value for setting, value in given.items() if value is not None})
-    problem = settings_problem(settings)
+    problem = tracker_settings_problem(settings)
     if problem is None and args.runs < 1:
         problem = f"--runs must be at least 1, got {args.runs}"
     if problem is None and args.seed < 0:
@@ -146,9 +145,9 @@ def _write_run(
     Iteration k of run r is stamped START_TIME_NS + (r * iterations + k) * period_ns; within an
     iteration the messages get distinct, increasing bag times (1 ns apart) so their order is unambiguous.
     """
-    from physics_mapper.bags import POSE_ARRAY, pose_array_cdr
-    from physics_mapper.particle_filter import track
-    from physics_mapper.topics import GROUND_TRUTH_TOPIC
+    from physics_mapper.bags.storage import POSE_ARRAY, pose_array_cdr
+    from physics_mapper.mapping.topics import GROUND_TRUTH_TOPIC
+    from physics_mapper.perception.particle_filter import track
 
     for iteration, snapshot in enumerate(track(scene, truth, settings, rng)):
         stamp = START_TIME_NS + (run_index * settings.iterations + iteration) * period_ns

@@ -20,6 +20,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from physics_mapper.node import main
+    from physics_mapper.ros.node import main
 
     return main([sys.argv[0], "--ros-args", *args.ros_args])

@@ -5,8 +5,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from physics_mapper.errors import InputError
-from physics_mapper.scene import load_problem
+from physics_mapper.core.errors import InputError
+from physics_mapper.core.scene_files import load_problem
 
 #: Seconds to keep the process alive after the last round, so that it is delivered.
 LINGER = 0.3
@@ -43,8 +43,8 @@ def run(args: argparse.Namespace) -> int:
     from rclpy.utilities import ok
     from rclpy.validate_namespace import validate_namespace
 
-    from physics_mapper.problem_publisher import ProblemPublisher, spin_for
-    from physics_mapper.ros_interface import shutdown_ros
+    from physics_mapper.ros.hypothesis_publisher import HypothesisPublisher
+    from physics_mapper.ros.spinning import shutdown_ros, spin_for
 
     namespace = "/" + args.namespace.lstrip("/")
     try:
@@ -54,7 +54,7 @@ def run(args: argparse.Namespace) -> int:
     rclpy.init()
     try:
         node = rclpy.create_node("physics_mapper_publisher", namespace=namespace)
-        publisher = ProblemPublisher(node, problem)
+        publisher = HypothesisPublisher(node, problem)
         sizes = ", ".join(
             f"{n} ({len(h)})" for n, h in zip(problem.scene.object_names, problem.hypotheses, strict=True)
         )

@@ -13,12 +13,13 @@ from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from physics_mapper.errors import EXIT_FAILURE, InputError
+from physics_mapper.core.errors import EXIT_FAILURE, InputError
 
 if TYPE_CHECKING:
-    from physics_mapper.bags import Bag
-    from physics_mapper.replay import BagSnapshot, Outcome
-    from physics_mapper.scene import Scene
+    from physics_mapper.bags.evaluation import SnapshotResult
+    from physics_mapper.bags.snapshots import BagSnapshot
+    from physics_mapper.bags.storage import Bag
+    from physics_mapper.core.scene import Scene
 
 HELP = "play a bag's hypotheses into the running node and record its outputs, or search them offline"
 
@@ -62,9 +63,10 @@ def _progress(text: str) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from physics_mapper.bags import BagError, check_hypothesis_topics, read_bag
-    from physics_mapper.replay import bag_snapshots, input_topics, summary
-    from physics_mapper.scene import load_scene
+    from physics_mapper.bags.evaluation import evaluation_summary
+    from physics_mapper.bags.snapshots import bag_snapshots, input_topics
+    from physics_mapper.bags.storage import BagError, check_hypothesis_topics, read_bag
+    from physics_mapper.core.scene_files import load_scene
 
     if not args.rate > 0.0:
         raise InputError(f"--rate must be positive, got {args.rate}")
@@ -84,22 +86,22 @@ def run(args: argparse.Namespace) -> int:
                 "warning: at no time does every object have usable hypotheses "
                 f"(frame_id must be {scene.frame_id!r}, poses finite with unit quaternions, weights valid)"
             )
-        outcomes = _offline(args, scene, snapshots) if args.offline else _live(args, scene, bag, snapshots)
+        results = _offline(args, scene, snapshots) if args.offline else _live(args, scene, bag, snapshots)
     except BagError as error:
         raise InputError(str(error)) from None
-    if outcomes is None:
+    if results is None:
         return EXIT_FAILURE
-    print(summary(outcomes, scene.object_names))
+    print(evaluation_summary(results, scene.object_names))
     if args.json is not None:
-        _write_json(args.json, "offline" if args.offline else "live", outcomes, scene.object_names)
+        _write_json(args.json, "offline" if args.offline else "live", results, scene.object_names)
     return 0
 
 
-def _offline(args: argparse.Namespace, scene: Scene, snapshots: Sequence[BagSnapshot]) -> list[Outcome]:
-    from physics_mapper.bags import BagWriter
-    from physics_mapper.replay import search_offline, write_outcomes
-    from physics_mapper.report import code_text
-    from physics_mapper.search import SearchResult
+def _offline(args: argparse.Namespace, scene: Scene, snapshots: Sequence[BagSnapshot]) -> list[SnapshotResult]:
+    from physics_mapper.bags.evaluation import search_offline, write_results
+    from physics_mapper.bags.storage import BagWriter
+    from physics_mapper.core.report import code_text
+    from physics_mapper.core.search import SearchResult
 
     if args.deadline is not None:
         if not args.deadline > 0.0:
@@ -117,21 +119,28 @@ def _offline(args: argparse.Namespace, scene: Scene, snapshots: Sequence[BagSnap
     with ExitStack() as stack:
         # Opened first: an unusable output path is reported before the searches, not after.
         writer = None if args.output is None else stack.enter_context(BagWriter(args.output, args.storage))
-        outcomes = search_offline(snapshots, scene, budget, progress)
+        results = search_offline(snapshots, scene, budget, progress)
         if writer is not None:
-            write_outcomes(writer, outcomes, scene.frame_id)
+            write_results(writer, results, scene.frame_id)
             _progress(f"results written to {args.output}")
-    return outcomes
+    return results
 
 
-def _live(args: argparse.Namespace, scene: Scene, bag: Bag, snapshots: Sequence[BagSnapshot]) -> list[Outcome] | None:
+def _live(
+    args: argparse.Namespace, scene: Scene, bag: Bag, snapshots: Sequence[BagSnapshot]
+) -> list[SnapshotResult] | None:
     from rclpy.exceptions import InvalidNamespaceException
     from rclpy.validate_namespace import validate_namespace
 
-    from physics_mapper.bags import BagWriter, hypotheses_topic, read_bag
-    from physics_mapper.launch import start_node, stop_node
-    from physics_mapper.live_replay import Playback, ReplayError, play_and_record
-    from physics_mapper.replay import CONFIGURATION_TOPIC, SETTLED_TOPIC, recorded_outcomes
+    from physics_mapper.bags.evaluation import recorded_results
+    from physics_mapper.bags.storage import BagWriter, read_bag
+    from physics_mapper.mapping.topics import (
+        RECORDED_CONFIGURATION_TOPIC,
+        RECORDED_SETTLED_TOPIC,
+        recorded_poses_topic,
+    )
+    from physics_mapper.ros.bag_player import Playback, ReplayError, play_and_record
+    from physics_mapper.ros.child_process import start_node, stop_node
 
     try:
         validate_namespace(args.namespace)
@@ -139,7 +148,7 @@ def _live(args: argparse.Namespace, scene: Scene, bag: Bag, snapshots: Sequence[
         raise InputError(f"--namespace: {' '.join(str(error).split()).rstrip(' ^')}") from None
     output = args.output or Path(f"{args.bag.resolve().name}_replay_{time.strftime('%Y_%m_%d-%H_%M_%S')}")
     playback = Playback(rate=args.rate, wait=args.wait, tail=args.tail, namespace=args.namespace)
-    inputs = [hypotheses_topic(name) for name in scene.object_names]
+    inputs = [recorded_poses_topic(name) for name in scene.object_names]
     with ExitStack() as stack:
         writer = stack.enter_context(BagWriter(output, args.storage))
         log = stack.enter_context(tempfile.TemporaryFile(mode="w+"))
@@ -161,16 +170,17 @@ def _live(args: argparse.Namespace, scene: Scene, bag: Bag, snapshots: Sequence[
                 print(f"node output:\n{log.read()}", file=sys.stderr)
             return None
     _progress(f"recorded into {output}: " + ", ".join(f"{n} on {t}" for t, n in counts.items()))
-    return recorded_outcomes(snapshots, read_bag(output, (CONFIGURATION_TOPIC, SETTLED_TOPIC)), scene)
+    output_bag = read_bag(output, (RECORDED_CONFIGURATION_TOPIC, RECORDED_SETTLED_TOPIC))
+    return recorded_results(snapshots, output_bag, scene)
 
 
-def _write_json(path: Path, mode: str, outcomes: Sequence[Outcome], object_names: Sequence[str]) -> None:
-    from physics_mapper.replay import mean_errors, outcome_dict
+def _write_json(path: Path, mode: str, results: Sequence[SnapshotResult], object_names: Sequence[str]) -> None:
+    from physics_mapper.bags.evaluation import mean_errors, snapshot_result_dict
 
     data = {
         "mode": mode,
         "objects": list(object_names),
-        "mean_errors": mean_errors(outcomes),
-        "snapshots": [outcome_dict(o) for o in outcomes],
+        "mean_errors": mean_errors(results),
+        "snapshots": [snapshot_result_dict(o) for o in results],
     }
     path.write_text(json.dumps(data, indent=1) + "\n")

@@ -7,8 +7,12 @@ import json
 from dataclasses import replace
 from pathlib import Path
 
-from physics_mapper.errors import InputError
-from physics_mapper.scene import load_problem, search_params_problem
+from physics_mapper.core.errors import InputError
+from physics_mapper.core.physics import PhysicsChecker
+from physics_mapper.core.report import result_dict, result_summary, trace_entry_dict, trace_tree
+from physics_mapper.core.scene import search_params_problem
+from physics_mapper.core.scene_files import load_problem
+from physics_mapper.core.search import solve
 
 HELP = "search a problem file (scene + hypotheses) for the best physically valid configuration"
 
@@ -31,12 +35,6 @@ def run(args: argparse.Namespace) -> int:
         problem_text = search_params_problem(params)
         if problem_text is not None:
             raise InputError(f"--deadline: {problem_text}")
-    # pybullet prints a banner on stderr when imported: only once the input is known to be
-    # good, so that a bad input gets one error line (and --help stays fast).
-    from physics_mapper.physics import PhysicsChecker
-    from physics_mapper.report import result_dict, summary, trace_entry_dict, trace_tree
-    from physics_mapper.search import solve
-
     with PhysicsChecker(problem.scene) as checker:
         result = solve(checker, problem.hypotheses, params)
     if args.trace is not None:
@@ -50,5 +48,5 @@ def run(args: argparse.Namespace) -> int:
     if args.tree:
         print(trace_tree(result.trace))
         print()
-    print(summary(result, params.fallback))
+    print(result_summary(result, params.fallback))
     return 0

@@ -22,12 +22,13 @@ from matplotlib.patches import Polygon
 from numpy.typing import NDArray
 from scipy.stats import kruskal, wilcoxon
 
-from physics_mapper.geometry import Pose
-from physics_mapper.hypotheses import RankedHypotheses
-from physics_mapper.physics import PhysicsChecker
-from physics_mapper.scene import Box, Cylinder, Scene, SceneError, SearchParams, StaticBody, load_scene
-from physics_mapper.scoring import position_errors
-from physics_mapper.search import SearchResult, solve
+from physics_mapper.core.geometry import Pose, rotation_vector
+from physics_mapper.core.hypotheses import RankedHypotheses
+from physics_mapper.core.physics import PhysicsChecker
+from physics_mapper.core.scene import Box, Cylinder, Scene, SearchParams, StaticBody
+from physics_mapper.core.scene_files import SceneError, load_scene
+from physics_mapper.core.scoring import position_errors
+from physics_mapper.core.search import SearchResult, solve
 
 #: The shipped scenes, in the source tree next to this package.
 SCENES_DIR = Path(__file__).resolve().parents[2] / "config" / "scenes"
@@ -114,7 +115,7 @@ def side_outline_cm(shape: Box | Cylinder, pose: Pose) -> NDArray[np.float64]:
         half_width, half_height = shape.size[0] / 2.0, shape.size[2] / 2.0
     else:
         half_width, half_height = shape.radius, shape.length / 2.0
-    angle = 2.0 * math.atan2(pose.orientation[1], pose.orientation[3])  # about y
+    angle = rotation_vector(pose.orientation)[1]  # about y
     cos, sin = math.cos(angle), math.sin(angle)
     local = np.array([[-half_width, -half_height], [half_width, -half_height], [half_width, half_height]])
     local = np.vstack([local, [-half_width, half_height]])

@@ -23,6 +23,12 @@ from typing import Any
 import numpy as np
 from matplotlib.figure import Figure
 
+from physics_mapper.core.geometry import Z_AXIS, Pose, make_pose, quaternion_about_axis
+from physics_mapper.core.hypotheses import Hypothesis, RankedHypotheses
+from physics_mapper.core.physics import PhysicsChecker
+from physics_mapper.core.report import code_text, describe_entry, trace_entry_dict
+from physics_mapper.core.scene import SearchParams
+from physics_mapper.core.search import SearchResult
 from physics_mapper.experiments.common import (
     EXHAUSTIVE_DEADLINE,
     ExperimentOptions,
@@ -33,12 +39,6 @@ from physics_mapper.experiments.common import (
     reproduce_command,
     write_outputs,
 )
-from physics_mapper.geometry import Pose, make_pose
-from physics_mapper.hypotheses import Hypothesis, RankedHypotheses
-from physics_mapper.physics import PhysicsChecker
-from physics_mapper.report import code_text, describe_entry, trace_entry_dict
-from physics_mapper.scene import SearchParams
-from physics_mapper.search import SearchResult
 
 NAME = "fig4"
 SCENE_FILE = "stack.yaml"
@@ -55,11 +55,6 @@ WEIGHT_CONCENTRATION = 0.1
 MAX_SEED_TRIES = 200
 
 
-def yaw_quaternion(angle: float) -> tuple[float, float, float, float]:
-    """Unit quaternion (x, y, z, w) of a rotation by ``angle`` radians about z."""
-    return (0.0, 0.0, math.sin(angle / 2.0), math.cos(angle / 2.0))
-
-
 def random_hypotheses(truth: Sequence[Pose], rng: np.random.Generator) -> tuple[RankedHypotheses, ...]:
     """:data:`HYPOTHESES_PER_OBJECT` noisy, randomly weighted hypotheses around each true pose.
 
@@ -73,7 +68,7 @@ def random_hypotheses(truth: Sequence[Pose], rng: np.random.Generator) -> tuple[
         for weight in weights:
             position = np.asarray(pose.position) + rng.normal(0.0, POSITION_SIGMA)
             yaw = float(rng.normal(0.0, YAW_SIGMA))
-            hypotheses.append(Hypothesis(make_pose(tuple(position), yaw_quaternion(yaw)), float(weight)))
+            hypotheses.append(Hypothesis(make_pose(tuple(position), quaternion_about_axis(Z_AXIS, yaw)), float(weight)))
         ranked.append(RankedHypotheses.from_weighted(hypotheses))
     return tuple(ranked)
 

@@ -36,6 +36,8 @@ from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 from numpy.typing import NDArray
 
+from physics_mapper.core.geometry import Pose
+from physics_mapper.core.search import SearchResult
 from physics_mapper.experiments.common import (
     COLOR_WITH_PHYSICS,
     COLOR_WITHOUT_PHYSICS,
@@ -57,8 +59,6 @@ from physics_mapper.experiments.tracking import (
     track_and_search,
     tracker_settings,
 )
-from physics_mapper.geometry import Pose
-from physics_mapper.search import SearchResult
 
 NAME = "fig6"
 SCENE_FILE = "pyramid.yaml"
@@ -317,7 +317,7 @@ Command: `{reproduce_command(NAME, options)}`
 ![Fig. 6](fig6.png)
 
 ## Setup
-Scene `{summary["scene"]}`. One particle filter per cube (`physics_mapper.particle_filter`):
+Scene `{summary["scene"]}`. One particle filter per cube (`physics_mapper.perception.particle_filter`):
 {summary["particles"]} particles, {summary["iterations"]} iterations, measurement noise sigma =
 {100 * summary["sigma_position_m"]:g} cm per position axis and
 {summary["sigma_rotation_deg"]:g}° ({summary["sigma_rotation_rad"]:.4f} rad) per rotation axis; after each iteration

@@ -29,6 +29,9 @@ from matplotlib.figure import Figure
 from matplotlib.patches import Circle
 from numpy.typing import NDArray
 
+from physics_mapper.core.geometry import Pose
+from physics_mapper.core.scene import Box, Scene, Sphere
+from physics_mapper.core.search import SearchResult
 from physics_mapper.experiments.common import (
     COLOR_WITH_PHYSICS,
     COLOR_WITHOUT_PHYSICS,
@@ -51,9 +54,6 @@ from physics_mapper.experiments.tracking import (
     track_and_search,
     tracker_settings,
 )
-from physics_mapper.geometry import Pose
-from physics_mapper.scene import Box, Scene, Sphere
-from physics_mapper.search import SearchResult
 
 NAME = "fig8"
 SCENE_FILE = "sphere_groove.yaml"
@@ -238,7 +238,7 @@ Command: `{reproduce_command(NAME, options)}`
 
 ## Setup
 Scene `{summary["scene"]}`: a ball of radius 5 cm in a fixed groove of two 30° slopes. One particle filter
-(`physics_mapper.particle_filter`): {summary["particles"]} particles, {summary["iterations"]} iterations,
+(`physics_mapper.perception.particle_filter`): {summary["particles"]} particles, {summary["iterations"]} iterations,
 measurement noise sigma = {100 * summary["sigma_position_m"]:g} cm per position axis and
 {summary["sigma_rotation_deg"]:g}° ({summary["sigma_rotation_rad"]:.4f} rad) per rotation axis; after each iteration
 its top {summary["top_m"]} particles are the hypotheses. {summary["runs"]} runs (seed {summary["seed"]}).

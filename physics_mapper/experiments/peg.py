@@ -20,6 +20,12 @@ from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 from matplotlib.patches import Polygon
 
+from physics_mapper.core.geometry import IDENTITY, Y_AXIS, Pose, make_pose, quaternion_about_axis, rotation_angle
+from physics_mapper.core.hypotheses import Hypothesis, RankedHypotheses
+from physics_mapper.core.physics import PhysicsChecker, TrajectorySample
+from physics_mapper.core.report import code_text, describe_entry, trace_entry_dict
+from physics_mapper.core.scene import Box, Cylinder, Scene, StaticBody
+from physics_mapper.core.search import SearchResult, TraceEntry
 from physics_mapper.experiments.common import (
     ExperimentOptions,
     ExperimentOutput,
@@ -32,12 +38,6 @@ from physics_mapper.experiments.common import (
     side_outline_cm,
     write_outputs,
 )
-from physics_mapper.geometry import Pose, make_pose
-from physics_mapper.hypotheses import Hypothesis, RankedHypotheses
-from physics_mapper.physics import PhysicsChecker, Snapshot
-from physics_mapper.report import code_text, describe_entry, trace_entry_dict
-from physics_mapper.scene import Box, Cylinder, Scene, StaticBody
-from physics_mapper.search import SearchResult, TraceEntry
 
 NAME = "peg"
 SCENE_FILE = "peg_in_hole.yaml"
@@ -56,8 +56,7 @@ class PegHypothesis:
 
     @property
     def pose(self) -> Pose:
-        half = math.radians(self.tilt_degrees) / 2.0
-        return make_pose(self.position, (0.0, math.sin(half), 0.0, math.cos(half)))
+        return make_pose(self.position, quaternion_about_axis(Y_AXIS, math.radians(self.tilt_degrees)))
 
 
 #: Ranked by weight. All but the last lie in the x-z plane through the hole's centre, so the plot's
@@ -95,19 +94,19 @@ def trace_in_rank_order(result: SearchResult) -> list[TraceEntry]:
     return sorted(result.trace, key=lambda entry: entry.code)
 
 
-def draw_fall(axes: Axes, scene: Scene, peg: Cylinder, snapshots: Sequence[Snapshot]) -> None:
+def draw_fall(axes: Axes, scene: Scene, peg: Cylinder, samples: Sequence[TrajectorySample]) -> None:
     draw_static_section(axes, scene.static)
-    shown = np.linspace(0, len(snapshots) - 1, 8).round().astype(int)
+    shown = np.linspace(0, len(samples) - 1, 8).round().astype(int)
     for order, index in enumerate(shown):
         shade = 0.2 + 0.8 * order / (len(shown) - 1)
-        pose = snapshots[index].poses[0]
+        pose = samples[index].poses[0]
         axes.add_patch(peg_patch(peg, pose, facecolor=(0.1, 0.3, 0.9, 0.15 * shade), edgecolor=(0.1, 0.3, 0.9, shade)))
-    axes.set_title(f"(b) The hovering peg released: {len(shown)} snapshots over {snapshots[-1].time:g} s", fontsize=9)
+    axes.set_title(f"(b) The hovering peg released: {len(shown)} snapshots over {samples[-1].time:g} s", fontsize=9)
 
 
-def draw_height(axes: Axes, snapshots: Sequence[Snapshot], wall_top: float, rest_height: float) -> None:
-    times = [s.time for s in snapshots]
-    axes.plot(times, [100.0 * s.poses[0].position[2] for s in snapshots], color="tab:blue", label="peg centre")
+def draw_height(axes: Axes, samples: Sequence[TrajectorySample], wall_top: float, rest_height: float) -> None:
+    times = [s.time for s in samples]
+    axes.plot(times, [100.0 * s.poses[0].position[2] for s in samples], color="tab:blue", label="peg centre")
     axes.axhline(100.0 * rest_height, color="tab:green", linestyle="--", label="centre at rest in the hole")
     axes.axhline(100.0 * wall_top, color="0.4", linestyle=":", label="top of the walls")
     axes.set_xlabel("time (s)")
@@ -122,14 +121,14 @@ def wall_top_height(static: Sequence[StaticBody]) -> float:
     return max(b.pose.position[2] + b.shape.size[2] / 2.0 for b in static if isinstance(b.shape, Box))
 
 
-def draw(scene: Scene, result: SearchResult, snapshots: Sequence[Snapshot], truth: Pose) -> Figure:
+def draw(scene: Scene, result: SearchResult, samples: Sequence[TrajectorySample], truth: Pose) -> Figure:
     peg = scene.objects[0].shape
     assert isinstance(peg, Cylinder)
     figure = new_figure(15.0, 5.6)
     rejected, fall, height = figure.subplots(1, 3, gridspec_kw={"width_ratios": [1.2, 1.0, 1.1]})
     draw_rejected(rejected, scene, peg, result)
-    draw_fall(fall, scene, peg, snapshots)
-    draw_height(height, snapshots, wall_top_height(scene.static), truth.position[2])
+    draw_fall(fall, scene, peg, samples)
+    draw_height(height, samples, wall_top_height(scene.static), truth.position[2])
     for axes in (rejected, fall):
         axes.set_xlim(-12.0, 12.0)
         axes.set_ylim(-1.0, 22.0)
@@ -148,12 +147,12 @@ def run(options: ExperimentOptions) -> ExperimentOutput:
         result = exhaustive_search(checker, (ranked_hypotheses(),), scene.search)
         if result.poses is None or result.settled_poses is None:
             raise RuntimeError("no collision-free peg hypothesis: the scene's fallback must be 'settled'")
-        snapshots = checker.trajectory(result.poses, scene.search.settle_time, SAMPLE_INTERVAL)
+        samples = checker.trajectory(result.poses, scene.search.settle_time, SAMPLE_INTERVAL)
     settled = result.settled_poses[0]
     wall_top = wall_top_height(scene.static)
     peg = scene.objects[0].shape
     assert isinstance(peg, Cylinder)
-    below_wall_top = [s.time for s in snapshots if s.poses[0].position[2] - peg.length / 2.0 < wall_top]
+    below_wall_top = [s.time for s in samples if s.poses[0].position[2] - peg.length / 2.0 < wall_top]
     summary: dict[str, Any] = {
         "experiment": NAME,
         "scene": f"config/scenes/{SCENE_FILE}",
@@ -170,15 +169,15 @@ def run(options: ExperimentOptions) -> ExperimentOutput:
         "settled_error_cm": position_errors_cm([settled], truth)[0],
         "settled_in_hole": settled_in_hole(settled, peg, wall_top),
         "entered_hole_at_s": below_wall_top[0] if below_wall_top else None,
-        "trajectory": [{"time": s.time, "position": list(s.poses[0].position)} for s in snapshots],
+        "trajectory": [{"time": s.time, "position": list(s.poses[0].position)} for s in samples],
     }
-    figure = draw(scene, result, snapshots, truth[0])
+    figure = draw(scene, result, samples, truth[0])
     return write_outputs(options.output_dir, NAME, figure, summary, markdown(summary, result, options))
 
 
 def settled_in_hole(settled: Pose, peg: Cylinder, wall_top: float) -> bool:
     """True when the peg stands upright (tilted less than 5 degrees) with its bottom below the walls' top."""
-    upright = abs(settled.orientation[3]) > math.cos(math.radians(5.0) / 2.0)
+    upright = rotation_angle(settled.orientation, IDENTITY) < math.radians(5.0)
     return upright and settled.position[2] - peg.length / 2.0 < wall_top
 
 

@@ -18,7 +18,7 @@ def node_command(
 ) -> list[str]:
     """The command line running the node with ``scene_file``, further ``-p name:=value`` parameters
     and, if given, in ``namespace``."""
-    command = [sys.executable, "-m", "physics_mapper.node", "--ros-args", "-p", f"scene_file:={scene_file}"]
+    command = [sys.executable, "-m", "physics_mapper", "node", "--ros-args", "-p", f"scene_file:={scene_file}"]
     if namespace:
         command += ["-r", f"__ns:={namespace}"]
     for name, value in (parameters or {}).items():

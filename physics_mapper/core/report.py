@@ -5,9 +5,9 @@ from __future__ import annotations
 from dataclasses import asdict
 from typing import Any
 
-from physics_mapper.geometry import Pose
-from physics_mapper.scene import Fallback
-from physics_mapper.search import Code, SearchResult, TraceEntry
+from physics_mapper.core.geometry import Pose
+from physics_mapper.core.scene import Fallback
+from physics_mapper.core.search import Code, SearchResult, TraceEntry
 
 
 def code_text(code: Code | None) -> str:
@@ -101,7 +101,7 @@ def trace_tree(trace: tuple[TraceEntry, ...]) -> str:
     return "\n".join(lines)
 
 
-def summary(result: SearchResult, fallback: Fallback) -> str:
+def result_summary(result: SearchResult, fallback: Fallback) -> str:
     """A few lines: chosen code, p(C), J, validity, and how the search went (``fallback``: the search's)."""
     stats = result.stats
     if result.code is None:

@@ -29,15 +29,36 @@ first then simulates it again from its start (same result, more time).
 
 from __future__ import annotations
 
+import importlib
+import os
+import sys
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
+from types import ModuleType
 from typing import overload
 
-import pybullet
+from physics_mapper.core.geometry import IDENTITY, ORIGIN, Pose, pose_displacement
+from physics_mapper.core.scene import Box, Cylinder, Plane, Scene, Shape, Sphere
 
-from physics_mapper.geometry import IDENTITY, ORIGIN, Pose, pose_displacement
-from physics_mapper.scene import Box, Cylinder, Plane, Scene, Shape, Sphere
+
+def _import_pybullet() -> ModuleType:
+    """pybullet, imported without the build-time banner its C extension writes to stderr (fd 2).
+
+    The banner would precede, on the same line, the one-line errors of the commands and the node.
+    """
+    sys.stderr.flush()
+    saved, devnull = os.dup(2), os.open(os.devnull, os.O_WRONLY)
+    try:
+        os.dup2(devnull, 2)
+        return importlib.import_module("pybullet")
+    finally:
+        os.dup2(saved, 2)
+        os.close(saved)
+        os.close(devnull)
+
+
+pybullet = _import_pybullet()
 
 #: Bullet's default step, 240 Hz, in seconds.
 TIME_STEP = 1.0 / 240.0
@@ -95,7 +116,7 @@ class PartialSettling:
 
 
 @dataclass(frozen=True)
-class Snapshot:
+class TrajectorySample:
     """The objects' poses ``time`` seconds into a simulation."""
 
     time: float
@@ -308,18 +329,20 @@ class PhysicsChecker:
         jitters = tuple(pose_displacement(a, b, angular_weight) for a, b in zip(poses, settled, strict=True))
         return Settling(settled, jitters)
 
-    def trajectory(self, poses: Sequence[Pose], duration: float, sample_interval: float) -> tuple[Snapshot, ...]:
+    def trajectory(
+        self, poses: Sequence[Pose], duration: float, sample_interval: float
+    ) -> tuple[TrajectorySample, ...]:
         """Simulate ``duration`` seconds from rest at ``poses``, recording the objects' poses.
 
-        Returns a snapshot at time 0 and then every ``sample_interval`` seconds (rounded to
+        Returns a sample at time 0 and then every ``sample_interval`` seconds (rounded to
         whole :data:`TIME_STEP` steps, at least one). For plots and inspection; the rules use
         :meth:`settle`, which steps the same world the same way.
         """
         self._place(poses)
         steps_per_sample = max(1, round(sample_interval / TIME_STEP))
-        snapshots = [Snapshot(0.0, self._poses())]
+        samples = [TrajectorySample(0.0, self._poses())]
         for step in range(1, round(duration / TIME_STEP) + 1):
             pybullet.stepSimulation(physicsClientId=self._client)
             if step % steps_per_sample == 0:
-                snapshots.append(Snapshot(step * TIME_STEP, self._poses()))
-        return tuple(snapshots)
+                samples.append(TrajectorySample(step * TIME_STEP, self._poses()))
+        return tuple(samples)

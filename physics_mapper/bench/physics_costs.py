@@ -13,10 +13,10 @@ import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
-from physics_mapper.geometry import Pose
-from physics_mapper.physics import PhysicsChecker
-from physics_mapper.scene import Problem
-from physics_mapper.search import BranchAndBound, SearchStats
+from physics_mapper.core.geometry import Pose
+from physics_mapper.core.physics import PhysicsChecker
+from physics_mapper.core.scene import Problem
+from physics_mapper.core.search import BranchAndBound, SearchStats
 
 
 @dataclass(frozen=True)

@@ -1,6 +1,6 @@
 """One map-building tick, ROS-free: snapshot the inputs, resume or restart the search, time it.
 
-The node (``physics_mapper.node``) owns a :class:`Mapper`, feeds its :attr:`Mapper.inputs`
+The node (``physics_mapper.ros.node``) owns a :class:`Mapper`, feeds its :attr:`Mapper.inputs`
 from subscriptions and calls :meth:`Mapper.tick` from its timer; everything it publishes
 comes from the returned :class:`TickReport`.
 """
@@ -10,10 +10,10 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass, replace
 
-from physics_mapper.inputs import InputSettings, InputTracker, Snapshot
-from physics_mapper.physics import PhysicsChecker
-from physics_mapper.scene import Scene, SearchParams, search_params_problem
-from physics_mapper.search import BranchAndBound, Code, SearchResult
+from physics_mapper.core.physics import PhysicsChecker
+from physics_mapper.core.scene import Scene, SearchParams, search_params_problem
+from physics_mapper.core.search import BranchAndBound, Code, SearchResult
+from physics_mapper.mapping.inputs import InputSettings, InputSnapshot, InputTracker
 
 #: Seconds a tick's search may run past its deadline: the search looks at the clock every
 #: few simulation steps and then assembles its result. The overrun measured here is about a
@@ -37,7 +37,7 @@ class MapperSettings:
     rate_hz: float = DEFAULT_RATE_HZ
 
 
-def settings_problem(settings: MapperSettings) -> str | None:
+def mapper_settings_problem(settings: MapperSettings) -> str | None:
     """Say which setting is out of range, or return None."""
     problem = search_params_problem(settings.search)
     if problem is not None:
@@ -65,7 +65,7 @@ class TickReport:
     settling longer than one tick's search): the next tick continues it.
     """
 
-    snapshot: Snapshot
+    snapshot: InputSnapshot
     result: SearchResult | None
     search_time: float
     resumed: bool

@@ -28,11 +28,10 @@ from rosbags.interfaces import Connection
 from rosbags.rosbag2 import Reader, StoragePlugin, Writer, WriterError
 from rosbags.typesys import Stores, get_typestore
 
-from physics_mapper.geometry import Pose, Quaternion, Vector3, make_pose
-from physics_mapper.hypotheses import RankedHypotheses
-from physics_mapper.stamps import time_parts, to_nanoseconds
-from physics_mapper.topics import GROUND_TRUTH_TOPIC, poses_topic, recorded
-from physics_mapper.topics import weights_topic as node_weights_topic
+from physics_mapper.core.geometry import Pose, Quaternion, Vector3, make_pose
+from physics_mapper.core.hypotheses import RankedHypotheses
+from physics_mapper.mapping.stamps import time_parts, to_nanoseconds
+from physics_mapper.mapping.topics import GROUND_TRUTH_TOPIC, recorded, recorded_poses_topic, recorded_weights_topic
 
 Storage = Literal["mcap", "sqlite3"]
 _PLUGINS = {"mcap": StoragePlugin.MCAP, "sqlite3": StoragePlugin.SQLITE3}
@@ -57,16 +56,6 @@ _Float64MultiArray = TYPESTORE.types[WEIGHTS]
 
 class BagError(ValueError):
     """A bag cannot be used: unreadable, corrupt or truncated, or missing or mistyped topics."""
-
-
-def hypotheses_topic(object_name: str) -> str:
-    """The node's input topic for an object's hypotheses, as recorded."""
-    return recorded(poses_topic(object_name))
-
-
-def weights_topic(object_name: str) -> str:
-    """The node's input topic for an object's hypothesis weights, as recorded."""
-    return recorded(node_weights_topic(object_name))
 
 
 @dataclass(frozen=True)
@@ -204,9 +193,9 @@ class BagWriter:
     ) -> None:
         """At ``time_ns``, an object's ranked hypotheses (a PoseArray stamped ``stamp_ns``); 1 ns later its weights."""
         poses = [h.pose for h in hypotheses.hypotheses]
-        self.write(hypotheses_topic(object_name), POSE_ARRAY, time_ns, pose_array_cdr(stamp_ns, frame_id, poses))
+        self.write(recorded_poses_topic(object_name), POSE_ARRAY, time_ns, pose_array_cdr(stamp_ns, frame_id, poses))
         weights = [h.weight for h in hypotheses.hypotheses]
-        self.write(weights_topic(object_name), WEIGHTS, time_ns + 1, weights_cdr(weights))
+        self.write(recorded_weights_topic(object_name), WEIGHTS, time_ns + 1, weights_cdr(weights))
 
 
 def read_bag(path: str | Path, topics: Collection[str] | None = None) -> Bag:
@@ -255,13 +244,13 @@ def check_hypothesis_topics(bag: Bag, object_names: Sequence[str]) -> None:
     """
     expected = {GROUND_TRUTH_TOPIC: POSE_ARRAY}
     for name in object_names:
-        expected[hypotheses_topic(name)] = POSE_ARRAY
-        expected[weights_topic(name)] = WEIGHTS
+        expected[recorded_poses_topic(name)] = POSE_ARRAY
+        expected[recorded_weights_topic(name)] = WEIGHTS
     for topic, msgtype in expected.items():
         found = bag.topics.get(topic)
         if found is not None and found != msgtype:
             raise BagError(f"{bag.path}: topic {topic} has type {found}, expected {msgtype}")
-    missing = [hypotheses_topic(name) for name in object_names if not bag.on(hypotheses_topic(name))]
+    missing = [recorded_poses_topic(name) for name in object_names if not bag.on(recorded_poses_topic(name))]
     if missing:
         present = ", ".join(sorted(bag.topics)) or "none"
         raise BagError(f"{bag.path}: no messages on {', '.join(missing)} (topics in the bag: {present})")

@@ -4,7 +4,7 @@ The bag's messages are published as the raw CDR bytes stored in the bag (no conv
 their recorded times scaled by a rate, except on the topics recorded here: a bag recorded with
 ``ros2 bag record -a`` while a node ran holds that node's outputs, which would be recorded again
 as this replay's. The node's outputs are recorded, also as raw bytes, into a new bag, stamped
-with the receive time. The topic names are those of :mod:`physics_mapper.replay`;
+with the receive time. The topic names are those of :mod:`physics_mapper.bags.evaluation`;
 for a node in a namespace, the bag's topics and the node's outputs are taken inside that namespace
 (``/diagnostics`` stays global) and recorded under their root-namespace names, so that recordings
 compare.
@@ -25,18 +25,21 @@ from rclpy.publisher import Publisher
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.subscription import Subscription
 
-from physics_mapper.bags import DIAGNOSTIC_ARRAY, POSE_ARRAY, Bag, BagWriter
-from physics_mapper.replay import CONFIGURATION_TOPIC, DIAGNOSTICS_TOPIC, SETTLED_TOPIC
-from physics_mapper.ros_interface import shutdown_ros
-from physics_mapper.stamps import NANOSECONDS_PER_SECOND
-from physics_mapper.topics import MARKERS_TOPIC, recorded
+from physics_mapper.bags.storage import DIAGNOSTIC_ARRAY, POSE_ARRAY, Bag, BagWriter
+from physics_mapper.mapping.stamps import NANOSECONDS_PER_SECOND
+from physics_mapper.mapping.topics import (
+    DIAGNOSTICS_TOPIC,
+    RECORDED_CONFIGURATION_TOPIC,
+    RECORDED_MARKERS_TOPIC,
+    RECORDED_SETTLED_TOPIC,
+)
+from physics_mapper.ros.spinning import shutdown_ros
 
-#: The node's outputs that are recorded, with their types; a bag's messages on these topics are not played.
-#: The node's markers, as a bag records them: never played back, like the recorded outputs.
-NODE_MARKERS_TOPIC = recorded(MARKERS_TOPIC)
+#: The node's outputs that are recorded, with their types; a bag's messages on these topics are not
+#: played, nor an old run's markers.
 RECORDED = (
-    (CONFIGURATION_TOPIC, POSE_ARRAY),
-    (SETTLED_TOPIC, POSE_ARRAY),
+    (RECORDED_CONFIGURATION_TOPIC, POSE_ARRAY),
+    (RECORDED_SETTLED_TOPIC, POSE_ARRAY),
     (DIAGNOSTICS_TOPIC, DIAGNOSTIC_ARRAY),
 )
 #: For playing and recording alike. Reliable publishers match both reliable and best-effort
@@ -114,7 +117,7 @@ def _publishers(node: Node, bag: Bag, skipped: list[str]) -> dict[str, Publisher
         cls = message_class(msgtype)
         if topic in recorded_here:
             skipped.append(f"{topic} (recorded by this replay)")
-        elif topic == NODE_MARKERS_TOPIC:
+        elif topic == RECORDED_MARKERS_TOPIC:
             skipped.append(f"{topic} (an old run's map: the node under test publishes its own)")
         elif cls is None:
             skipped.append(f"{topic} ({msgtype}: message package not installed)")
@@ -212,5 +215,5 @@ def _play(
             next_report += PROGRESS_PERIOD
             progress(
                 f"{time.monotonic() - start:5.1f}/{duration:.1f} s: {index + 1}/{len(bag.messages)} messages played, "
-                f"{recorder.counts[CONFIGURATION_TOPIC]} configurations received"
+                f"{recorder.counts[RECORDED_CONFIGURATION_TOPIC]} configurations received"
             )

@@ -40,10 +40,10 @@ from filterpy.monte_carlo import systematic_resample
 from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
-from physics_mapper.geometry import Pose, make_pose
-from physics_mapper.hypotheses import Hypothesis, RankedHypotheses
-from physics_mapper.physics import PhysicsChecker
-from physics_mapper.scene import Scene
+from physics_mapper.core.geometry import Pose, make_pose
+from physics_mapper.core.hypotheses import Hypothesis, RankedHypotheses
+from physics_mapper.core.physics import PhysicsChecker
+from physics_mapper.core.scene import Scene
 
 FloatArray = NDArray[np.float64]
 
@@ -74,7 +74,7 @@ class TrackerSettings:
     roughening_scale: float = 0.1
 
 
-def settings_problem(settings: TrackerSettings) -> str | None:
+def tracker_settings_problem(settings: TrackerSettings) -> str | None:
     """Say which setting is out of range, or return None."""
     for name in ("particles", "iterations", "top_m"):
         if getattr(settings, name) < 1:
@@ -229,7 +229,7 @@ def track(
     measures and updates every object's filter, emits its top-M, then resamples if degenerate
     (see the module docstring). Raises ValueError for bad settings or a wrong number of poses.
     """
-    problem = settings_problem(settings)
+    problem = tracker_settings_problem(settings)
     if problem is not None:
         raise ValueError(problem)
     if len(truth) != len(scene.objects):

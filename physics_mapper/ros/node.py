@@ -4,7 +4,7 @@ A thin shell: subscriptions hand messages to ``msg_adapters`` and the ROS-free
 :class:`~physics_mapper.mapper.Mapper`; a timer at ``rate_hz`` runs one tick and
 publishes what it found. Run it with ``ros2 run physics_mapper node --ros-args -p
 scene_file:=<path>`` or, without a ROS installation, ``physics-mapper node --ros-args ...``.
-Topic names are in :mod:`physics_mapper.topics`, QoS in :mod:`physics_mapper.ros_interface`.
+Topic names are in :mod:`physics_mapper.mapping.topics`, QoS in :mod:`physics_mapper.ros.qos`.
 """
 
 from __future__ import annotations
@@ -29,13 +29,13 @@ from visualization_msgs.msg import MarkerArray
 from msg_adapters.diagnostics import diagnostics_msg
 from msg_adapters.hypotheses import received_poses, received_weights
 from msg_adapters.results import configuration_msgs, markers_msg
-from physics_mapper.errors import EXIT_BAD_INPUT, InputError
-from physics_mapper.inputs import InputSettings
-from physics_mapper.mapper import DEFAULT_RATE_HZ, Mapper, MapperSettings, TickReport, settings_problem
-from physics_mapper.ros_interface import DIAGNOSTICS_QOS, INPUT_QOS, MAP_QOS, shutdown_ros
-from physics_mapper.scene import FALLBACKS, SEARCH_LIMITS, Fallback, SceneError, SearchParams, load_scene
-from physics_mapper.stamps import NANOSECONDS_PER_SECOND
-from physics_mapper.topics import (
+from physics_mapper.core.errors import EXIT_BAD_INPUT, InputError
+from physics_mapper.core.scene import FALLBACKS, SEARCH_LIMITS, Fallback, SearchParams
+from physics_mapper.core.scene_files import SceneError, load_scene
+from physics_mapper.mapping.inputs import InputSettings
+from physics_mapper.mapping.mapper import DEFAULT_RATE_HZ, Mapper, MapperSettings, TickReport, mapper_settings_problem
+from physics_mapper.mapping.stamps import NANOSECONDS_PER_SECOND
+from physics_mapper.mapping.topics import (
     CONFIGURATION_TOPIC,
     DIAGNOSTICS_TOPIC,
     MARKERS_TOPIC,
@@ -44,11 +44,13 @@ from physics_mapper.topics import (
     poses_topic,
     weights_topic,
 )
+from physics_mapper.ros.qos import DIAGNOSTICS_QOS, INPUT_QOS, MAP_QOS
+from physics_mapper.ros.spinning import shutdown_ros
 
 PACKAGE_URL = "package://"
 PACKAGE = "physics_mapper"
 #: The source checkout this module runs from (pip-only installs are editable installs of it).
-SOURCE_ROOT = Path(__file__).resolve().parent.parent
+SOURCE_ROOT = Path(__file__).resolve().parents[2]
 
 
 @dataclass(frozen=True)
@@ -130,7 +132,7 @@ class PhysicsMapperNode(Node):
         for spec in PARAMETERS:
             default = getattr(scene.search, spec.name) if spec.default is None else spec.default
             self.declare_parameter(spec.name, default, _descriptor(spec))
-        problem = settings_problem(self._settings({}))
+        problem = mapper_settings_problem(self._settings({}))
         if problem is not None:
             raise InputError(f"invalid parameters: {problem}")
         self.mapper = Mapper(scene)
@@ -201,7 +203,7 @@ class PhysicsMapperNode(Node):
 
     def _on_set_parameters(self, parameters: list[Parameter]) -> SetParametersResult:
         """Refuse a change that leaves the settings invalid; accepted ones apply at the next tick."""
-        problem = settings_problem(self._settings({p.name: p.value for p in parameters}))
+        problem = mapper_settings_problem(self._settings({p.name: p.value for p in parameters}))
         return SetParametersResult(successful=problem is None, reason=problem or "")
 
     def _tick(self) -> None:
@@ -261,7 +263,3 @@ def main(args: Sequence[str] | None = None) -> int:
             node.destroy_node()
         shutdown_ros()
     return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())

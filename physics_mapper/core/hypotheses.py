@@ -6,7 +6,7 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-from physics_mapper.geometry import Pose
+from physics_mapper.core.geometry import Pose
 
 
 @dataclass(frozen=True)

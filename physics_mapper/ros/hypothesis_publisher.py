@@ -17,13 +17,13 @@ from rclpy.utilities import ok
 from std_msgs.msg import Float64MultiArray
 
 from msg_adapters.hypotheses import hypotheses_msgs
-from physics_mapper.scene import Problem
-from physics_mapper.topics import poses_topic, weights_topic
+from physics_mapper.core.scene import Problem
+from physics_mapper.mapping.topics import poses_topic, weights_topic
 
 QUEUE_DEPTH = 10
 
 
-class ProblemPublisher:
+class HypothesisPublisher:
     """Publishers for one problem's hypotheses, created on ``node``."""
 
     def __init__(self, node: Node, problem: Problem) -> None:
@@ -56,10 +56,3 @@ class ProblemPublisher:
             poses, weights = hypotheses_msgs(hypotheses, frame_id=frame_id, stamp_ns=now_ns)
             poses_pub.publish(poses)
             weights_pub.publish(weights)
-
-
-def spin_for(node: Node, seconds: float) -> None:
-    """Handle ``node``'s events for ``seconds`` (less if rclpy shuts down)."""
-    end = time.monotonic() + seconds
-    while ok() and time.monotonic() < end:
-        rclpy.spin_once(node, timeout_sec=0.05)

@@ -25,10 +25,10 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from typing import Literal
 
-from physics_mapper.geometry import Pose
-from physics_mapper.hypotheses import RankedHypotheses
-from physics_mapper.physics import Collision, PartialSettling, PhysicsChecker, Settling
-from physics_mapper.scene import SearchParams
+from physics_mapper.core.geometry import Pose
+from physics_mapper.core.hypotheses import RankedHypotheses
+from physics_mapper.core.physics import Collision, PartialSettling, PhysicsChecker, Settling
+from physics_mapper.core.scene import SearchParams
 
 Code = tuple[int, ...]
 Outcome = Literal["collision", "unstable", "valid"]

@@ -1,4 +1,4 @@
-"""The node's QoS profiles and rclpy helpers (topic names are in :mod:`physics_mapper.topics`).
+"""The node's QoS profiles and rclpy helpers (topic names are in :mod:`physics_mapper.mapping.topics`).
 
 Light to import (no physics): the node, the publisher, the demo and the tests share it.
 
@@ -10,9 +10,7 @@ later still gets the last map; ``/diagnostics`` uses the default QoS, like diagn
 
 from __future__ import annotations
 
-import rclpy
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
-from rclpy.utilities import ok
 
 # QoSProfile.__init__ is unannotated in rclpy 7.
 INPUT_QOS = QoSProfile(  # type: ignore[no-untyped-call]
@@ -22,9 +20,3 @@ MAP_QOS = QoSProfile(  # type: ignore[no-untyped-call]
     depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL
 )
 DIAGNOSTICS_QOS = QoSProfile(depth=10)  # type: ignore[no-untyped-call]
-
-
-def shutdown_ros() -> None:
-    """Shut rclpy down unless a signal (SIGINT, SIGTERM) already did."""
-    if ok():
-        rclpy.shutdown()

@@ -2,7 +2,7 @@
 
 ROS-free. The node's callbacks hand in :class:`ReceivedPoses` and :class:`ReceivedWeights`
 (built from messages by ``msg_adapters``); every tick asks :class:`InputTracker` for a
-:class:`Snapshot`: the ranked hypotheses each object's search uses, or why there are none.
+:class:`InputSnapshot`: the ranked hypotheses each object's search uses, or why there are none.
 Receive times are seconds on the node's clock (``received``); header stamps are integer
 nanoseconds (``stamp_ns``), kept exact because the node's outputs carry them.
 
@@ -26,8 +26,8 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from enum import IntEnum
 
-from physics_mapper.geometry import Pose, make_pose
-from physics_mapper.hypotheses import Hypothesis, RankedHypotheses, weights_problem
+from physics_mapper.core.geometry import Pose, make_pose
+from physics_mapper.core.hypotheses import Hypothesis, RankedHypotheses, weights_problem
 
 #: Seconds a new PoseArray waits for its weights message before uniform weights are assumed.
 WEIGHTS_GRACE = 0.5
@@ -139,7 +139,7 @@ class ObjectStatus:
 
 
 @dataclass(frozen=True)
-class Snapshot:
+class InputSnapshot:
     """Every object's input state at one tick, in scene object order."""
 
     objects: tuple[ObjectStatus, ...]
@@ -296,5 +296,5 @@ class InputTracker:
     def add_weights(self, name: str, weights: ReceivedWeights) -> None:
         self.objects[name].add_weights(weights)
 
-    def snapshot(self, now: float, settings: InputSettings) -> Snapshot:
-        return Snapshot(tuple(inputs.status(now, settings) for inputs in self.objects.values()))
+    def snapshot(self, now: float, settings: InputSettings) -> InputSnapshot:
+        return InputSnapshot(tuple(inputs.status(now, settings) for inputs in self.objects.values()))

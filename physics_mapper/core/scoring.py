@@ -9,8 +9,8 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-from physics_mapper.geometry import Pose, translation_distance
-from physics_mapper.hypotheses import RankedHypotheses
+from physics_mapper.core.geometry import Pose, translation_distance
+from physics_mapper.core.hypotheses import RankedHypotheses
 
 
 def rank_one_poses(hypotheses: Sequence[RankedHypotheses]) -> tuple[Pose, ...]:

@@ -1,7 +1,8 @@
-"""Rigid-body poses and the distances between them.
+"""Rigid-body poses, and every quaternion and angle computation of the project.
 
-Frames follow REP-103: metres, z up, gravity along -z. Orientations are unit
-quaternions in ROS order ``(x, y, z, w)``.
+Frames follow REP-103: metres, z up, gravity along -z. Orientations are unit quaternions in
+ROS order ``(x, y, z, w)``, which is also scipy's :class:`~scipy.spatial.transform.Rotation`
+order; the batch maths of the simulated perception uses ``Rotation`` directly.
 """
 
 from __future__ import annotations
@@ -9,10 +10,16 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numpy as np
+from scipy.spatial.transform import Rotation
+
 Vector3 = tuple[float, float, float]
 Quaternion = tuple[float, float, float, float]
 
 IDENTITY: Quaternion = (0.0, 0.0, 0.0, 1.0)
+X_AXIS: Vector3 = (1.0, 0.0, 0.0)
+Y_AXIS: Vector3 = (0.0, 1.0, 0.0)
+Z_AXIS: Vector3 = (0.0, 0.0, 1.0)
 
 #: A quaternion whose norm is further than this from 1 is refused, not normalised:
 #: hand-typed values such as ``(0, 0, 0.707, 0.707)`` pass, a zero or garbage one does not.
@@ -60,18 +67,44 @@ def make_pose(position: tuple[float, ...], orientation: tuple[float, ...] = IDEN
     return Pose((px, py, pz), (x, y, z, w))
 
 
+def quaternion_dot(a: Quaternion, b: Quaternion) -> float:
+    """|<a, b>|, in [0, 1] for unit quaternions: 1 for the same rotation (q and -q alike)."""
+    return abs(sum(x * y for x, y in zip(a, b, strict=True)))
+
+
 def rotation_angle(a: Quaternion, b: Quaternion) -> float:
     """Angle in radians, in [0, pi], of the rotation taking orientation ``a`` to ``b``.
 
-    theta = 2 * acos(|<a, b>|); the absolute value makes q and -q the same rotation.
+    theta = 2 * acos(|<a, b>|) (:func:`quaternion_dot`); the same angle as scipy's
+    ``(Rotation.from_quat(b) * Rotation.from_quat(a).inv()).magnitude()``.
     """
-    dot = abs(sum(x * y for x, y in zip(a, b, strict=True)))
-    return 2.0 * math.acos(min(1.0, dot))
+    return 2.0 * math.acos(min(1.0, quaternion_dot(a, b)))
+
+
+def quaternion_about_axis(axis: Vector3, angle: float) -> Quaternion:
+    """Unit quaternion (x, y, z, w) of a rotation by ``angle`` radians about ``axis`` (any length > 0)."""
+    direction = np.asarray(axis, dtype=float)
+    x, y, z, w = Rotation.from_rotvec(angle * direction / np.linalg.norm(direction)).as_quat()
+    return (float(x) + 0.0, float(y) + 0.0, float(z) + 0.0, float(w) + 0.0)  # + 0.0: no -0.0 in outputs
+
+
+def rotation_vector(orientation: Quaternion) -> Vector3:
+    """The rotation vector of a unit quaternion: its axis times its angle in radians, in [0, pi]."""
+    x, y, z = Rotation.from_quat(orientation).as_rotvec()
+    return (float(x), float(y), float(z))
 
 
 def translation_distance(a: Pose, b: Pose) -> float:
     """Euclidean distance in metres between the positions of two poses."""
     return math.dist(a.position, b.position)
+
+
+def is_same_pose(a: Pose, b: Pose, position_tolerance: float, orientation_tolerance: float) -> bool:
+    """Whether two poses agree: positions within ``position_tolerance`` metres, and
+    ``1 - |<q_a, q_b>|`` at most ``orientation_tolerance`` (compared without ``acos``, which
+    amplifies round-off near 0: ``1 - 2^-52`` becomes an angle of 4e-8 rad)."""
+    close = translation_distance(a, b) <= position_tolerance
+    return close and 1.0 - quaternion_dot(a.orientation, b.orientation) <= orientation_tolerance
 
 
 def pose_displacement(a: Pose, b: Pose, angular_weight: float) -> float:

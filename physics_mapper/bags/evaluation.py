@@ -1,0 +1,196 @@
+"""Evaluating a bag: a search per input snapshot, or a live node's recorded choices, scored (ROS-free).
+
+A :class:`SnapshotResult` pairs a snapshot (:mod:`physics_mapper.bags.snapshots`) with the
+configuration chosen for it, by the offline search here or by a live node (read back from its
+recorded outputs, matched by stamp: the node stamps its outputs with the newest input stamp
+used). Errors are position errors in metres against the bag's ``/ground_truth``: per object,
+and in total (the sum over objects, the paper's "total configuration error"), for C111 (every
+object's top hypothesis), the chosen hypotheses and their settled poses.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from physics_mapper.bags.snapshots import BagSnapshot
+from physics_mapper.bags.storage import POSE_ARRAY, Bag, BagWriter, decoding, pose_array_cdr, pose_array_from_cdr
+from physics_mapper.core.geometry import Pose, is_same_pose
+from physics_mapper.core.hypotheses import RankedHypotheses
+from physics_mapper.core.physics import PhysicsChecker
+from physics_mapper.core.report import code_text
+from physics_mapper.core.scene import Scene
+from physics_mapper.core.scoring import position_errors, rank_one_poses
+from physics_mapper.core.search import BranchAndBound, Code, SearchResult
+from physics_mapper.mapping.topics import RECORDED_CONFIGURATION_TOPIC, RECORDED_SETTLED_TOPIC
+
+#: A published pose is a hypothesis whose position is this close (metres) and whose orientation q'
+#: has 1 - |q . q'| at most :data:`SAME_ORIENTATION` (an angle of 2.8e-6 rad). Not a tolerance on the
+#: angle: both quaternions went through make_pose, and after a CDR round trip and a second
+#: normalisation |q . q'| can be 1 - 2^-52, which acos turns into an angle of 4e-8 rad.
+SAME_POSITION = 1e-9
+SAME_ORIENTATION = 1e-12
+
+
+@dataclass(frozen=True)
+class SnapshotResult:
+    """A snapshot and the configuration chosen for it (``code`` None: nothing was chosen or published)."""
+
+    snapshot: BagSnapshot
+    code: Code | None
+    chosen: tuple[Pose, ...] | None
+    settled: tuple[Pose, ...] | None
+
+
+def search_offline(
+    snapshots: Sequence[BagSnapshot],
+    scene: Scene,
+    budget: float | None,
+    progress: Callable[[int, SearchResult], None] | None = None,
+) -> list[SnapshotResult]:
+    """One search per snapshot with the scene's parameters, ``budget`` seconds each (None: to the end).
+
+    ``progress(index, result)`` is called after each search.
+    """
+    results = []
+    with PhysicsChecker(scene) as checker:
+        for index, snapshot in enumerate(snapshots):
+            found = BranchAndBound(checker, snapshot.hypotheses, scene.search).run(budget)
+            results.append(SnapshotResult(snapshot, found.code, found.poses, found.settled_poses))
+            if progress is not None:
+                progress(index, found)
+    return results
+
+
+def write_results(writer: BagWriter, results: Sequence[SnapshotResult], frame_id: str) -> None:
+    """Record offline results on the node's output topics, at each snapshot's bag time."""
+    for result in results:
+        snapshot = result.snapshot
+        if result.chosen is None or result.settled is None:
+            continue
+        chosen = pose_array_cdr(snapshot.stamp_ns, frame_id, result.chosen)
+        writer.write(RECORDED_CONFIGURATION_TOPIC, POSE_ARRAY, snapshot.time_ns, chosen)
+        settled = pose_array_cdr(snapshot.stamp_ns, frame_id, result.settled)
+        writer.write(RECORDED_SETTLED_TOPIC, POSE_ARRAY, snapshot.time_ns, settled)
+
+
+def code_of(poses: Sequence[Pose], hypotheses: Sequence[RankedHypotheses]) -> Code | None:
+    """The code whose hypotheses are ``poses`` (None if some pose is none of its object's hypotheses)."""
+    code = []
+    for pose, ranked in zip(poses, hypotheses, strict=True):
+        rank = next(
+            (
+                r
+                for r in range(1, len(ranked) + 1)
+                if is_same_pose(pose, ranked.pose(r), SAME_POSITION, SAME_ORIENTATION)
+            ),
+            None,
+        )
+        if rank is None:
+            return None
+        code.append(rank)
+    return tuple(code)
+
+
+def _last_by_stamp(output: Bag, topic: str, count: int) -> dict[int, tuple[Pose, ...]]:
+    """The last PoseArray of ``count`` poses recorded on ``topic`` for each header stamp (ns)."""
+    latest: dict[int, tuple[Pose, ...]] = {}
+    for message in output.on(topic):
+        with decoding(output, message):
+            data = pose_array_from_cdr(message.raw)
+            if len(data.poses) == count:
+                latest[data.stamp_ns] = data.checked_poses()
+    return latest
+
+
+def recorded_results(snapshots: Sequence[BagSnapshot], output: Bag, scene: Scene) -> list[SnapshotResult]:
+    """What a live node chose for each snapshot: its last configuration stamped with the snapshot's stamp.
+
+    Stamps are compared exactly (the node carries them as integer nanoseconds). A configuration
+    that is not made of the snapshot's hypotheses (the node ticked halfway through a burst and
+    never again before the next one) counts as no configuration.
+    """
+    count = len(scene.objects)
+    chosen = _last_by_stamp(output, RECORDED_CONFIGURATION_TOPIC, count)
+    settled = _last_by_stamp(output, RECORDED_SETTLED_TOPIC, count)
+    results = []
+    for snapshot in snapshots:
+        poses = chosen.get(snapshot.stamp_ns)
+        code = None if poses is None else code_of(poses, snapshot.hypotheses)
+        if code is None:
+            results.append(SnapshotResult(snapshot, None, None, None))
+        else:
+            results.append(SnapshotResult(snapshot, code, poses, settled.get(snapshot.stamp_ns)))
+    return results
+
+
+#: The estimates scored against ground truth: ``top``, every object's most likely hypothesis (the paper's
+#: C111, no physics); ``chosen``, the configuration chosen with physics; ``settled``, its settled poses.
+ESTIMATES = ("top", "chosen", "settled")
+
+
+def _estimates(result: SnapshotResult) -> tuple[tuple[Pose, ...] | None, ...]:
+    """The poses of each of :data:`ESTIMATES` (None where nothing was chosen)."""
+    return rank_one_poses(result.snapshot.hypotheses), result.chosen, result.settled
+
+
+def _position_errors(result: SnapshotResult) -> dict[str, tuple[float, ...]] | None:
+    """Each estimate's per-object position error (m); None without a ground truth or a complete choice."""
+    truth = result.snapshot.ground_truth
+    estimates = _estimates(result)
+    if truth is None or any(poses is None for poses in estimates):
+        return None
+    return {name: position_errors(poses or (), truth) for name, poses in zip(ESTIMATES, estimates, strict=True)}
+
+
+def mean_errors(results: Sequence[SnapshotResult]) -> dict[str, tuple[float, ...]] | None:
+    """Per estimate (:data:`ESTIMATES`), each object's mean position error in metres.
+
+    Averaged over the results with a ground truth and a chosen configuration; None if there is none.
+    """
+    scored = [errors for errors in map(_position_errors, results) if errors is not None]
+    if not scored:
+        return None
+    return {name: tuple(np.mean([e[name] for e in scored], axis=0).tolist()) for name in ESTIMATES}
+
+
+def evaluation_summary(results: Sequence[SnapshotResult], object_names: Sequence[str]) -> str:
+    """Snapshot counts, how often C11..1 was kept, and the error table (centimetres) when there is ground truth.
+
+    The total of a column is the sum over objects (the paper's total configuration error).
+    """
+    top = code_text((1,) * len(object_names))
+    chosen = [o.code for o in results if o.code is not None]
+    kept_top = sum(1 for code in chosen if all(rank == 1 for rank in code))
+    lines = [
+        f"{len(results)} snapshots, {len(chosen)} with a configuration: "
+        f"{top} in {kept_top}, another configuration in {len(chosen) - kept_top}"
+    ]
+    errors = mean_errors(results)
+    if errors is None:
+        lines.append("no error against ground truth (no /ground_truth in the bag, or no configuration)")
+        return "\n".join(lines)
+    width = max(len(name) for name in (*object_names, "total"))
+    scored = sum(1 for o in results if _position_errors(o) is not None)
+    lines.append(f"mean position error against ground truth over the {scored} snapshots with a configuration [cm]:")
+    labels = (top, "chosen", "settled")  # the names of ESTIMATES, for people
+    lines.append(f"{'object':<{width}}" + "".join(f"{label:>10}" for label in labels))
+    for index, name in enumerate(object_names):
+        lines.append(f"{name:<{width}}" + "".join(f"{e[index] * 100:10.2f}" for e in errors.values()))
+    lines.append(f"{'total':<{width}}" + "".join(f"{sum(e) * 100:10.2f}" for e in errors.values()))
+    return "\n".join(lines)
+
+
+def snapshot_result_dict(result: SnapshotResult) -> dict[str, Any]:
+    """One snapshot's result as plain data: times, code, and per-object position errors (m) of each estimate."""
+    snapshot = result.snapshot
+    return {
+        "time_ns": snapshot.time_ns,
+        "stamp_ns": snapshot.stamp_ns,
+        "code": None if result.code is None else list(result.code),
+        "code_text": code_text(result.code),
+        "errors": _position_errors(result),
+    }

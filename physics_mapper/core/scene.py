@@ -1,0 +1,145 @@
+"""The scene model: bodies and their shapes, search parameters, scenes and problems (SPEC section 3).
+
+A *scene* is the fixed environment, the movable objects (in the order used for configuration
+codes and output arrays) and the search parameters. A *problem* is a scene plus weighted
+hypotheses for every object. Lengths are metres, masses kilograms, times seconds. Loading and
+validating the YAML files is :mod:`physics_mapper.core.scene_files`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Literal
+
+from physics_mapper.core.geometry import ORIGIN, Pose
+from physics_mapper.core.hypotheses import RankedHypotheses
+
+Fallback = Literal["none", "settled"]
+FALLBACKS: tuple[Fallback, ...] = ("none", "settled")
+
+
+@dataclass(frozen=True)
+class Box:
+    """Box with full edge lengths ``size`` (x, y, z) in metres, centred on its pose."""
+
+    size: tuple[float, float, float]
+
+
+@dataclass(frozen=True)
+class Sphere:
+    """Sphere of ``radius`` metres, centred on its pose."""
+
+    radius: float
+
+
+@dataclass(frozen=True)
+class Cylinder:
+    """Cylinder of ``radius`` and ``length`` metres along its local z axis, centred on its pose."""
+
+    radius: float
+    length: float
+
+
+@dataclass(frozen=True)
+class Plane:
+    """Infinite plane through its pose, normal along its local +z (static bodies only)."""
+
+
+Shape = Box | Sphere | Cylinder | Plane
+OBJECT_SHAPES = ("box", "sphere", "cylinder")
+STATIC_SHAPES = ("plane", "box", "sphere", "cylinder")
+
+
+@dataclass(frozen=True)
+class StaticBody:
+    """A fixed body of the environment (floor, wall, groove side)."""
+
+    name: str
+    shape: Shape
+    pose: Pose = ORIGIN
+    friction: float = 0.8
+
+
+@dataclass(frozen=True)
+class ObjectModel:
+    """A movable rigid body; ``mass`` in kg, Coulomb ``friction`` coefficient.
+
+    ``rolling_friction`` (Bullet's, in metres) lets round objects come to rest.
+    """
+
+    name: str
+    shape: Box | Sphere | Cylinder
+    mass: float = 0.5
+    friction: float = 0.8
+    rolling_friction: float = 0.0
+
+
+@dataclass(frozen=True)
+class SearchParams:
+    """Thresholds and budgets of the search (SPEC section 2).
+
+    probability_threshold: T; nodes with p(C) < T are not expanded.
+    penetration_threshold: deepest allowed overlap between two bodies, metres.
+    jitter_threshold: largest allowed per-object jitter J_i (metres + weighted radians).
+    angular_weight: metres per radian of rotation in J_i.
+    settle_time: simulated seconds under gravity for the stability test.
+    deadline: wall-clock seconds a search may run.
+    fallback: what to report when no configuration is valid.
+    """
+
+    probability_threshold: float = 0.0002
+    penetration_threshold: float = 0.005
+    jitter_threshold: float = 0.01
+    angular_weight: float = 0.1
+    settle_time: float = 0.5
+    deadline: float = 0.2
+    fallback: Fallback = "none"
+
+
+@dataclass(frozen=True)
+class Scene:
+    """Environment, objects in code order, and default search parameters."""
+
+    objects: tuple[ObjectModel, ...]
+    static: tuple[StaticBody, ...] = ()
+    search: SearchParams = field(default_factory=SearchParams)
+    frame_id: str = "world"
+    #: Optional true pose of each object, in object order (for generating data and scoring).
+    ground_truth: tuple[Pose, ...] | None = None
+
+    @property
+    def object_names(self) -> tuple[str, ...]:
+        return tuple(o.name for o in self.objects)
+
+
+@dataclass(frozen=True)
+class Problem:
+    """A scene and, for each of its objects in order, ranked hypotheses."""
+
+    scene: Scene
+    hypotheses: tuple[RankedHypotheses, ...]
+
+
+#: Inclusive range of each numeric search parameter: checked for files and for the node's
+#: parameters alike (the node declares them as its parameter ranges).
+SEARCH_LIMITS: dict[str, tuple[float, float]] = {
+    "probability_threshold": (0.0, 1.0),
+    "penetration_threshold": (0.0, 1.0),  # metres
+    "jitter_threshold": (0.0, 10.0),  # metres + weighted radians
+    "angular_weight": (0.0, 10.0),  # metres per radian
+    "settle_time": (0.0, 10.0),  # simulated seconds
+    "deadline": (0.0, 3600.0),  # wall-clock seconds, and positive
+}
+
+
+def search_params_problem(params: SearchParams) -> str | None:
+    """Say which search parameter is out of range (:data:`SEARCH_LIMITS`), or return None."""
+    if params.deadline <= 0.0:
+        return f"deadline must be positive, got {params.deadline:g}"
+    for name, (low, high) in SEARCH_LIMITS.items():
+        value = getattr(params, name)
+        if not low <= value <= high:
+            return f"{name} must be in [{low:g}, {high:g}], got {value:g}"
+    if params.fallback not in FALLBACKS:
+        return f"fallback must be one of {', '.join(FALLBACKS)}, got {params.fallback!r}"
+    return None

@@ -1,0 +1,58 @@
+"""Every rclpy shell: the node, its QoS, the hypothesis publisher, the bag player, the node as a child process.
+
+The only room of ``physics_mapper`` that imports rclpy or a message package (with ``msg_adapters`` and the commands).
+"""
+
+from __future__ import annotations
+
+from physics_mapper.ros.bag_player import (
+    Playback,
+    ReplayError,
+    message_class,
+    play_and_record,
+)
+from physics_mapper.ros.child_process import (
+    node_command,
+    start_node,
+    stop_node,
+)
+from physics_mapper.ros.hypothesis_publisher import (
+    HypothesisPublisher,
+)
+from physics_mapper.ros.node import (
+    PARAMETERS,
+    ParameterSpec,
+    PhysicsMapperNode,
+    main,
+    resolve_scene_path,
+)
+from physics_mapper.ros.qos import (
+    DIAGNOSTICS_QOS,
+    INPUT_QOS,
+    MAP_QOS,
+)
+from physics_mapper.ros.spinning import (
+    shutdown_ros,
+    spin_for,
+)
+
+__all__ = [
+    "DIAGNOSTICS_QOS",
+    "INPUT_QOS",
+    "MAP_QOS",
+    "PARAMETERS",
+    "HypothesisPublisher",
+    "ParameterSpec",
+    "PhysicsMapperNode",
+    "Playback",
+    "ReplayError",
+    "main",
+    "message_class",
+    "node_command",
+    "play_and_record",
+    "resolve_scene_path",
+    "shutdown_ros",
+    "spin_for",
+    "start_node",
+    "stop_node",
+]
