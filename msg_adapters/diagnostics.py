@@ -13,7 +13,7 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from std_msgs.msg import Header
 
 from msg_adapters.hypotheses import stamp_from_nanoseconds
-from physics_mapper.core.report import code_text
+from physics_mapper.core.report import code_text, refinement_text
 from physics_mapper.core.search import SearchResult, SearchStats
 from physics_mapper.mapping.inputs import Level, ObjectStatus
 from physics_mapper.mapping.mapper import TickReport
@@ -42,11 +42,17 @@ def _search_level_and_message(report: TickReport) -> tuple[Level, str]:
         return Level.ERROR, f"waiting for hypotheses of: {', '.join(report.snapshot.missing)}"
     if result.valid:
         return Level.OK, f"valid {code_text(result.code)}, p(C)={result.probability:.4g}, J={result.jitter:.4g}"
+    if result.refinement is not None:
+        refined = f"{code_text(result.code)} refined ({refinement_text(result.refinement)}) and settled"
+        return Level.WARN, f"no valid configuration; fallback refine: {refined}, J={result.jitter:.4g}"
     if result.code is not None:
         return Level.WARN, f"no valid configuration; fallback settled {code_text(result.code)}"
     ending = "" if result.stats.exhausted else " yet"
-    if report.settings.search.fallback == "settled":
+    fallback = report.settings.search.fallback
+    if fallback == "settled":
         why = "fallback: settled, but no collision-free configuration to settle"
+    elif fallback == "refine":
+        why = "fallback: refine, its map is not ready yet"
     else:
         why = "fallback: none"
     return Level.WARN, f"no valid configuration found{ending} ({why}; nothing published)"
@@ -60,6 +66,7 @@ def search_values(report: TickReport) -> list[tuple[str, str]]:
         ("best code", code_text(result.code) if result is not None else "none"),
         ("valid", str(result is not None and result.valid).lower()),
         ("fallback used", str(result is not None and result.fallback_used).lower()),
+        ("fallback", report.settings.search.fallback),
         ("p(C)", _number(result.probability if result is not None else None)),
         ("J", _number(result.jitter if result is not None else None)),
         ("nodes visited", str(stats.visited)),

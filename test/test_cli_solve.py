@@ -19,6 +19,8 @@ RESULT_KEYS = {
     "probability",
     "jitter",
     "fallback_used",
+    "fallback",
+    "refinement",
     "poses",
     "settled_poses",
     "object_jitters",

@@ -398,7 +398,7 @@ def test_deadline_changed_at_run_time_takes_effect_and_invalid_values_are_refuse
     successful, reason = client.set_parameter("deadline", -1.0)
     assert not successful and reason  # outside the declared range
     successful, reason = client.set_parameter("fallback", "sometimes")
-    assert not successful and reason == "fallback must be one of none, settled, got 'sometimes'"
+    assert not successful and reason == "fallback must be one of none, settled, refine, got 'sometimes'"
     successful, reason = client.set_parameter("scene_file", "other.yaml")
     assert not successful and "read-only" in reason
     ticks = search_ticks(client, 2)

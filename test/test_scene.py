@@ -123,7 +123,7 @@ BAD_FILES = {
     ),
     "zero deadline": BadFile("search", "deadline must be positive, got 0", ("search", "deadline"), 0),
     "unknown fallback": BadFile(
-        "search.fallback", "must be one of none, settled, got 'guess'", ("search", "fallback"), "guess"
+        "search.fallback", "must be one of none, settled, refine, got 'guess'", ("search", "fallback"), "guess"
     ),
     "unknown search key": BadFile("search.timeout", "unknown key", ("search", "timeout"), 1.0),
 }

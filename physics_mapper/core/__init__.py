@@ -1,4 +1,5 @@
-"""The ROS-free core: poses, hypotheses, the scene model and its files, the physics rules, the search, results.
+"""The ROS-free core: poses, hypotheses, the scene model and its files, the physics rules, the search, the
+refinement (``fallback: refine``), results.
 
 Imports nothing from ROS and nothing from the other rooms of ``physics_mapper``.
 """
@@ -40,14 +41,26 @@ from physics_mapper.core.physics import (
     Collision,
     PartialSettling,
     PhysicsChecker,
+    Proximity,
     Settling,
     TrajectorySample,
+)
+from physics_mapper.core.refine import (
+    ESCAPE_DIRECTIONS,
+    MAX_ITERATIONS,
+    OVERLAP_TOLERANCE,
+    RefinedMap,
+    Refinement,
+    refine,
+    refinement_start,
 )
 from physics_mapper.core.report import (
     code_text,
     describe_entry,
     outcome_kind,
     pose_dict,
+    refinement_dict,
+    refinement_text,
     result_dict,
     result_summary,
     trace_entry_dict,
@@ -91,13 +104,16 @@ from physics_mapper.core.search import (
 
 __all__ = [
     "CLOCK_CHECK_STEPS",
+    "ESCAPE_DIRECTIONS",
     "EXIT_BAD_INPUT",
     "EXIT_FAILURE",
     "FALLBACKS",
     "GRAVITY",
     "IDENTITY",
+    "MAX_ITERATIONS",
     "OBJECT_SHAPES",
     "ORIGIN",
+    "OVERLAP_TOLERANCE",
     "QUATERNION_NORM_TOLERANCE",
     "SEARCH_LIMITS",
     "STATIC_SHAPES",
@@ -118,7 +134,10 @@ __all__ = [
     "Plane",
     "Pose",
     "Problem",
+    "Proximity",
     "RankedHypotheses",
+    "RefinedMap",
+    "Refinement",
     "Scene",
     "SceneError",
     "SearchParams",
@@ -144,6 +163,10 @@ __all__ = [
     "quaternion_about_axis",
     "quaternion_dot",
     "rank_one_poses",
+    "refine",
+    "refinement_dict",
+    "refinement_start",
+    "refinement_text",
     "result_dict",
     "result_summary",
     "rotation_angle",

@@ -25,20 +25,26 @@ used for another configuration first, the interrupted simulation is saved (pybul
 measured bit for bit too (BENCHMARKS.md, "Interrupted settlings"). A checker keeps one
 interrupted settling: interrupting another frees the first's saved state, and resuming the
 first then simulates it again from its start (same result, more time).
+
+The refinement (:mod:`physics_mapper.core.refine`) works on a subset of the objects: the others
+wait at their parking spots, far above and far apart, where they touch nothing and are never
+reported. :meth:`PhysicsChecker.proximities` lists the closest points of nearby bodies, and a
+settling may cap the objects' speed (``max_speed``).
 """
 
 from __future__ import annotations
 
 import importlib
+import math
 import os
 import sys
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from types import ModuleType
 from typing import overload
 
-from physics_mapper.core.geometry import IDENTITY, ORIGIN, Pose, pose_displacement
+from physics_mapper.core.geometry import IDENTITY, ORIGIN, Pose, Vector3, pose_displacement
 from physics_mapper.core.scene import Box, Cylinder, Plane, Scene, Shape, Sphere
 
 
@@ -106,13 +112,31 @@ class PartialSettling:
 
     ``steps_done`` of ``steps_total`` :data:`TIME_STEP` steps are simulated from rest at
     ``poses`` (the start, from which the jitters are measured). Compared by identity: the
-    checker that interrupted it recognises it as the settling it kept.
+    checker that interrupted it recognises it as the settling it kept. ``objects`` and
+    ``max_speed`` are the settling's (see :meth:`PhysicsChecker.settle`).
     """
 
     poses: tuple[Pose, ...]
     angular_weight: float
     steps_done: int
     steps_total: int
+    objects: tuple[int, ...] | None = None
+    max_speed: float | None = None
+
+
+@dataclass(frozen=True)
+class Proximity:
+    """The closest points of object ``first`` and a nearby body (object ``second``, or a static body: None).
+
+    ``distance`` is their signed distance in metres, negative when they overlap (minus the
+    penetration depth); ``normal`` is the unit vector along which moving ``first`` (or moving
+    ``second`` the opposite way) increases it.
+    """
+
+    first: int
+    second: int | None
+    normal: Vector3
+    distance: float
 
 
 @dataclass(frozen=True)
@@ -205,13 +229,19 @@ class PhysicsChecker:
     def __exit__(self, *_: object) -> None:
         self.close()
 
-    def _place(self, poses: Sequence[Pose]) -> None:
-        if len(poses) != len(self._bodies):
-            raise ValueError(f"{len(poses)} poses for {len(self._bodies)} objects")
+    def _uids(self, objects: Sequence[int] | None) -> list[int]:
+        """The bodies of the objects of these scene indices (None: every object, in scene order)."""
+        return self._bodies if objects is None else [self._bodies[index] for index in objects]
+
+    def _place(self, poses: Sequence[Pose], objects: Sequence[int] | None = None) -> None:
+        """Put ``objects`` (None: all) at ``poses``, from rest; every other object stays parked."""
+        uids = self._uids(objects)
+        if len(poses) != len(uids):
+            raise ValueError(f"{len(poses)} poses for {len(uids)} objects")
         self._save_interrupted()
         pybullet.restoreState(self._initial_state, physicsClientId=self._client)
         self._empty_contact_caches()
-        for uid, pose in zip(self._bodies, poses, strict=True):
+        for uid, pose in zip(uids, poses, strict=True):
             pybullet.resetBasePositionAndOrientation(uid, pose.position, pose.orientation, physicsClientId=self._client)
 
     def _empty_contact_caches(self) -> None:
@@ -237,9 +267,9 @@ class PhysicsChecker:
             pybullet.removeState(self._interrupted_state, physicsClientId=self._client)
         self._interrupted = self._interrupted_state = None
 
-    def _poses(self) -> tuple[Pose, ...]:
+    def _poses(self, objects: Sequence[int] | None = None) -> tuple[Pose, ...]:
         poses = []
-        for uid in self._bodies:
+        for uid in self._uids(objects):
             position, orientation = pybullet.getBasePositionAndOrientation(uid, physicsClientId=self._client)
             poses.append(Pose((position[0], position[1], position[2]), tuple(orientation)))
         return tuple(poses)
@@ -267,16 +297,86 @@ class PhysicsChecker:
         first, second = sorted((body_a, body_b), key=lambda uid: order.get(uid, len(order) + uid))
         return self._names[first], self._names[second]
 
-    @overload
-    def settle(self, poses: Sequence[Pose], settle_time: float, angular_weight: float) -> Settling: ...
+    def proximities(
+        self, poses: Sequence[Pose], margin: float, objects: Sequence[int] | None = None
+    ) -> tuple[Proximity, ...]:
+        """Put ``objects`` (scene indices; None: all) at ``poses``, the others parked, and list their near bodies.
+
+        One :class:`Proximity` per pair of a placed object and another placed object or a static
+        body whose signed distance is below ``margin`` metres: Bullet's closest points (the
+        deepest point and its normal for an overlap). Candidates come from the broadphase, the
+        objects' bounding boxes grown by ``margin``. Each pair is listed once, in object order.
+        """
+        self._place(poses, objects)
+        client = self._client
+        indices = range(len(self._bodies)) if objects is None else objects
+        placed = set(indices)
+        found: list[Proximity] = []
+        for index in indices:
+            uid = self._bodies[index]
+            low, high = pybullet.getAABB(uid, physicsClientId=client)
+            grown = ([v - margin for v in low], [v + margin for v in high])
+            near = pybullet.getOverlappingObjects(*grown, physicsClientId=client) or ()
+            for other in sorted({body for body, _link in near}):
+                other_index = self._object_index.get(other)
+                if other_index is not None and (other_index not in placed or other_index <= index):
+                    continue  # itself, a parked object, or a pair already listed from the other side
+                points = pybullet.getClosestPoints(uid, other, margin, physicsClientId=client)
+                if points:
+                    closest = min(points, key=lambda point: float(point[8]))
+                    normal = (float(closest[7][0]), float(closest[7][1]), float(closest[7][2]))
+                    found.append(Proximity(index, other_index, normal, float(closest[8])))
+        return tuple(found)
+
+    def static_overlap(self, index: int, pose: Pose) -> float:
+        """The deepest overlap, metres (0 if none), of object ``index`` at ``pose`` with the static bodies.
+
+        Moves that object only (the world is reset by the next placement anyway); the other
+        objects are not looked at, wherever they are.
+        """
+        self._save_interrupted()
+        client, uid = self._client, self._bodies[index]
+        pybullet.resetBasePositionAndOrientation(uid, pose.position, pose.orientation, physicsClientId=client)
+        low, high = pybullet.getAABB(uid, physicsClientId=client)
+        deepest = 0.0
+        for other, _link in pybullet.getOverlappingObjects(low, high, physicsClientId=client) or ():
+            if other not in self._object_index:
+                for point in pybullet.getClosestPoints(uid, other, 0.0, physicsClientId=client):
+                    deepest = max(deepest, -float(point[8]))
+        return deepest
 
     @overload
     def settle(
-        self, poses: Sequence[Pose], settle_time: float, angular_weight: float, stop_at: float | None
+        self,
+        poses: Sequence[Pose],
+        settle_time: float,
+        angular_weight: float,
+        *,
+        objects: Sequence[int] | None = None,
+        max_speed: float | None = None,
+    ) -> Settling: ...
+
+    @overload
+    def settle(
+        self,
+        poses: Sequence[Pose],
+        settle_time: float,
+        angular_weight: float,
+        stop_at: float | None,
+        *,
+        objects: Sequence[int] | None = None,
+        max_speed: float | None = None,
     ) -> Settling | PartialSettling: ...
 
     def settle(
-        self, poses: Sequence[Pose], settle_time: float, angular_weight: float, stop_at: float | None = None
+        self,
+        poses: Sequence[Pose],
+        settle_time: float,
+        angular_weight: float,
+        stop_at: float | None = None,
+        *,
+        objects: Sequence[int] | None = None,
+        max_speed: float | None = None,
     ) -> Settling | PartialSettling:
         """Rule 2: simulate ``settle_time`` seconds from rest at ``poses``; measure each J_i.
 
@@ -284,9 +384,14 @@ class PhysicsChecker:
         :data:`CLOCK_CHECK_STEPS` steps; once it has passed, the simulation stops and a
         :class:`PartialSettling` is returned, so a caller overruns its deadline by at most that
         many steps. :meth:`resume_settling` continues it.
+
+        ``objects`` (scene indices) settles only those objects, ``poses`` being theirs; the others
+        stay parked. ``max_speed`` (m/s) caps each object's linear speed after every step.
         """
-        self._place(poses)
-        return self._simulate(tuple(poses), angular_weight, 0, round(settle_time / TIME_STEP), stop_at)
+        self._place(poses, objects)
+        steps_total = round(settle_time / TIME_STEP)
+        chosen = None if objects is None else tuple(objects)
+        return self._simulate(PartialSettling(tuple(poses), angular_weight, 0, steps_total, chosen, max_speed), stop_at)
 
     @overload
     def resume_settling(self, partial: PartialSettling) -> Settling: ...
@@ -304,30 +409,42 @@ class PhysicsChecker:
         another checker's) is simulated again from its start.
         """
         if partial is not self._interrupted:
-            self._place(partial.poses)
-            return self._simulate(partial.poses, partial.angular_weight, 0, partial.steps_total, stop_at)
+            self._place(partial.poses, partial.objects)
+            return self._simulate(replace(partial, steps_done=0), stop_at)
         if self._interrupted_state is not None:
             self._empty_contact_caches()
             pybullet.restoreState(self._interrupted_state, physicsClientId=self._client)
         self._forget_interrupted()
-        return self._simulate(partial.poses, partial.angular_weight, partial.steps_done, partial.steps_total, stop_at)
+        return self._simulate(partial, stop_at)
 
-    def _simulate(
-        self, poses: tuple[Pose, ...], angular_weight: float, steps_done: int, steps_total: int, stop_at: float | None
-    ) -> Settling | PartialSettling:
-        """Step the world from ``steps_done`` to ``steps_total``, or until ``stop_at`` (see :meth:`settle`)."""
+    def _simulate(self, plan: PartialSettling, stop_at: float | None) -> Settling | PartialSettling:
+        """Step the world from ``plan.steps_done`` to ``plan.steps_total`` or until ``stop_at`` (:meth:`settle`)."""
+        steps_done, steps_total = plan.steps_done, plan.steps_total
+        uids = self._uids(plan.objects)
         while steps_done < steps_total:
             batch_end = min(steps_done + CLOCK_CHECK_STEPS, steps_total)
             for _ in range(steps_done, batch_end):
                 pybullet.stepSimulation(physicsClientId=self._client)
+                if plan.max_speed is not None:
+                    self._cap_speeds(uids, plan.max_speed)
             steps_done = batch_end
             if stop_at is not None and steps_done < steps_total and time.monotonic() >= stop_at:
                 self._forget_interrupted()
-                self._interrupted = PartialSettling(poses, angular_weight, steps_done, steps_total)
+                self._interrupted = replace(plan, steps_done=steps_done)
                 return self._interrupted
-        settled = self._poses()
-        jitters = tuple(pose_displacement(a, b, angular_weight) for a, b in zip(poses, settled, strict=True))
+        settled = self._poses(plan.objects)
+        jitters = tuple(pose_displacement(a, b, plan.angular_weight) for a, b in zip(plan.poses, settled, strict=True))
         return Settling(settled, jitters)
+
+    def _cap_speeds(self, uids: Sequence[int], max_speed: float) -> None:
+        """Scale down every linear velocity faster than ``max_speed`` m/s to that speed (same direction)."""
+        for uid in uids:
+            linear, angular = pybullet.getBaseVelocity(uid, physicsClientId=self._client)
+            speed = math.hypot(*linear)
+            if speed > max_speed:
+                scale = max_speed / speed
+                capped = [v * scale for v in linear]
+                pybullet.resetBaseVelocity(uid, capped, angular, physicsClientId=self._client)
 
     def trajectory(
         self, poses: Sequence[Pose], duration: float, sample_interval: float

@@ -6,6 +6,7 @@ from dataclasses import asdict
 from typing import Any
 
 from physics_mapper.core.geometry import Pose
+from physics_mapper.core.refine import OVERLAP_TOLERANCE, RefinedMap
 from physics_mapper.core.scene import Fallback
 from physics_mapper.core.search import Code, SearchResult, TraceEntry
 
@@ -40,6 +41,19 @@ def trace_entry_dict(entry: TraceEntry) -> dict[str, Any]:
     return data
 
 
+def refinement_dict(refined: RefinedMap, names: tuple[str, ...]) -> dict[str, Any]:
+    """How a refined map was made: start and depenetrated poses keyed by object name, iterations, overlaps (m)."""
+    refined_names = tuple(names[index] for index in refined.objects)
+    return {
+        "start_poses": _poses(refined.start_poses, refined_names),
+        "depenetrated_poses": _poses(refined.depenetrated_poses, refined_names),
+        "iterations": refined.iterations,
+        "converged": refined.converged,
+        "initial_overlap": refined.initial_overlap,
+        "remaining_overlap": refined.remaining_overlap,
+    }
+
+
 def result_dict(result: SearchResult, names: tuple[str, ...]) -> dict[str, Any]:
     """Machine-readable result (SPEC section 5): poses keyed by object name."""
     stats = asdict(result.stats)
@@ -50,6 +64,8 @@ def result_dict(result: SearchResult, names: tuple[str, ...]) -> dict[str, Any]:
         "probability": result.probability,
         "jitter": result.jitter,
         "fallback_used": result.fallback_used,
+        "fallback": result.fallback,
+        "refinement": None if result.refinement is None else refinement_dict(result.refinement, names),
         "poses": _poses(result.poses, names),
         "settled_poses": _poses(result.settled_poses, names),
         "object_jitters": None
@@ -101,6 +117,16 @@ def trace_tree(trace: tuple[TraceEntry, ...]) -> str:
     return "\n".join(lines)
 
 
+def refinement_text(refined: RefinedMap) -> str:
+    """What the depenetration did, e.g. ``overlaps up to 3.0 cm resolved in 8 iterations``."""
+    if refined.initial_overlap <= OVERLAP_TOLERANCE:
+        return "no overlap"
+    deepest = f"overlaps up to {refined.initial_overlap * 100:.1f} cm"
+    if refined.converged:
+        return f"{deepest} resolved in {refined.iterations} iterations"
+    return f"{deepest}, {refined.remaining_overlap * 100:.1f} cm left after {refined.iterations} iterations"
+
+
 def result_summary(result: SearchResult, fallback: Fallback) -> str:
     """A few lines: chosen code, p(C), J, validity, and how the search went (``fallback``: the search's)."""
     stats = result.stats
@@ -109,6 +135,11 @@ def result_summary(result: SearchResult, fallback: Fallback) -> str:
         head = f"no valid configuration (fallback: {fallback}, {reason})"
     elif result.valid:
         head = f"valid {code_text(result.code)}  p={result.probability:.4g}  J={result.jitter:.4f}"
+    elif result.refinement is not None:
+        head = (
+            f"no valid configuration; fallback refine: {code_text(result.code)} refined "
+            f"({refinement_text(result.refinement)}) and settled  J={result.jitter:.4f}"
+        )
     else:
         head = f"no valid configuration; fallback settled {code_text(result.code)}  p={result.probability:.4g}"
     ending = "stopped at the deadline" if stats.stopped_at_deadline else "all nodes visited"

@@ -14,8 +14,8 @@ from typing import Literal
 from physics_mapper.core.geometry import ORIGIN, Pose
 from physics_mapper.core.hypotheses import RankedHypotheses
 
-Fallback = Literal["none", "settled"]
-FALLBACKS: tuple[Fallback, ...] = ("none", "settled")
+Fallback = Literal["none", "settled", "refine"]
+FALLBACKS: tuple[Fallback, ...] = ("none", "settled", "refine")
 
 
 @dataclass(frozen=True)
@@ -85,6 +85,10 @@ class SearchParams:
     settle_time: simulated seconds under gravity for the stability test.
     deadline: wall-clock seconds a search may run.
     fallback: what to report when no configuration is valid.
+    refine_max_speed: ``fallback: refine``'s speed cap, m/s: depenetration moves an object at most
+        ``refine_max_speed * TIME_STEP`` metres per iteration, and its settling caps linear speeds.
+    refine_mean_radius: ``fallback: refine`` starts each object at the weighted mean position of its
+        hypotheses within this many metres of its most likely one (0: at the most likely one).
     """
 
     probability_threshold: float = 0.0002
@@ -94,6 +98,8 @@ class SearchParams:
     settle_time: float = 0.5
     deadline: float = 0.2
     fallback: Fallback = "none"
+    refine_max_speed: float = 1.0
+    refine_mean_radius: float = 0.1
 
 
 @dataclass(frozen=True)
@@ -129,6 +135,8 @@ SEARCH_LIMITS: dict[str, tuple[float, float]] = {
     "angular_weight": (0.0, 10.0),  # metres per radian
     "settle_time": (0.0, 10.0),  # simulated seconds
     "deadline": (0.0, 3600.0),  # wall-clock seconds, and positive
+    "refine_max_speed": (0.001, 100.0),  # metres per second
+    "refine_mean_radius": (0.0, 10.0),  # metres
 }
 
 

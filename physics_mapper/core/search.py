@@ -11,6 +11,10 @@ p(child) <= p(parent) and visits come in non-increasing p(C). A node with p(C) <
 still checked but not expanded ("bounded"). Rule 1 is tested first, and only
 collision-free nodes are simulated. Among valid nodes the least total jitter J wins.
 
+With ``fallback: refine``, once the root has failed a rule and while no node is valid, the
+search makes the refined map of the root (:mod:`physics_mapper.core.refine`) before it visits
+further nodes, so that a map exists from the first tick; a valid node found later replaces it.
+
 Ties in p(C) are broken by the smaller code in lexicographic order (C112 before
 C121), after rounding p(C) to 12 significant digits so that products of the same
 weights taken in another order compare equal.
@@ -28,7 +32,8 @@ from typing import Literal
 from physics_mapper.core.geometry import Pose
 from physics_mapper.core.hypotheses import RankedHypotheses
 from physics_mapper.core.physics import Collision, PartialSettling, PhysicsChecker, Settling
-from physics_mapper.core.scene import SearchParams
+from physics_mapper.core.refine import RefinedMap, Refinement, refinement_start
+from physics_mapper.core.scene import Fallback, SearchParams
 
 Code = tuple[int, ...]
 Outcome = Literal["collision", "unstable", "valid"]
@@ -89,8 +94,11 @@ class SearchResult:
 
     ``valid`` says whether ``code`` passed both rules. When no configuration is valid,
     ``code`` is the fallback's (the collision-free one of highest p(C), when the fallback
-    is ``settled``) or None; ``poses`` are the chosen hypotheses, ``settled_poses`` the
-    same objects after settling, ``object_jitters`` each object's J_i (their sum is ``jitter``).
+    is ``settled``; the root, when it is ``refine``) or None; ``poses`` are the chosen
+    hypotheses, ``settled_poses`` the same objects after settling (for ``refine``: the refined
+    map), ``object_jitters`` each object's J_i (their sum is ``jitter``). ``fallback`` names the
+    fallback that gave the map (None for a valid one or none), and ``refinement`` tells how the
+    refined map was made.
     """
 
     valid: bool
@@ -103,6 +111,8 @@ class SearchResult:
     fallback_used: bool
     stats: SearchStats
     trace: tuple[TraceEntry, ...]
+    fallback: Fallback | None = None
+    refinement: RefinedMap | None = None
 
 
 def _tie_key(probability: float) -> float:
@@ -138,7 +148,11 @@ class BranchAndBound:
         self._first_collision_free: Candidate | None = None
         # The node whose settling the deadline interrupted (first in the queue), and that settling.
         self._interrupted: tuple[Code, PartialSettling] | None = None
-        self._push(tuple(1 for _ in self.hypotheses), None)
+        # fallback refine: the root's refinement under way, and the refined map once made.
+        self._refinement: Refinement | None = None
+        self._refined: RefinedMap | None = None
+        self._root: Code = tuple(1 for _ in self.hypotheses)
+        self._push(self._root, None)
 
     def probability(self, code: Code) -> float:
         """p(C): product of the chosen hypotheses' normalised weights."""
@@ -182,10 +196,15 @@ class BranchAndBound:
         stop_at = None if budget is None else start + budget
         self.stats.stopped_at_deadline = False
         try:
-            while self._queue:
+            while self._queue or self._refinement_due():
                 if stop_at is not None and time.monotonic() >= stop_at:
                     self.stats.stopped_at_deadline = True
                     break
+                if self._refinement_due():
+                    if not self._refine(stop_at):
+                        self.stats.stopped_at_deadline = True
+                        break
+                    continue
                 item = heapq.heappop(self._queue)
                 if not self._visit(item, stop_at):
                     heapq.heappush(self._queue, item)
@@ -195,6 +214,27 @@ class BranchAndBound:
             self.stats.search_time += time.monotonic() - start
         self.stats.exhausted = not self._queue
         return self.result()
+
+    def _refinement_due(self) -> bool:
+        """Whether the root's refined map is to be made now: fallback refine, the root visited and
+        not valid, no valid node yet, no node's settling waiting to be continued."""
+        return (
+            self.params.fallback == "refine"
+            and self._refined is None
+            and self._best is None
+            and bool(self._trace)
+            and self._interrupted is None
+        )
+
+    def _refine(self, stop_at: float | None) -> bool:
+        """Make (or go on making) the root's refined map; False if ``stop_at`` came first."""
+        if self._refinement is None:
+            params = self.params
+            start = [refinement_start(h, params.refine_mean_radius) for h in self.hypotheses]
+            objects = range(len(self.hypotheses))
+            self._refinement = Refinement(self.checker, objects, start, self.poses(self._root), params)
+        self._refined = self._refinement.run(stop_at)
+        return self._refined is not None
 
     def _visit(self, item: _QueueItem, stop_at: float | None) -> bool:
         """Check one node and expand it; False if the deadline interrupted its settling."""
@@ -252,9 +292,12 @@ class BranchAndBound:
     def result(self) -> SearchResult:
         """The best valid configuration so far, else the fallback, with stats and trace."""
         chosen, valid = self._best, True
+        fallback = self.params.fallback
         if chosen is None:
             valid = False
-            chosen = self._first_collision_free if self.params.fallback == "settled" else None
+            if fallback == "refine" and self._refined is not None:
+                return self._refined_result(self._refined)
+            chosen = self._first_collision_free if fallback == "settled" else None
         trace = tuple(self._trace)
         if chosen is None:
             return SearchResult(False, None, None, None, None, None, None, False, replace(self.stats), trace)
@@ -269,6 +312,24 @@ class BranchAndBound:
             fallback_used=not valid,
             stats=replace(self.stats),
             trace=trace,
+            fallback=None if valid else fallback,
+        )
+
+    def _refined_result(self, refined: RefinedMap) -> SearchResult:
+        """The root's refined map as the result: its hypotheses chosen, the map as their settled poses."""
+        return SearchResult(
+            valid=False,
+            code=self._root,
+            probability=self.probability(self._root),
+            jitter=refined.total_jitter,
+            poses=self.poses(self._root),
+            settled_poses=refined.settled_poses,
+            object_jitters=refined.jitters,
+            fallback_used=True,
+            stats=replace(self.stats),
+            trace=tuple(self._trace),
+            fallback="refine",
+            refinement=refined,
         )
 
 

@@ -76,7 +76,9 @@ PARAMETERS = (
     ParameterSpec("jitter_threshold", "largest per-object jitter J_i of a stable object (m + weighted rad)"),
     ParameterSpec("angular_weight", "metres per radian of rotation in the jitter J_i"),
     ParameterSpec("settle_time", "simulated seconds under gravity for the stability test"),
-    ParameterSpec("fallback", f"when no configuration is valid: {' or '.join(FALLBACKS)}", None),
+    ParameterSpec("fallback", f"when no configuration is valid: {', '.join(FALLBACKS)}", None),
+    ParameterSpec("refine_max_speed", "fallback refine: fastest an object moves while refined, m/s"),
+    ParameterSpec("refine_mean_radius", "fallback refine: start at the weighted mean of hypotheses this near, m"),
     ParameterSpec("max_hypotheses_per_object", "hypotheses kept per object (the heaviest)", 100, (1, 100000)),
     ParameterSpec("max_age", "seconds after which received hypotheses are stale", 10.0, (0.01, 86400.0)),
     ParameterSpec("require_weights", "refuse PoseArrays without a weights message instead of uniform weights", False),
@@ -193,6 +195,8 @@ class PhysicsMapperNode(Node):
             settle_time=float(value("settle_time")),
             deadline=float(value("deadline")),
             fallback=cast(Fallback, str(value("fallback"))),
+            refine_max_speed=float(value("refine_max_speed")),
+            refine_mean_radius=float(value("refine_mean_radius")),
         )
         inputs = InputSettings(
             max_age=float(value("max_age")),
