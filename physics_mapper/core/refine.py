@@ -36,9 +36,9 @@ rule, the refinement repairs the most probable configuration instead of rejectin
    as an iteration.
 
 3. **Settling.** From rest at the depenetrated poses, ``settle_time`` seconds under gravity,
-   each object's linear speed capped at ``refine_max_speed`` after every simulation step, so
-   that an overlap the depenetration left (not converged) is not resolved by Bullet throwing
-   the bodies apart.
+   each object's linear speed capped at ``refine_max_speed`` after every simulation step
+   (within a step gravity adds at most 0.04 m/s), so that an overlap the depenetration left
+   (not converged) is not resolved by Bullet throwing the bodies apart.
 
 The map is the settled poses; each object's J_i is measured from its most likely hypothesis.
 Only the given objects take part (a subset of the scene's, e.g. one interaction group); the

@@ -1,0 +1,282 @@
+"""``fallback: refine`` (issue 9): penetrations resolved with little motion, no energy added, a settled map.
+
+Core tests on small hand-made scenes and the shipped ones, then the same through ``solve --json``
+and through the node over DDS.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Iterator, Sequence
+from dataclasses import replace
+from pathlib import Path
+
+import pytest
+import yaml
+from conftest import PROBLEMS, SCENES
+from core_builders import (
+    CUBE_SIZE,
+    ON_FLOOR,
+    cube,
+    floor_scene,
+    ground_truth,
+    ranked,
+    shipped_scene,
+    solve_json,
+    unrotated,
+)
+from diagnostic_msgs.msg import DiagnosticStatus
+from ros_helpers import NodeProcess, RosClient, search_status, stamp_ns_of, values
+
+from msg_adapters.hypotheses import hypotheses_msgs
+from msg_adapters.results import FALLBACK_COLOR, SHAPE_NAMESPACE
+from physics_mapper.core.geometry import Pose, make_pose, quaternion_about_axis, translation_distance
+from physics_mapper.core.hypotheses import RankedHypotheses
+from physics_mapper.core.physics import TIME_STEP, PhysicsChecker
+from physics_mapper.core.refine import OVERLAP_TOLERANCE, RefinedMap, Refinement, refine, refinement_start
+from physics_mapper.core.scene import Fallback, Scene, SearchParams
+from physics_mapper.core.scene_files import SceneError, load_problem, scene_from_dict
+from physics_mapper.core.search import BranchAndBound, SearchResult
+
+REFINE = SearchParams(fallback="refine")
+#: A time.monotonic() instant long past: every deadline-aware call stops as soon as it may.
+PAST = 0.0
+
+
+def single(*poses: Pose) -> tuple[RankedHypotheses, ...]:
+    """One hypothesis per object: no configuration but C11..1 to choose."""
+    return tuple(ranked([pose], [1.0]) for pose in poses)
+
+
+def refined_map(scene: Scene, hypotheses: Sequence[RankedHypotheses], params: SearchParams = REFINE) -> RefinedMap:
+    with PhysicsChecker(scene) as checker:
+        return refine(checker, range(len(hypotheses)), hypotheses, params)
+
+
+def is_valid_map(scene: Scene, poses: Sequence[Pose], params: SearchParams) -> bool:
+    """Both rules hold for ``poses``: no overlap beyond the threshold, and every J_i within the threshold."""
+    with PhysicsChecker(scene) as checker:
+        if checker.find_collision(poses, params.penetration_threshold) is not None:
+            return False
+        return checker.settle(poses, params.settle_time, params.angular_weight).is_stable(params.jitter_threshold)
+
+
+# --- the issue's cases -------------------------------------------------------------------------------
+
+
+def test_two_cubes_overlapping_3_cm_side_by_side_are_pushed_apart_by_as_little_as_possible() -> None:
+    scene = floor_scene(cube("left"), cube("right"))
+    overlap = 0.03
+    half_apart = (CUBE_SIZE - overlap) / 2.0
+    start = (unrotated(-half_apart, 0.0, ON_FLOOR), unrotated(half_apart, 0.0, ON_FLOOR))
+    refined = refined_map(scene, single(*start))
+    assert refined.converged and refined.initial_overlap == pytest.approx(overlap, abs=1e-6)
+    assert is_valid_map(scene, refined.settled_poses, REFINE)
+    moved = [translation_distance(a, b) for a, b in zip(start, refined.settled_poses, strict=True)]
+    assert all(distance < overlap for distance in moved)
+    assert sum(moved) == pytest.approx(overlap, abs=0.002)  # each half of it: the least motion
+    assert all(pose.position[2] == pytest.approx(ON_FLOOR, abs=0.001) for pose in refined.settled_poses)
+
+
+def test_a_cube_sunk_2_cm_into_the_floor_comes_out_resting_on_it_not_thrown() -> None:
+    scene = floor_scene(cube("sunk"))
+    start = unrotated(0.3, -0.2, ON_FLOOR - 0.02)
+    (settled,) = refined_map(scene, single(start)).settled_poses
+    assert settled.position[2] == pytest.approx(ON_FLOOR, abs=0.001)
+    assert settled.position[2] - start.position[2] == pytest.approx(0.02, abs=0.001)
+    assert math.dist(settled.position[:2], start.position[:2]) < 0.001  # straight up, not thrown aside
+
+
+def on_left_slope(along: float, sunk: float) -> Pose:
+    """The ball of sphere_groove.yaml ``along`` metres up the left slope from the vertex, ``sunk`` metres into it."""
+    slope, radius = math.radians(30.0), 0.05
+    normal = (math.sin(slope), 0.0, math.cos(slope))  # out of the left slope, into the groove
+    surface = (-along * math.cos(slope), 0.0, 0.1 + along * math.sin(slope))
+    return unrotated(*(s + (radius - sunk) * n for s, n in zip(surface, normal, strict=True)))
+
+
+@pytest.mark.parametrize(
+    "start",
+    [
+        pytest.param(on_left_slope(0.12, 0.02), id="overlapping a slope"),
+        pytest.param(unrotated(0.06, 0.05, 0.02), id="deep inside the groove's block"),
+    ],
+)
+def test_a_ball_overlapping_the_groove_ends_at_its_bottom(start: Pose) -> None:
+    scene = shipped_scene("sphere_groove.yaml")
+    refined = refined_map(scene, single(start), replace(scene.search, fallback="refine"))
+    (settled,) = refined.settled_poses
+    (truth,) = ground_truth(scene)
+    assert refined.converged and refined.initial_overlap > scene.search.penetration_threshold
+    assert math.hypot(settled.position[0] - truth.position[0], settled.position[2] - truth.position[2]) < 0.002
+    assert settled.position[1] == pytest.approx(start.position[1], abs=0.005)  # it rolled across the groove only
+
+
+def test_a_pyramid_whose_c111_overlaps_is_refined_to_a_standing_pyramid() -> None:
+    problem = load_problem(PROBLEMS / "pyramid.yaml")
+    c111 = single(*(h.pose(1) for h in problem.hypotheses))  # bottom cubes overlap 5 cm, top floats 6 cm
+    params = replace(problem.scene.search, fallback="refine")
+    refined = refined_map(problem.scene, c111, params)
+    assert refined.initial_overlap == pytest.approx(0.05) and refined.converged
+    assert is_valid_map(problem.scene, refined.settled_poses, params)  # J_i within 1 cm when settled again
+    left, right, top = (pose.position for pose in refined.settled_poses)
+    assert left[0] < top[0] < right[0] and top[2] == pytest.approx(0.3, abs=0.002)
+
+
+# --- the method: speed cap, escape, subsets, the start, deadlines ---------------------------------------
+
+
+def test_the_settling_caps_every_objects_speed() -> None:
+    scene = floor_scene(cube("falling"))
+    with PhysicsChecker(scene) as checker:
+        free = checker.settle([unrotated(0.0, 0.0, 1.0)], 0.25, 0.0)
+        capped = checker.settle([unrotated(0.0, 0.0, 1.0)], 0.25, 0.0, max_speed=0.2)
+    assert free.jitters[0] > 0.25  # about g t^2 / 2 = 0.31 m
+    # Capped after every step, an object falls within a step at most g TIME_STEP faster than the cap.
+    assert 0.04 < capped.jitters[0] <= (0.2 + 9.81 * TIME_STEP) * 0.25
+
+
+def test_depenetration_moves_no_object_faster_than_the_cap() -> None:
+    scene = floor_scene(cube("sunk"))
+    slow = replace(REFINE, refine_max_speed=0.5)
+    refined = refined_map(scene, single(unrotated(0.0, 0.0, ON_FLOOR - 0.02)), slow)
+    assert refined.iterations == math.ceil(0.02 / (slow.refine_max_speed * TIME_STEP))
+
+
+def test_only_the_given_objects_are_refined_the_others_stay_parked() -> None:
+    scene = floor_scene(cube("a"), cube("b"), cube("c"))
+    poses = (unrotated(0.0, 0.0, ON_FLOOR), unrotated(0.05, 0.0, ON_FLOOR), unrotated(0.5, 0.0, ON_FLOOR - 0.01))
+    hypotheses = single(*poses)
+    with PhysicsChecker(scene) as checker:
+        refined = Refinement(checker, (0, 2), (poses[0], poses[2]), (poses[0], poses[2]), REFINE).run()
+    assert refined is not None and refined.objects == (0, 2) and len(refined.settled_poses) == 2
+    a, c = refined.settled_poses
+    assert translation_distance(a, poses[0]) < 0.001  # b, which it overlaps, is not there
+    assert c.position[2] == pytest.approx(ON_FLOOR, abs=0.001)
+    assert refined_map(scene, hypotheses).settled_poses[0].position[0] < -0.02  # with b there, a is pushed
+
+
+def test_the_start_is_the_weighted_mean_of_the_hypotheses_near_the_most_likely_one() -> None:
+    turned = quaternion_about_axis((0.0, 0.0, 1.0), 0.3)
+    hypotheses = ranked(
+        [make_pose((0.0, 0.0, 0.1), turned), unrotated(0.02, 0.0, 0.1), unrotated(0.0, 0.04, 0.1), unrotated(1, 0, 0)],
+        [0.4, 0.3, 0.2, 0.1],
+    )
+    start = refinement_start(hypotheses, radius=0.1)
+    assert start.position == pytest.approx((0.3 * 0.02 / 0.9, 0.2 * 0.04 / 0.9, 0.1))
+    assert start.orientation == hypotheses.pose(1).orientation  # the most likely one's, never an average
+    assert refinement_start(hypotheses, radius=0.0).position == (0.0, 0.0, 0.1)
+
+
+def test_an_interrupted_refinement_goes_on_where_it_stopped_and_ends_the_same() -> None:
+    problem = load_problem(PROBLEMS / "pyramid.yaml")
+    c111 = single(*(h.pose(1) for h in problem.hypotheses))
+    params = replace(problem.scene.search, fallback="refine")
+    with PhysicsChecker(problem.scene) as checker:
+        whole = BranchAndBound(checker, c111, params).run(None)
+        search = BranchAndBound(checker, c111, params)
+        runs = [search.run(0.0005) for _ in range(500)]
+    pieces = [r for r in runs if r.settled_poses is not None]
+    assert runs[0].code is None and pieces, "the first run stops early; a later one ends the refinement"
+    assert pieces[0].settled_poses == whole.settled_poses and pieces[0].refinement == whole.refinement
+    assert whole.fallback == "refine" and whole.refinement is not None and whole.refinement.iterations > 1
+
+
+# --- the search and its outputs ------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("name", ["stack", "pyramid"])
+def test_a_valid_configuration_is_reported_exactly_as_without_refine(name: str) -> None:
+    problem = load_problem(PROBLEMS / f"{name}.yaml")
+
+    def solved(fallback: Fallback) -> SearchResult:
+        params = replace(problem.scene.search, fallback=fallback)
+        with PhysicsChecker(problem.scene) as checker:
+            return BranchAndBound(checker, problem.hypotheses, params).run(None)
+
+    plain, refining = solved("none"), solved("refine")
+    assert refining.valid and refining.fallback is None and refining.refinement is None
+    same = ("code", "probability", "jitter", "poses", "settled_poses", "object_jitters", "trace")
+    assert all(getattr(refining, key) == getattr(plain, key) for key in same)
+
+
+def test_solve_json_reports_the_refined_map(tmp_path: Path) -> None:
+    problem = yaml.safe_load((PROBLEMS / "pyramid.yaml").read_text())
+    problem["scene"] = str(SCENES / "pyramid.yaml")
+    problem["search"] = {"fallback": "refine"}
+    problem["hypotheses"] = {name: hypotheses[:1] for name, hypotheses in problem["hypotheses"].items()}
+    path = tmp_path / "c111.yaml"
+    path.write_text(yaml.safe_dump(problem))
+    result = solve_json(path)
+    assert not result["valid"] and result["fallback_used"] and result["fallback"] == "refine"
+    assert result["code"] == [1, 1, 1] and result["stats"]["collisions"] == 1
+    refinement = result["refinement"]
+    assert refinement["converged"] and refinement["remaining_overlap"] <= OVERLAP_TOLERANCE
+    assert (
+        set(result["settled_poses"]) == set(refinement["depenetrated_poses"]) == {"cube_left", "cube_right", "cube_top"}
+    )
+    assert result["jitter"] == pytest.approx(sum(result["object_jitters"].values()))
+
+
+@pytest.mark.parametrize(
+    ("search", "problem"),
+    [
+        ({"refine_max_speed": 0.0}, "refine_max_speed must be in [0.001, 100], got 0"),
+        ({"refine_mean_radius": -0.1}, "must be at least 0, got -0.1"),
+        ({"fallback": "repair"}, "must be one of none, settled, refine, got 'repair'"),
+    ],
+)
+def test_bad_refine_settings_are_refused_naming_the_key(search: dict[str, object], problem: str) -> None:
+    data = {"objects": [{"name": "a", "shape": "sphere", "radius": 0.1}], "search": search}
+    with pytest.raises(SceneError, match=r"^s\.yaml: search") as error:
+        scene_from_dict(data, "s.yaml")
+    assert str(error.value).endswith(problem)
+
+
+# --- through the node over DDS -----------------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def refining_node(tmp_path_factory: pytest.TempPathFactory) -> Iterator[RosClient]:
+    log = tmp_path_factory.mktemp("refine") / "node.log"
+    node = NodeProcess(SCENES / "pyramid.yaml", {"fallback": "refine", "deadline": 0.2}, log, "/refine")
+    client = RosClient("/refine")
+    try:
+        yield client
+    finally:
+        client.close()
+        node.stop()
+
+
+def test_the_node_publishes_the_refined_map_and_says_refine(refining_node: RosClient) -> None:
+    client = refining_node
+    problem = load_problem(PROBLEMS / "pyramid.yaml")
+    c111 = single(*(h.pose(1) for h in problem.hypotheses))
+    stamp_ns = time.time_ns()
+
+    def publish() -> None:
+        for name, hypotheses in zip(problem.scene.object_names, c111, strict=True):
+            client.publish(name, *hypotheses_msgs(hypotheses, frame_id="world", stamp_ns=stamp_ns))
+
+    def refined_published() -> bool:
+        return any(stamp_ns_of(m) == stamp_ns for m in client.settled)
+
+    client.keep_publishing(publish, refined_published, "the refined map")
+    diagnostics = client.next_diagnostics(
+        lambda d: "fallback refine" in (search_status(d) or DiagnosticStatus()).message
+    )
+    status = search_status(diagnostics)
+    assert status is not None and status.level == DiagnosticStatus.WARN
+    assert values(status)["fallback"] == "refine" and values(status)["fallback used"] == "true"
+    with PhysicsChecker(problem.scene) as checker:
+        offline = BranchAndBound(checker, c111, replace(problem.scene.search, fallback="refine")).run(None)
+    assert offline.settled_poses is not None
+    settled = next(m for m in client.settled if stamp_ns_of(m) == stamp_ns)
+    got = [(p.position.x, p.position.y, p.position.z) for p in settled.poses]
+    assert got == [pose.position for pose in offline.settled_poses]  # the same map, bit for bit
+    client.wait_for(lambda: bool(client.markers) and bool(client.markers[-1].markers), what="markers")
+    shapes = [m for m in client.markers[-1].markers if m.ns == SHAPE_NAMESPACE]
+    assert [(m.pose.position.x, m.pose.position.y, m.pose.position.z) for m in shapes] == got
+    orange = pytest.approx((FALLBACK_COLOR.r, FALLBACK_COLOR.g, FALLBACK_COLOR.b), abs=1e-6)  # float32 on the wire
+    assert all((m.color.r, m.color.g, m.color.b) == orange for m in shapes)
