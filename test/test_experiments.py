@@ -184,6 +184,37 @@ def test_fig6_loosened_rules_use_the_same_hypotheses_and_accept_more(reports: tu
     assert loosened["collision_free_searches"] >= data["collision_free_searches"]
 
 
+def test_fig6_refined_map_exists_in_every_search_from_the_same_hypotheses(reports: tuple[Path, str]) -> None:
+    data = summary(reports, "fig6")
+    refine = data["refine"]
+    searches = data["searches"]
+    assert refine["fallback"] == "refine" and refine["maps"] == searches
+    assert refine["valid_searches"] == data["valid_searches"]  # the same search, only the fallback differs
+    assert refine["mean_total_cm"]["without_physics"] == data["mean_total_cm"]["without_physics"]
+    check_comparison(refine, refine["mean_total_cm"])
+    totals = refine["mean_total_cm"]
+    assert math.isclose(refine["reduction_percent"], 100 * (1 - totals["with_physics"] / totals["without_physics"]))
+    assert math.isclose(totals["with_physics"], sum(refine["with_physics"]["total_cm"]) / ITERATIONS)
+    assert refine["start_at_c111"]["weighted_mean_start_vs_c111_start"]["pairs"] == data["runs"]
+    assert "A map in" in (reports[0] / "fig6.md").read_text()
+
+
+def test_fig8_refined_map_exists_in_every_search_from_the_same_hypotheses(reports: tuple[Path, str]) -> None:
+    data = summary(reports, "fig8")
+    refine = data["refine"]
+    searches = data["searches"]
+    assert refine["maps"] == searches and refine["in_groove"] <= searches
+    assert refine["valid_searches"] == data["valid_searches"]
+    assert refine["valid_searches"] + refine["fallback_searches"] == searches
+    assert refine["mean_error_cm"]["without_physics"] == data["mean_error_cm"]["without_physics"]
+    per_iteration = refine["per_iteration_cm"]
+    assert all(
+        xz <= e + 1e-9
+        for xz, e in zip(per_iteration["with_physics_cross_section"], per_iteration["with_physics"], strict=True)
+    )
+    assert math.isclose(refine["mean_error_cm"]["with_physics"], sum(per_iteration["with_physics"]) / ITERATIONS)
+
+
 def test_fig8_summary_is_consistent(reports: tuple[Path, str]) -> None:
     data = summary(reports, "fig8")
     check_tracking_counts(data, sigma_rotation_degrees=10.0)

@@ -38,9 +38,11 @@ SCENES_DIR = Path(__file__).resolve().parents[2] / "config" / "scenes"
 #: the summaries count the searches that did not (expected: none).
 EXHAUSTIVE_DEADLINE = 60.0
 
-#: The colours of the two estimates, as in the paper's plots: without physics blue, with black.
+#: The colours of the two estimates, as in the paper's plots: without physics blue, with black;
+#: the refined map (``fallback: refine``) orange, as the node's markers draw a fallback's map.
 COLOR_WITHOUT_PHYSICS = "tab:blue"
 COLOR_WITH_PHYSICS = "black"
+COLOR_REFINED = "tab:orange"
 
 PNG_DPI = 110
 #: Sideways shift, in iterations, between the lines of an error plot.
@@ -189,6 +191,11 @@ def compare_errors(without: NDArray[np.float64], with_: NDArray[np.float64]) -> 
         "physics_higher": int((difference > 0).sum()),
         "equal": int((difference == 0).sum()),
     }
+
+
+def reduction_percent(without: NDArray[np.float64], with_: NDArray[np.float64]) -> float:
+    """How much lower, in percent, the mean of ``with_`` errors is than the mean of ``without`` errors."""
+    return float(100.0 * (1.0 - with_.mean() / without.mean()))
 
 
 def paired_by_run_test(without: NDArray[np.float64], with_: NDArray[np.float64]) -> dict[str, Any]:
