@@ -34,7 +34,7 @@ from msg_adapters.results import FALLBACK_COLOR, SHAPE_NAMESPACE
 from physics_mapper.core.geometry import Pose, make_pose, quaternion_about_axis, translation_distance
 from physics_mapper.core.hypotheses import RankedHypotheses
 from physics_mapper.core.physics import TIME_STEP, PhysicsChecker
-from physics_mapper.core.refine import OVERLAP_TOLERANCE, RefinedMap, Refinement, refine, refinement_start
+from physics_mapper.core.refine import OVERLAP_TOLERANCE, RefinedMap, Refinement, refine_objects, refinement_start
 from physics_mapper.core.scene import Fallback, Scene, SearchParams
 from physics_mapper.core.scene_files import SceneError, load_problem, scene_from_dict
 from physics_mapper.core.search import BranchAndBound, SearchResult
@@ -51,7 +51,7 @@ def single(*poses: Pose) -> tuple[RankedHypotheses, ...]:
 
 def refined_map(scene: Scene, hypotheses: Sequence[RankedHypotheses], params: SearchParams = REFINE) -> RefinedMap:
     with PhysicsChecker(scene) as checker:
-        return refine(checker, range(len(hypotheses)), hypotheses, params)
+        return refine_objects(checker, range(len(hypotheses)), hypotheses, params)
 
 
 def is_valid_map(scene: Scene, poses: Sequence[Pose], params: SearchParams) -> bool:

@@ -51,7 +51,7 @@ from physics_mapper.core.refine import (
     OVERLAP_TOLERANCE,
     RefinedMap,
     Refinement,
-    refine,
+    refine_objects,
     refinement_start,
 )
 from physics_mapper.core.report import (
@@ -163,7 +163,7 @@ __all__ = [
     "quaternion_about_axis",
     "quaternion_dot",
     "rank_one_poses",
-    "refine",
+    "refine_objects",
     "refinement_dict",
     "refinement_start",
     "refinement_text",

@@ -340,7 +340,7 @@ class Refinement:
         )
 
 
-def refine(
+def refine_objects(
     checker: PhysicsChecker,
     objects: Sequence[int],
     hypotheses: Sequence[RankedHypotheses],
