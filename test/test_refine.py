@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import replace
 from pathlib import Path
 
@@ -114,12 +114,11 @@ def test_a_ball_overlapping_the_groove_ends_at_its_bottom(start: Pose) -> None:
 
 
 def test_a_pyramid_whose_c111_overlaps_is_refined_to_a_standing_pyramid() -> None:
-    problem = load_problem(PROBLEMS / "pyramid.yaml")
-    c111 = single(*(h.pose(1) for h in problem.hypotheses))  # bottom cubes overlap 5 cm, top floats 6 cm
-    params = replace(problem.scene.search, fallback="refine")
-    refined = refined_map(problem.scene, c111, params)
+    scene, c111 = pyramid_c111()
+    params = replace(scene.search, fallback="refine")
+    refined = refined_map(scene, c111, params)
     assert refined.initial_overlap == pytest.approx(0.05) and refined.converged
-    assert is_valid_map(problem.scene, refined.settled_poses, params)  # J_i within 1 cm when settled again
+    assert is_valid_map(scene, refined.settled_poses, params)  # J_i within 1 cm when settled again
     left, right, top = (pose.position for pose in refined.settled_poses)
     assert left[0] < top[0] < right[0] and top[2] == pytest.approx(0.3, abs=0.002)
 
@@ -169,14 +168,27 @@ def test_the_start_is_the_weighted_mean_of_the_hypotheses_near_the_most_likely_o
     assert refinement_start(hypotheses, radius=0.0).position == (0.0, 0.0, 0.1)
 
 
-def test_an_interrupted_refinement_goes_on_where_it_stopped_and_ends_the_same() -> None:
+def pyramid_c111() -> tuple[Scene, tuple[RankedHypotheses, ...]]:
+    """The shipped pyramid with only its C111 as hypotheses: the bottom cubes overlap 5 cm, the top floats."""
     problem = load_problem(PROBLEMS / "pyramid.yaml")
-    c111 = single(*(h.pose(1) for h in problem.hypotheses))
-    params = replace(problem.scene.search, fallback="refine")
-    with PhysicsChecker(problem.scene) as checker:
-        whole = BranchAndBound(checker, c111, params).run(None)
-        search = BranchAndBound(checker, c111, params)
-        runs = [search.run(0.0005) for _ in range(500)]
+    return problem.scene, single(*(h.pose(1) for h in problem.hypotheses))
+
+
+def ball_in_the_block() -> tuple[Scene, tuple[RankedHypotheses, ...]]:
+    """The shipped groove with a ball deep inside its block: it has to escape."""
+    return shipped_scene("sphere_groove.yaml"), single(unrotated(0.06, 0.05, 0.02))
+
+
+@pytest.mark.parametrize("problem", [pyramid_c111, ball_in_the_block], ids=["pyramid C111", "ball in the block"])
+def test_an_interrupted_refinement_goes_on_where_it_stopped_and_ends_the_same(
+    problem: Callable[[], tuple[Scene, tuple[RankedHypotheses, ...]]],
+) -> None:
+    scene, hypotheses = problem()
+    params = replace(scene.search, fallback="refine")
+    with PhysicsChecker(scene) as checker:
+        whole = BranchAndBound(checker, hypotheses, params).run(None)
+        search = BranchAndBound(checker, hypotheses, params)
+        runs = [search.run(0.0002) for _ in range(1000)]
     pieces = [r for r in runs if r.settled_poses is not None]
     assert runs[0].code is None and pieces, "the first run stops early; a later one ends the refinement"
     assert pieces[0].settled_poses == whole.settled_poses and pieces[0].refinement == whole.refinement

@@ -58,7 +58,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.optimize import nnls
 
-from physics_mapper.core.geometry import Pose, Quaternion, Vector3, pose_displacement
+from physics_mapper.core.geometry import Pose, Vector3, pose_displacement
 from physics_mapper.core.hypotheses import RankedHypotheses
 from physics_mapper.core.physics import TIME_STEP, PartialSettling, PhysicsChecker, Proximity, Settling
 from physics_mapper.core.scene import SearchParams
@@ -129,6 +129,11 @@ class RefinedMap:
 def _deepest_overlap(proximities: Sequence[Proximity]) -> float:
     """The deepest overlap among the pairs, metres (0 when none overlaps)."""
     return max([0.0, *(-p.distance for p in proximities)])
+
+
+def _stuck_in_statics(proximities: Sequence[Proximity]) -> list[int]:
+    """The objects (scene indices, sorted) overlapping a static body by more than :data:`OVERLAP_TOLERANCE`."""
+    return sorted({p.first for p in proximities if p.second is None and -p.distance > OVERLAP_TOLERANCE})
 
 
 def _least_distance(constraints: FloatArray, bounds: FloatArray) -> FloatArray | None:
@@ -207,6 +212,7 @@ class Refinement:
         self._starts = np.array([pose.position for pose in self.start], dtype=float)
         self._positions = self._starts.copy()
         self._iterations = 0
+        self._escape_steps = 0  # speed-cap steps the objects stuck in static bodies have marched out
         self._initial_overlap: float | None = None
         self._depenetrated: tuple[tuple[Pose, ...], bool, float] | None = None
         self._settling: PartialSettling | None = None
@@ -234,7 +240,11 @@ class Refinement:
         return self._result
 
     def _depenetrate(self, stop_at: float | None) -> bool:
-        """Iterate the depenetration until it ends (True) or ``stop_at`` passes (False)."""
+        """Iterate the depenetration until it ends (True) or ``stop_at`` passes (False).
+
+        An iteration is one least-distance step or, when no translation meets the linearised
+        constraints, one step of the escape of the objects stuck in static bodies.
+        """
         margin = 2.0 * self.max_step  # two objects each moving one step towards each other
         while True:
             poses = self._poses()
@@ -242,60 +252,52 @@ class Refinement:
             overlap = _deepest_overlap(proximities)
             if self._initial_overlap is None:
                 self._initial_overlap = overlap
-            if overlap <= OVERLAP_TOLERANCE or self._iterations >= MAX_ITERATIONS:
-                self._depenetrated = (poses, overlap <= OVERLAP_TOLERANCE, overlap)
+            converged = overlap <= OVERLAP_TOLERANCE
+            if converged or self._iterations >= MAX_ITERATIONS:
+                self._depenetrated = (poses, converged, overlap)
                 return True
             step = _step(proximities, self._slots, self._positions - self._starts)
+            stuck = _stuck_in_statics(proximities)
+            if step is None and not stuck:  # no translation fits, and no escape would help
+                self._depenetrated = (poses, False, overlap)
+                return True
             if step is not None:
                 largest = float(np.linalg.norm(step, axis=1).max())
                 if largest > self.max_step:
                     step *= self.max_step / largest
                 self._positions = self._positions + step
-                self._iterations += 1
-            elif not self._escape(proximities):
-                self._depenetrated = (poses, False, overlap)
-                return True
+                self._escape_steps = 0
+            else:
+                self._escape_steps += 1
+                for index in stuck:
+                    self._escape(index, self._escape_steps * self.max_step)
+            self._iterations += 1
             if stop_at is not None and time.monotonic() >= stop_at:
                 return False
 
-    def _escape(self, proximities: Sequence[Proximity]) -> bool:
-        """Move every object overlapping a static body out of the static bodies; False if none could."""
-        stuck = sorted({p.first for p in proximities if p.second is None and -p.distance > OVERLAP_TOLERANCE})
-        escaped = False
-        for index in stuck:
-            slot = self._slots[index]
-            found = self._escape_route(index, self._positions[slot], self.start[slot].orientation)
-            if found is not None:
-                self._positions[slot] = found
-                escaped = True
-        return escaped
+    def _escape(self, index: int, reach: float) -> None:
+        """Move object ``index`` out of the static bodies if that is possible within ``reach`` metres.
 
-    def _escape_route(self, index: int, position: FloatArray, orientation: Quaternion) -> FloatArray | None:
-        """The nearest position along :data:`ESCAPE_DIRECTIONS` where the object overlaps no static body.
-
-        Counts one iteration per step of the speed cap travelled; None if none is free within the
-        iterations left.
+        The escape marches all :data:`ESCAPE_DIRECTIONS` out together, one speed-cap step per
+        iteration (every shorter reach was tried by the iterations before), and takes the first
+        free direction in their order; the last step is bisected down to :data:`OVERLAP_TOLERANCE`.
         """
+        slot = self._slots[index]
+        position, orientation = self._positions[slot].copy(), self.start[slot].orientation
 
         def free(distance: float, direction: Vector3) -> bool:
             x, y, z = position + distance * np.asarray(direction)
             pose = Pose((float(x), float(y), float(z)), orientation)
             return self.checker.static_overlap(index, pose) <= OVERLAP_TOLERANCE
 
-        step, steps_out = self.max_step, 0
-        while self._iterations < MAX_ITERATIONS:
-            self._iterations += 1
-            steps_out += 1
-            reach = steps_out * step
-            direction = next((d for d in ESCAPE_DIRECTIONS if free(reach, d)), None)
-            if direction is not None:
-                inside, outside = reach - step, reach
-                while outside - inside > OVERLAP_TOLERANCE:
-                    middle = (inside + outside) / 2.0
-                    inside, outside = (inside, middle) if free(middle, direction) else (middle, outside)
-                found: FloatArray = position + outside * np.asarray(direction)
-                return found
-        return None
+        direction = next((d for d in ESCAPE_DIRECTIONS if free(reach, d)), None)
+        if direction is None:
+            return
+        inside, outside = max(0.0, reach - self.max_step), reach
+        while outside - inside > OVERLAP_TOLERANCE:
+            middle = (inside + outside) / 2.0
+            inside, outside = (inside, middle) if free(middle, direction) else (middle, outside)
+        self._positions[slot] = position + outside * np.asarray(direction)
 
     def _settle(self, stop_at: float | None) -> bool:
         """Settle the depenetrated poses, speeds capped, until done (True) or ``stop_at`` passes (False)."""
