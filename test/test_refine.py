@@ -198,6 +198,20 @@ def test_an_interrupted_refinement_goes_on_where_it_stopped_and_ends_the_same(
 # --- the search and its outputs ------------------------------------------------------------------------
 
 
+def test_fallback_switched_to_refine_mid_search_makes_the_map_without_revisiting_nodes() -> None:
+    scene, c111 = pyramid_c111()
+    with PhysicsChecker(scene) as checker:
+        search = BranchAndBound(checker, c111, replace(scene.search, fallback="none"))
+        nothing = search.run(None)
+        search.params = replace(search.params, fallback="refine")  # as the node does at its next tick
+        refined = search.run(None)
+        search.params = replace(search.params, fallback="none")
+        again = search.run(None)
+    assert nothing.code is None and again.code is None and nothing.stats.exhausted
+    assert refined.fallback == "refine" and refined.settled_poses is not None
+    assert refined.trace == nothing.trace and refined.stats.visited == nothing.stats.visited == 1
+
+
 @pytest.mark.parametrize("name", ["stack", "pyramid"])
 def test_a_valid_configuration_is_reported_exactly_as_without_refine(name: str) -> None:
     problem = load_problem(PROBLEMS / f"{name}.yaml")
