@@ -13,12 +13,10 @@ from __future__ import annotations
 
 import argparse
 import math
-import statistics
-import time
-from collections.abc import Callable
 
 import numpy as np
 
+from physics_mapper.bench.physics_costs import median_seconds
 from physics_mapper.core.geometry import Pose
 from physics_mapper.core.hypotheses import Hypothesis, RankedHypotheses
 from physics_mapper.core.physics import PhysicsChecker
@@ -43,15 +41,6 @@ def grid_problem(count: int, rng: np.random.Generator) -> tuple[Scene, tuple[Ran
         pose = Pose((float(x + dx), float(y + dy), float(z + dz)))
         hypotheses.append(RankedHypotheses.from_weighted([Hypothesis(pose, 1.0)]))
     return scene, tuple(hypotheses)
-
-
-def median_seconds(action: Callable[[], object], repeats: int) -> float:
-    samples = []
-    for _ in range(repeats):
-        start = time.perf_counter()
-        action()
-        samples.append(time.perf_counter() - start)
-    return statistics.median(samples)
 
 
 def measure(count: int, rng: np.random.Generator, repeats: int) -> str:

@@ -195,7 +195,7 @@ def test_fig6_refined_map_exists_in_every_search_from_the_same_hypotheses(report
     totals = refine["mean_total_cm"]
     assert math.isclose(refine["reduction_percent"], 100 * (1 - totals["with_physics"] / totals["without_physics"]))
     assert math.isclose(totals["with_physics"], sum(refine["with_physics"]["total_cm"]) / ITERATIONS)
-    assert refine["start_at_c111"]["weighted_mean_start_vs_c111_start"]["pairs"] == data["runs"]
+    assert refine["start_at_most_likely"]["weighted_mean_start_vs_most_likely_start"]["pairs"] == data["runs"]
     assert "A map in" in (reports[0] / "fig6.md").read_text()
 
 

@@ -54,11 +54,12 @@ from physics_mapper.experiments.common import (
     ExperimentOutput,
     compare_errors,
     load_experiment_scene,
+    most_likely_start,
     new_figure,
-    paired_by_run_test,
     plot_mean_errors,
     reduction_percent,
     reproduce_command,
+    spread_text,
     tests_text,
     write_outputs,
 )
@@ -240,12 +241,7 @@ def refine_summary(
         **physics_summary(refined),
         "maps": int((~refined.no_estimate).sum()),
         "reduction_percent": reduction_percent(without_total, mean_start),
-        "start_at_c111": {
-            "refine_mean_radius_m": 0.0,
-            "mean_total_cm": float(c111_start.mean()),
-            "reduction_percent": reduction_percent(without_total, c111_start),
-            "weighted_mean_start_vs_c111_start": paired_by_run_test(c111_start, mean_start),
-        },
+        "start_at_most_likely": most_likely_start(without_total, mean_start, c111_start),
     }
 
 
@@ -319,18 +315,6 @@ def refine_method_text(refine: dict[str, Any]) -> str:
         f"started at each cube's weighted mean of its hypotheses within {100 * refine['refine_mean_radius_m']:g} cm "
         f"of the most likely one, overlaps resolved with the least motion at most "
         f"{refine['refine_max_speed_m_s']:g} m/s, then settled"
-    )
-
-
-def spread_text(refine: dict[str, Any]) -> str:
-    """What starting at the hypotheses' weighted mean rather than at C111 gave (issue 9, point 2)."""
-    start = refine["start_at_c111"]
-    paired = start["weighted_mean_start_vs_c111_start"]
-    return (
-        f"Using the hypotheses' spread: refined from C111 itself (`refine_mean_radius: 0`) the total error is "
-        f"{start['mean_total_cm']:.2f} cm ({start['reduction_percent']:.1f} % below C111); starting at the weighted "
-        f"mean lowers it to {refine['mean_total_cm']['with_physics']:.2f} cm, lower in {paired['runs_physics_lower']} "
-        f"of {paired['pairs']} runs (paired Wilcoxon p = {paired['p_value']:.2g})."
     )
 
 
@@ -434,7 +418,7 @@ iterations pooled, which treats them as independent and unpaired, is given for c
 - The refined map (`fallback: refine`, the scene's rules): {means_text(refine, "refined map")},
   {refine["reduction_percent"]:.1f} % lower. Tests: {tests_text(refine, "refined map")}.
   A map in {refine["maps"]} of {searches} searches ({percent(refine["maps"], searches)}).
-- {spread_text(refine)}
+- {spread_text(refine["start_at_most_likely"], refine["mean_total_cm"]["with_physics"], "C111", "total error")}
 - Spread of a cube's {summary["top_m"]} hypotheses: {spread["rms_from_mean"]:.2f} cm RMS from their mean
   ({spread["rms_pairwise"]:.2f} cm RMS between pairs), against a mean error of {mean_error:.2f} cm per cube.
 

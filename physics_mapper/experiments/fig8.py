@@ -48,11 +48,12 @@ from physics_mapper.experiments.common import (
     compare_errors,
     draw_static_section,
     load_experiment_scene,
+    most_likely_start,
     new_figure,
-    paired_by_run_test,
     plot_mean_errors,
     reduction_percent,
     reproduce_command,
+    spread_text,
     tests_text,
     write_outputs,
 )
@@ -195,13 +196,10 @@ def refine_summary(
         "fallback_searches": int(refined.fallback_used.sum()),
         "maps": int((~refined.no_estimate).sum()),
         "in_groove": int(in_groove.sum()),
-        "start_at_c1": {
-            "refine_mean_radius_m": 0.0,
-            "mean_error_cm": float(c1_start.mean()),
+        "start_at_most_likely": {
+            **most_likely_start(without, with_, c1_start),
             "mean_cross_section_error_cm": float(c1_start_xz.mean()),
-            "reduction_percent": reduction_percent(without, c1_start),
             "cross_section_reduction_percent": reduction_percent(without_xz, c1_start_xz),
-            "weighted_mean_start_vs_c1_start": paired_by_run_test(c1_start, with_),
         },
     }
 
@@ -268,20 +266,6 @@ def run(options: ExperimentOptions) -> ExperimentOutput:
     }
     figure = draw(scene, (outcome, refined), (without_xz, with_xz, refined_xz), summary)
     return write_outputs(options.output_dir, NAME, figure, summary, markdown(summary, options))
-
-
-def spread_text(refine: dict[str, Any]) -> str:
-    """What starting at the hypotheses' weighted mean rather than at C1 gave (issue 9, point 2)."""
-    start = refine["start_at_c1"]
-    paired = start["weighted_mean_start_vs_c1_start"]
-    return (
-        f"Using the hypotheses' spread: refined from C1 itself (`refine_mean_radius: 0`), e = "
-        f"{start['mean_error_cm']:.2f} cm ({start['reduction_percent']:.1f} % below C1) and e_xz = "
-        f"{start['mean_cross_section_error_cm']:.2f} cm ({start['cross_section_reduction_percent']:.1f} %); "
-        f"starting at "
-        f"the weighted mean gives e = {refine['mean_error_cm']['with_physics']:.2f} cm, lower in "
-        f"{paired['runs_physics_lower']} of {paired['pairs']} runs (paired Wilcoxon p = {paired['p_value']:.2g})."
-    )
 
 
 def markdown(summary: dict[str, Any], options: ExperimentOptions) -> str:
@@ -362,7 +346,9 @@ iterations pooled.
   below C1. Tests on e: {tests_text(refine, "refined map")}. A map in {refine["maps"]} of {searches} searches; the
   ball lies in the groove (within {100 * IN_GROOVE_TOLERANCE:g} cm in x and z) in {refine["in_groove"]}, elsewhere
   (beyond the groove's ends on the floor, or not yet at rest) in {searches - refine["in_groove"]}.
-- {spread_text(refine)}
+- {spread_text(refine["start_at_most_likely"], refine["mean_error_cm"]["with_physics"], "C1", "error e")}
+  In the cross-section: {refine["start_at_most_likely"]["mean_cross_section_error_cm"]:.2f} cm from C1, against
+  {refine["mean_cross_section_error_cm"]["with_physics"]:.2f} cm from the weighted mean.
 
 ## Compared with the paper
 - The paper reports a much lower error for the simulated estimate than for C1 (its Fig. 8, no numbers in the
