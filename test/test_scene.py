@@ -8,15 +8,20 @@ from __future__ import annotations
 
 import copy
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import pytest
 import yaml
-from conftest import PROBLEMS, SCENES
+from conftest import PROBLEMS, REPO, SCENES
 from core_builders import cli
 
+from physics_mapper.cli import main
+from physics_mapper.core.errors import EXIT_BAD_INPUT
+from physics_mapper.core.limits import MAX_FILE_BYTES, MAX_HYPOTHESES_PER_OBJECT, MAX_NAME_LENGTH, MAX_YAML_DEPTH
+from physics_mapper.core.scene import Box
 from physics_mapper.core.scene_files import SceneError, load_problem, load_scene
 from physics_mapper.mapping.inputs import InputSettings
 from physics_mapper.mapping.mapper import MapperSettings, mapper_settings_problem
@@ -53,11 +58,11 @@ class BadFile:
     change: Key = ()
     value: Any = None
     delete: bool = False
-    raw_text: str | None = None  # the file's whole text instead of a changed valid_problem()
+    raw: bytes | None = None  # the file's whole content instead of a changed valid_problem()
 
-    def text(self) -> str:
-        if self.raw_text is not None:
-            return self.raw_text
+    def content(self) -> bytes:
+        if self.raw is not None:
+            return self.raw
         data = valid_problem()
         *parents, last = self.change
         target: Any = data
@@ -67,7 +72,7 @@ class BadFile:
             del target[last]
         else:
             target[last] = copy.deepcopy(self.value)
-        return yaml.safe_dump(data, sort_keys=False)
+        return yaml.safe_dump(data, sort_keys=False).encode()
 
 
 BAD_FILES = {
@@ -91,8 +96,8 @@ BAD_FILES = {
     "Inf mass": BadFile("objects[0].mass", "must be finite, got inf", ("objects", 0, "mass"), math.inf),
     "unknown top-level key": BadFile("gravity", "unknown key (expected one of: ", ("gravity",), -9.81),
     "unknown object key": BadFile("objects[0].colour", "unknown key", ("objects", 0, "colour"), "red"),
-    "bad YAML": BadFile("", "not valid YAML at line 2, column 10", raw_text="frame_id: world\nobjects: : x\n"),
-    "not a mapping": BadFile("", "must be a mapping, got ['cube_a']", raw_text="- cube_a\n"),
+    "bad YAML": BadFile("", "not valid YAML at line 2, column 10", raw=b"frame_id: world\nobjects: : x\n"),
+    "not a mapping": BadFile("", "must be a mapping, got ['cube_a']", raw=b"- cube_a\n"),
     "missing objects": BadFile("objects", "missing", ("objects",), delete=True),
     "non-unit quaternion": BadFile(
         "hypotheses.cube_a[0].orientation",
@@ -126,6 +131,31 @@ BAD_FILES = {
         "search.fallback", "must be one of none, settled, refine, got 'guess'", ("search", "fallback"), "guess"
     ),
     "unknown search key": BadFile("search.timeout", "unknown key", ("search", "timeout"), 1.0),
+    "not UTF-8": BadFile("", "not UTF-8 text (byte 0xe9 at line 2, column 12)", raw=b"# x\nframe_id: w\xe9rld\n"),
+    "NUL character": BadFile("", "not valid YAML: unacceptable character #x0000", raw=b"frame_id: w\x00rld\n"),
+    "deeply nested lists": BadFile(
+        "", f"nested deeper than {MAX_YAML_DEPTH} levels", raw=b"objects: " + b"[" * 5000 + b"]" * 5000 + b"\n"
+    ),
+    "deeply nested mappings": BadFile(
+        "", f"nested deeper than {MAX_YAML_DEPTH} levels", raw=b"objects: " + b"{a: " * 5000 + b"}" * 5000 + b"\n"
+    ),
+    "larger than the cap": BadFile(
+        "", f"larger than the {MAX_FILE_BYTES // 2**20} MiB allowed", raw=b"#" * MAX_FILE_BYTES + b"\n"
+    ),
+    # Aliases nest 10 levels of 10: a value of 10^10 strings, which an error must not print whole.
+    "alias bomb as a name": BadFile(
+        "frame_id",
+        "must be a non-empty string, got [['x', 'x', 'x', 'x', ...], [[...], [...], [...], [...], ...], [[...],",
+        raw=b"frame_id: [&l0 [x, x, x, x, x, x, x, x, x, x], "
+        + b", ".join(b"&l%d [" % k + b", ".join([b"*l%d" % (k - 1)] * 10) + b"]" for k in range(1, 10))
+        + b"]\n",
+    ),
+    "overlong name": BadFile(
+        "objects[0].name",
+        f"longer than {MAX_NAME_LENGTH} characters",
+        ("objects", 0, "name"),
+        "cube" * MAX_NAME_LENGTH,
+    ),
 }
 
 
@@ -133,7 +163,7 @@ BAD_FILES = {
 def bad_file(request: pytest.FixtureRequest, tmp_path: Path) -> tuple[Path, BadFile]:
     case = BAD_FILES[request.param]
     path = tmp_path / "problem.yaml"
-    path.write_text(case.text(), encoding="utf-8")
+    path.write_bytes(case.content())
     return path, case
 
 
@@ -211,6 +241,106 @@ def test_problem_search_overrides_merge_with_the_scene_and_are_validated(tmp_pat
     with pytest.raises(SceneError) as raised:
         load_problem(path)
     assert (raised.value.key, raised.value.problem) == ("search.angular_weight", "must be at least 0, got -0.1")
+
+
+def test_numbers_are_read_in_every_usual_spelling(tmp_path: Path) -> None:
+    """YAML 1.1 reads 1e-4 and 1E+9 as strings; files take them as people write them (issue 12, point 4)."""
+    path = tmp_path / "problem.yaml"
+    path.write_text(
+        "objects:\n"
+        "  - {name: cube_a, shape: box, size: [1e-1, 1E-1, .1], mass: 3e-1, friction: 8E-1}\n"
+        "search: {probability_threshold: 1e-4, deadline: 1E+1, settle_time: .5, jitter_threshold: 1.0e-2,"
+        " angular_weight: +1e-1, penetration_threshold: 5e-3}\n"
+        "hypotheses:\n"
+        "  cube_a: [{position: [0, 0, 5e-2], weight: 1E+0}, {position: [-.5e-1, 1.0e0, 5E-2], weight: 2e0}]\n",
+        encoding="utf-8",
+    )
+    problem = load_problem(path)
+    search = problem.scene.search
+    assert (search.probability_threshold, search.deadline, search.settle_time) == (1e-4, 10.0, 0.5)
+    assert (search.jitter_threshold, search.angular_weight, search.penetration_threshold) == (0.01, 0.1, 0.005)
+    model = problem.scene.objects[0]
+    assert (model.shape, model.mass, model.friction) == (Box((0.1, 0.1, 0.1)), 0.3, 0.8)
+    assert [h.pose.position for h in problem.hypotheses[0].hypotheses] == [(-0.05, 1.0, 0.05), (0.0, 0.0, 0.05)]
+
+
+def test_strings_that_only_look_like_numbers_stay_strings(tmp_path: Path) -> None:
+    path = tmp_path / "scene.yaml"
+    path.write_text("frame_id: 1e5x\nobjects: [{name: 1.5e, shape: sphere, radius: 1e-1}]\n", encoding="utf-8")
+    scene = load_scene(path)
+    assert (scene.frame_id, scene.objects[0].name) == ("1e5x", "1.5e")
+
+
+def test_more_hypotheses_than_the_cap_keep_the_heaviest_with_a_note(tmp_path: Path) -> None:
+    data = valid_problem()
+    count = MAX_HYPOTHESES_PER_OBJECT + 20
+    data["hypotheses"]["cube_b"] = [{"position": [0.5, 0.001 * i, 0.05], "weight": 1.0 + i} for i in range(count)]
+    path = tmp_path / "problem.yaml"
+    path.write_text(yaml.safe_dump(data), encoding="utf-8")
+    problem = load_problem(path)
+    kept = problem.hypotheses[1]
+    assert len(kept) == MAX_HYPOTHESES_PER_OBJECT
+    assert kept.pose(1).position == (0.5, 0.001 * (count - 1), 0.05)  # the heaviest, ranked first
+    assert problem.notes == (
+        f"{path}: hypotheses.cube_b: kept the {MAX_HYPOTHESES_PER_OBJECT} heaviest of {count} hypotheses",
+    )
+    completed = cli("solve", path)
+    assert completed.returncode == 0
+    assert completed.stderr == f"physics-mapper solve: warning: {problem.notes[0]}\n"
+
+
+#: Files no YAML parser should be handed whole: each must give one error line naming the file, exit 2.
+UNREADABLE = {
+    "not-UTF-8": (b"frame_id: w\xe9rld\n", "not UTF-8 text (byte 0xe9 at line 1, column 12)"),
+    "nested-5000-deep": (
+        b"objects: " + b"[" * 5000 + b"]" * 5000 + b"\n",
+        f"not valid YAML at line 1, column 41: nested deeper than {MAX_YAML_DEPTH} levels",
+    ),
+}
+#: Every subcommand that reads a scene or problem file, as arguments around that file's path.
+FILE_COMMANDS: dict[str, Callable[[Path, Path], list[str]]] = {
+    "solve": lambda bad, tmp: ["solve", str(bad)],
+    "solve, problem naming the scene": lambda bad, tmp: ["solve", str(problem_naming(bad, tmp))],
+    "publish": lambda bad, tmp: ["publish", str(bad)],
+    "bench": lambda bad, tmp: ["bench", str(bad)],
+    "generate": lambda bad, tmp: ["generate", str(bad), "-o", str(tmp / "bag")],
+    "replay --offline": lambda bad, tmp: ["replay", str(REPO / "test/data/pyramid"), "--scene", str(bad), "--offline"],
+    "replay": lambda bad, tmp: ["replay", str(REPO / "test/data/pyramid"), "--scene", str(bad)],
+    "demo": lambda bad, tmp: ["demo", "--scene", str(bad)],
+    "experiment": lambda bad, tmp: ["experiment", "peg", "--scenes", str(bad.parent), "-o", str(tmp / "reports")],
+}
+
+
+def problem_naming(scene: Path, folder: Path) -> Path:
+    problem = folder / "problem.yaml"
+    problem.write_text(f"scene: {scene}\nhypotheses: {{}}\n", encoding="utf-8")
+    return problem
+
+
+@pytest.mark.parametrize("content", sorted(UNREADABLE))
+@pytest.mark.parametrize("command", sorted(FILE_COMMANDS))
+def test_every_command_reports_an_unreadable_file_in_one_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], command: str, content: str
+) -> None:
+    raw, problem = UNREADABLE[content]
+    bad = tmp_path / "scenes" / "peg_in_hole.yaml"  # the name `experiment peg` reads from --scenes
+    bad.parent.mkdir()
+    bad.write_bytes(raw)
+    arguments = FILE_COMMANDS[command](bad, tmp_path)
+    assert main(arguments) == EXIT_BAD_INPUT
+    captured = capsys.readouterr()
+    assert captured.err == f"physics-mapper {arguments[0]}: error: {bad}: {problem}\n"
+
+
+@pytest.mark.parametrize("content", sorted(UNREADABLE))
+def test_the_node_reports_an_unreadable_scene_file_in_one_line(tmp_path: Path, content: str) -> None:
+    raw, problem = UNREADABLE[content]
+    bad = tmp_path / "scene.yaml"
+    bad.write_bytes(raw)
+    completed = cli("node", "--ros-args", "-p", f"scene_file:={bad}")
+    assert completed.returncode == EXIT_BAD_INPUT
+    lines = [line for line in completed.stderr.splitlines() if not line.startswith("pybullet build time")]
+    assert lines == [f"physics_mapper node: error: {bad}: {problem}"]
 
 
 @pytest.mark.parametrize("path", sorted(SCENES.glob("*.yaml")), ids=lambda p: p.stem)

@@ -5,8 +5,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from physics_mapper.commands import load_problem_file
 from physics_mapper.core.errors import InputError
-from physics_mapper.core.scene_files import load_problem
 
 HELP = "time the physics checks (Rule 1, Rule 2, rebuilt world) and an exhaustive search on a problem file"
 
@@ -25,7 +25,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     if args.repeats < 1:
         raise InputError(f"--repeats must be at least 1, got {args.repeats}")
-    problem = load_problem(args.problem)
+    problem = load_problem_file(args.problem, "bench")
     from physics_mapper.bench.physics_costs import costs_text, measure
 
     scene = problem.scene

@@ -5,8 +5,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from physics_mapper.commands import load_problem_file
 from physics_mapper.core.errors import InputError
-from physics_mapper.core.scene_files import load_problem
 
 #: Seconds to keep the process alive after the last round, so that it is delivered.
 LINGER = 0.3
@@ -35,7 +35,7 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(f"--rate must be positive, got {args.rate:g}")
     if args.count < 0:
         raise InputError(f"--count must not be negative, got {args.count}")
-    problem = load_problem(args.problem)
+    problem = load_problem_file(args.problem, "publish")
 
     import rclpy
     from rclpy.exceptions import InvalidNamespaceException

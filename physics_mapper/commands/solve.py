@@ -7,11 +7,11 @@ import json
 from dataclasses import replace
 from pathlib import Path
 
+from physics_mapper.commands import load_problem_file
 from physics_mapper.core.errors import InputError
 from physics_mapper.core.physics import PhysicsChecker
 from physics_mapper.core.report import result_dict, result_summary, trace_entry_dict, trace_tree
 from physics_mapper.core.scene import search_params_problem
-from physics_mapper.core.scene_files import load_problem
 from physics_mapper.core.search import solve
 
 HELP = "search a problem file (scene + hypotheses) for the best physically valid configuration"
@@ -28,7 +28,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    problem = load_problem(args.problem)
+    problem = load_problem_file(args.problem, "solve")
     params = problem.scene.search
     if args.deadline is not None:
         params = replace(params, deadline=args.deadline)

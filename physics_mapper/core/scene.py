@@ -120,10 +120,15 @@ class Scene:
 
 @dataclass(frozen=True)
 class Problem:
-    """A scene and, for each of its objects in order, ranked hypotheses."""
+    """A scene and, for each of its objects in order, ranked hypotheses.
+
+    ``notes`` say what loading the problem's file changed, each as ``file: key: what`` (an object
+    with more hypotheses than a file may bring keeps the heaviest).
+    """
 
     scene: Scene
     hypotheses: tuple[RankedHypotheses, ...]
+    notes: tuple[str, ...] = ()
 
 
 #: Inclusive range of each numeric search parameter: checked for files and for the node's

@@ -1,21 +1,28 @@
 """Scene and problem files: YAML loaded and validated into the scene model (SPEC section 3).
 
 Every error names the file, the key path and the problem (:class:`SceneError`), so a bad file
-gives one clear line and never a traceback.
+gives one clear line and never a traceback. Files are read by :func:`~physics_mapper.core.yaml_files.read_yaml`
+(size and nesting caps, UTF-8, YAML 1.2 float spellings); text quoted from a file is clipped to
+:data:`~physics_mapper.core.limits.MAX_QUOTED_TEXT` characters.
 """
 
 from __future__ import annotations
 
 import math
+import reprlib
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import fields, replace
 from pathlib import Path
 from typing import Any, TypeVar
 
-import yaml
-
 from physics_mapper.core.geometry import IDENTITY, ORIGIN, Pose, make_pose
 from physics_mapper.core.hypotheses import Hypothesis, RankedHypotheses
+from physics_mapper.core.limits import (
+    MAX_COORDINATE,
+    MAX_HYPOTHESES_PER_OBJECT,
+    MAX_NAME_LENGTH,
+    MAX_QUOTED_TEXT,
+)
 from physics_mapper.core.scene import (
     FALLBACKS,
     OBJECT_SHAPES,
@@ -32,28 +39,31 @@ from physics_mapper.core.scene import (
     StaticBody,
     search_params_problem,
 )
+from physics_mapper.core.yaml_files import FileError, read_yaml
 
 T = TypeVar("T")
 
 
-class SceneError(ValueError):
+class SceneError(FileError):
     """A scene or problem file is invalid: names the file, the key and the problem."""
-
-    def __init__(self, source: str, key: str, problem: str) -> None:
-        super().__init__(f"{source}: {key}: {problem}" if key else f"{source}: {problem}")
-        self.source = source
-        self.key = key
-        self.problem = problem
 
 
 class _Reader:
-    """Typed access to YAML values that raises :class:`SceneError` naming the key path."""
+    """Typed access to YAML values that raises :class:`SceneError` naming the key path.
+
+    ``notes`` collects what was accepted with a change (a capped hypothesis list), each as
+    ``file: key: what``.
+    """
 
     def __init__(self, source: str) -> None:
         self.source = source
+        self.notes: list[str] = []
 
     def fail(self, key: str, problem: str) -> SceneError:
         return SceneError(self.source, key, problem)
+
+    def note(self, key: str, what: str) -> None:
+        self.notes.append(f"{self.source}: {key}: {what}")
 
     def mapping(self, value: Any, key: str) -> Mapping[str, Any]:
         if not isinstance(value, Mapping):
@@ -65,27 +75,45 @@ class _Reader:
             raise self.fail(key, f"must be a list, got {_show(value)}")
         return value
 
-    def number(self, value: Any, key: str, *, positive: bool = False, minimum: float | None = None) -> float:
+    def number(
+        self,
+        value: Any,
+        key: str,
+        *,
+        positive: bool = False,
+        minimum: float | None = None,
+        magnitude: float | None = None,
+    ) -> float:
+        """A finite number; ``magnitude``: the largest absolute value allowed."""
         if isinstance(value, bool) or not isinstance(value, int | float):
             raise self.fail(key, f"must be a number, got {_show(value)}")
-        number = float(value)
+        try:
+            number = float(value)
+        except OverflowError:  # an integer beyond any float
+            raise self.fail(key, f"must be finite, got {_show(value)}") from None
         if not math.isfinite(number):
             raise self.fail(key, f"must be finite, got {number}")
         if positive and number <= 0.0:
             raise self.fail(key, f"must be positive, got {number:g}")
         if minimum is not None and number < minimum:
             raise self.fail(key, f"must be at least {minimum:g}, got {number:g}")
+        if magnitude is not None and abs(number) > magnitude:
+            raise self.fail(key, f"must be within +-{magnitude:g} m (where the physics is trusted), got {number:g}")
         return number
 
-    def vector(self, value: Any, key: str, length: int, *, positive: bool = False) -> tuple[float, ...]:
+    def vector(
+        self, value: Any, key: str, length: int, *, positive: bool = False, magnitude: float | None = None
+    ) -> tuple[float, ...]:
         items = self.sequence(value, key)
         if len(items) != length:
             raise self.fail(key, f"must have {length} numbers, got {len(items)}")
-        return tuple(self.number(v, f"{key}[{i}]", positive=positive) for i, v in enumerate(items))
+        return tuple(self.number(v, f"{key}[{i}]", positive=positive, magnitude=magnitude) for i, v in enumerate(items))
 
     def name(self, value: Any, key: str) -> str:
         if not isinstance(value, str) or not value:
             raise self.fail(key, f"must be a non-empty string, got {_show(value)}")
+        if len(value) > MAX_NAME_LENGTH:
+            raise self.fail(key, f"longer than {MAX_NAME_LENGTH} characters: {_show(value)}")
         return value
 
     def known_keys(self, data: Mapping[str, Any], key: str, allowed: Sequence[str]) -> None:
@@ -100,15 +128,22 @@ class _Reader:
         return data[name]
 
 
+# Shows a value's start without walking all of it: aliases can make a small file hold a huge value.
+_SHORT_REPR = reprlib.Repr()
+_SHORT_REPR.maxlevel, _SHORT_REPR.maxlist, _SHORT_REPR.maxdict = 2, 4, 4
+_SHORT_REPR.maxstring = _SHORT_REPR.maxother = MAX_QUOTED_TEXT
+
+
 def _show(value: Any) -> str:
-    text = repr(value)
-    return text if len(text) <= 60 else text[:57] + "..."
+    text = _SHORT_REPR.repr(value)
+    return text if len(text) <= MAX_QUOTED_TEXT else text[: MAX_QUOTED_TEXT - 3] + "..."
 
 
-def _read_pose(reader: _Reader, value: Any, key: str) -> Pose:
+def _read_pose(reader: _Reader, value: Any, key: str, magnitude: float | None = MAX_COORDINATE) -> Pose:
+    """A pose; ``magnitude`` bounds its coordinates (None: unbounded here, checked by the caller)."""
     data = reader.mapping(value, key)
     reader.known_keys(data, key, ("position", "orientation"))
-    position = reader.vector(reader.required(data, "position", key), f"{key}.position", 3)
+    position = reader.vector(reader.required(data, "position", key), f"{key}.position", 3, magnitude=magnitude)
     orientation = reader.vector(data.get("orientation", list(IDENTITY)), f"{key}.orientation", 4)
     try:
         return make_pose(position, orientation)
@@ -116,18 +151,21 @@ def _read_pose(reader: _Reader, value: Any, key: str) -> Pose:
         raise reader.fail(f"{key}.orientation", str(error)) from None
 
 
+_SIZE: dict[str, Any] = {"positive": True, "magnitude": MAX_COORDINATE}
+
+
 def _read_shape(reader: _Reader, data: Mapping[str, Any], key: str, allowed: Sequence[str]) -> Shape:
     kind = reader.required(data, "shape", key)
     if kind not in allowed:
         raise reader.fail(f"{key}.shape", f"unknown shape {_show(kind)} (expected one of: {', '.join(allowed)})")
     if kind == "box":
-        size = reader.vector(reader.required(data, "size", key), f"{key}.size", 3, positive=True)
+        size = reader.vector(reader.required(data, "size", key), f"{key}.size", 3, **_SIZE)
         return Box((size[0], size[1], size[2]))
     if kind == "sphere":
-        return Sphere(reader.number(reader.required(data, "radius", key), f"{key}.radius", positive=True))
+        return Sphere(reader.number(reader.required(data, "radius", key), f"{key}.radius", **_SIZE))
     if kind == "cylinder":
-        radius = reader.number(reader.required(data, "radius", key), f"{key}.radius", positive=True)
-        length = reader.number(reader.required(data, "length", key), f"{key}.length", positive=True)
+        radius = reader.number(reader.required(data, "radius", key), f"{key}.radius", **_SIZE)
+        length = reader.number(reader.required(data, "length", key), f"{key}.length", **_SIZE)
         return Cylinder(radius, length)
     return Plane()
 
@@ -226,6 +264,7 @@ def _read_per_object(
 
 
 def _read_hypotheses(reader: _Reader, value: Any, key: str) -> RankedHypotheses:
+    """An object's hypotheses, ranked; more than MAX_HYPOTHESES_PER_OBJECT keep the heaviest (noted)."""
     items = reader.sequence(value, key)
     if not items:
         raise reader.fail(key, "needs at least one hypothesis")
@@ -238,9 +277,12 @@ def _read_hypotheses(reader: _Reader, value: Any, key: str) -> RankedHypotheses:
         weight = reader.number(data.get("weight", 1.0), f"{item_key}.weight", minimum=0.0)
         hypotheses.append(Hypothesis(pose, weight))
     try:
-        return RankedHypotheses.from_weighted(hypotheses)
+        ranked = RankedHypotheses.from_weighted(hypotheses, keep_at_most=MAX_HYPOTHESES_PER_OBJECT)
     except ValueError as error:  # the weights as a whole: all zero, or a sum that overflows
         raise reader.fail(key, str(error)) from None
+    if len(hypotheses) > len(ranked):
+        reader.note(key, f"kept the {len(ranked)} heaviest of {len(hypotheses)} hypotheses")
+    return ranked
 
 
 def problem_from_dict(data: Any, source: str, base_dir: Path | None = None) -> Problem:
@@ -263,20 +305,15 @@ def problem_from_dict(data: Any, source: str, base_dir: Path | None = None) -> P
     else:
         scene = scene_from_dict(top, source)
     given = reader.required(top, "hypotheses", "")
-    return Problem(scene, _read_per_object(reader, given, "hypotheses", scene.object_names, _read_hypotheses))
+    hypotheses = _read_per_object(reader, given, "hypotheses", scene.object_names, _read_hypotheses)
+    return Problem(scene, hypotheses, tuple(reader.notes))
 
 
 def _load_yaml(path: Path) -> Any:
     try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as error:
-        raise SceneError(str(path), "", f"cannot read file: {error.strerror or error}") from None
-    try:
-        return yaml.safe_load(text)
-    except yaml.YAMLError as error:
-        mark = getattr(error, "problem_mark", None)
-        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
-        raise SceneError(str(path), "", f"not valid YAML{where}") from None
+        return read_yaml(path)
+    except FileError as error:
+        raise SceneError(error.source, error.key, error.problem) from None
 
 
 def load_scene(path: str | Path) -> Scene:
