@@ -27,8 +27,14 @@ def feed_floating_cubes(mapper: Mapper, per_object: int) -> None:
     """``per_object`` hypotheses per cube, all floating apart: every configuration is simulated in full."""
     for column, name in enumerate(mapper.scene.object_names):
         raw = [((0.4 * column, 0.0, 0.3 + 0.01 * i), Pose((0, 0, 0)).orientation) for i in range(per_object)]
+        scene = mapper.scene
         poses = check_poses(
-            raw, frame_id=mapper.scene.frame_id, expected_frame=mapper.scene.frame_id, stamp_ns=0, received=0
+            raw,
+            frame_id=scene.frame_id,
+            expected_frame=scene.frame_id,
+            workspace=scene.workspace,
+            stamp_ns=0,
+            received=0,
         )
         mapper.inputs.add_poses(name, poses)
         mapper.inputs.add_weights(name, check_weights([1.0 / (i + 1) for i in range(per_object)], received=0.0))

@@ -4,7 +4,9 @@ One status for the search (name ``<node>: search``) with the key-values of SPEC 
 then one status per object (name ``<node>: hypotheses/<object>``) saying what its input is.
 Every status's ``hardware_id`` is the node's fully qualified name, which tells apart nodes
 of the same name in different namespaces on the shared ``/diagnostics`` topic.
-Times are in seconds, p(C) and J as in the paper.
+Times are in seconds, p(C) and J as in the paper. Every message and value is clipped to
+:data:`~physics_mapper.core.limits.MAX_DIAGNOSTIC_TEXT` characters, so no input can swell the
+messages on the shared ``/diagnostics`` topic.
 """
 
 from __future__ import annotations
@@ -13,6 +15,7 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from std_msgs.msg import Header
 
 from msg_adapters.hypotheses import stamp_from_nanoseconds
+from physics_mapper.core.limits import MAX_DIAGNOSTIC_TEXT, clipped
 from physics_mapper.core.report import code_text, refinement_text
 from physics_mapper.core.search import SearchResult, SearchStats
 from physics_mapper.mapping.inputs import Level, ObjectStatus
@@ -27,6 +30,8 @@ def _number(value: float | None) -> str:
 
 def _search_state(report: TickReport) -> str:
     result = report.result
+    if report.engine_fault is not None:
+        return "physics engine failed"
     if result is None:
         return "waiting for inputs"
     stats = result.stats
@@ -38,6 +43,8 @@ def _search_state(report: TickReport) -> str:
 
 def _search_level_and_message(report: TickReport) -> tuple[Level, str]:
     result = report.result
+    if report.engine_fault is not None:
+        return Level.ERROR, report.engine_fault
     if result is None:
         return Level.ERROR, f"waiting for hypotheses of: {', '.join(report.snapshot.missing)}"
     if result.valid:
@@ -89,9 +96,9 @@ def _status(level: Level, name: str, message: str, hardware_id: str, values: lis
     return DiagnosticStatus(
         level=LEVELS[level],
         name=name,
-        message=message,
+        message=clipped(message, MAX_DIAGNOSTIC_TEXT),
         hardware_id=hardware_id,
-        values=[KeyValue(key=key, value=value) for key, value in values],
+        values=[KeyValue(key=key, value=clipped(value, MAX_DIAGNOSTIC_TEXT)) for key, value in values],
     )
 
 

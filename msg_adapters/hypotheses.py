@@ -18,6 +18,7 @@ from std_msgs.msg import Float64MultiArray, Header
 
 from physics_mapper.core.geometry import Pose
 from physics_mapper.core.hypotheses import RankedHypotheses
+from physics_mapper.core.scene import Workspace
 from physics_mapper.mapping.inputs import RawPose, ReceivedPoses, ReceivedWeights, check_poses, check_weights
 from physics_mapper.mapping.stamps import time_parts, to_nanoseconds
 
@@ -39,12 +40,13 @@ def raw_pose(msg: PoseMsg) -> RawPose:
     return (p.x, p.y, p.z), (q.x, q.y, q.z, q.w)
 
 
-def received_poses(msg: PoseArray, *, expected_frame: str, received: float) -> ReceivedPoses:
-    """A PoseArray received at ``received`` seconds, checked against the scene frame."""
+def received_poses(msg: PoseArray, *, expected_frame: str, workspace: Workspace, received: float) -> ReceivedPoses:
+    """A PoseArray received at ``received`` seconds, checked against the scene's frame and workspace."""
     return check_poses(
         [raw_pose(pose) for pose in msg.poses],
         frame_id=msg.header.frame_id,
         expected_frame=expected_frame,
+        workspace=workspace,
         stamp_ns=nanoseconds_from_stamp(msg.header.stamp),
         received=received,
     )

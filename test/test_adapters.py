@@ -24,13 +24,26 @@ from msg_adapters.hypotheses import (
 from msg_adapters.results import FALLBACK_COLOR, LABEL_NAMESPACE, SHAPE_NAMESPACE, configuration_msgs, markers_msg
 from physics_mapper.core.geometry import Pose, make_pose
 from physics_mapper.core.hypotheses import Hypothesis, RankedHypotheses
+from physics_mapper.core.limits import MAX_DIAGNOSTIC_TEXT
 from physics_mapper.core.physics import PhysicsChecker
-from physics_mapper.core.scene import Box, Cylinder, ObjectModel, Plane, Scene, SearchParams, Sphere, StaticBody
+from physics_mapper.core.scene import (
+    Box,
+    Cylinder,
+    ObjectModel,
+    Plane,
+    Scene,
+    SearchParams,
+    Sphere,
+    StaticBody,
+    Workspace,
+)
 from physics_mapper.core.scene_files import load_problem, load_scene
 from physics_mapper.core.search import BranchAndBound
 from physics_mapper.mapping.inputs import InputSettings, InputTracker, Level, ObjectInputs, rank
 from physics_mapper.mapping.mapper import Mapper, MapperSettings
 
+#: A 20 m box about the origin, as a scene's default workspace may be.
+WORKSPACE = Workspace((-10.0, -10.0, -10.0), (10.0, 10.0, 10.0))
 TILTED = make_pose((0.1, -0.2, 0.3), (0.1, 0.2, 0.3, math.sqrt(1.0 - 0.14)))
 
 
@@ -59,7 +72,7 @@ def test_stamps_round_trip_to_the_nanosecond() -> None:
 def test_poses_round_trip_through_a_pose_array() -> None:
     msg = pose_array_msg([TILTED, Pose((1.0, 2.0, 3.0))], frame_id="world", stamp_ns=7_250_000_000)
     assert msg.header.frame_id == "world"
-    received = received_poses(msg, expected_frame="world", received=8.0)
+    received = received_poses(msg, expected_frame="world", workspace=WORKSPACE, received=8.0)
     assert (received.stamp_ns, received.received, received.count, received.refusal) == (7_250_000_000, 8.0, 2, None)
     assert [pose for _, pose in received.poses] == [TILTED, Pose((1.0, 2.0, 3.0))]
 
@@ -72,7 +85,7 @@ def test_hypotheses_round_trip_through_pose_array_and_weights() -> None:
     assert isinstance(weights, Float64MultiArray)
     assert list(weights.data) == [h.weight for h in ranked.hypotheses]
     in_use = rank(
-        received_poses(poses_msg, expected_frame="world", received=3.0),
+        received_poses(poses_msg, expected_frame="world", workspace=WORKSPACE, received=3.0),
         received_weights(weights, received=3.0),
         max_hypotheses=100,
     )
@@ -89,25 +102,33 @@ def test_hypotheses_round_trip_through_pose_array_and_weights() -> None:
         ((0.0, 0.0, 0.0), (0.0, 0.0, math.nan, 1.0), "non-finite value (NaN or Inf) in pose"),
         ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 0.0), "zero quaternion"),
         ((0.0, 0.0, 0.0), (0.0, 0.0, 0.5, 0.5), "quaternion norm 0.7071 is not 1"),
+        ((0.0, 1e300, 0.0), (0.0, 0.0, 0.0, 1.0), "(0, 1e+300, 0) m is outside the workspace x [-10, 10]"),
     ],
 )
 def test_every_bad_pose_class_is_named(
     position: tuple[float, ...], orientation: tuple[float, ...], problem: str
 ) -> None:
     msg = pose_array(((0.0, 0.0, 0.1), (0.0, 0.0, 0.0, 1.0)), (position, orientation))
-    received = received_poses(msg, expected_frame="world", received=0.0)
+    received = received_poses(msg, expected_frame="world", workspace=WORKSPACE, received=0.0)
     assert received.refusal is None
     assert len(received.poses) == 1
     assert len(received.dropped) == 1
     assert received.dropped[0].startswith(f"poses[1]: {problem}")
-    alone = received_poses(pose_array((position, orientation)), expected_frame="world", received=0.0)
+    alone = received_poses(
+        pose_array((position, orientation)), expected_frame="world", workspace=WORKSPACE, received=0.0
+    )
     assert alone.refusal == f"no usable pose ({received.dropped[0].replace('poses[1]', 'poses[0]')})"
 
 
 def test_a_wrong_frame_and_an_empty_array_are_refused() -> None:
-    wrong = received_poses(pose_array(((0.0, 0.0, 0.1), (0, 0, 0, 1)), frame="map"), expected_frame="world", received=0)
+    wrong = received_poses(
+        pose_array(((0.0, 0.0, 0.1), (0, 0, 0, 1)), frame="map"),
+        expected_frame="world",
+        workspace=WORKSPACE,
+        received=0,
+    )
     assert wrong.refusal == "frame_id 'map' is not the scene frame 'world'"
-    empty = received_poses(pose_array(), expected_frame="world", received=0.0)
+    empty = received_poses(pose_array(), expected_frame="world", workspace=WORKSPACE, received=0.0)
     assert empty.refusal == "empty PoseArray"
 
 
@@ -130,7 +151,9 @@ def test_weights_of_the_wrong_length_and_oversized_arrays_through_messages() -> 
     inputs = ObjectInputs("cube")
     poses = [Pose((0.01 * i, 0.0, 0.1)) for i in range(150)]
     inputs.add_poses(
-        received_poses(pose_array_msg(poses, frame_id="world", stamp_ns=1), expected_frame="world", received=1)
+        received_poses(
+            pose_array_msg(poses, frame_id="world", stamp_ns=1), expected_frame="world", workspace=WORKSPACE, received=1
+        )
     )
     inputs.add_weights(received_weights(Float64MultiArray(data=[1.0] * 149), received=1.0))
     status = inputs.status(2.0, InputSettings(max_hypotheses=100))
@@ -171,7 +194,7 @@ def test_configuration_messages_hold_chosen_and_settled_poses(mixed_result: obje
     chosen, settled = messages
     for msg, poses in ((chosen, mixed_result.poses), (settled, mixed_result.settled_poses)):
         assert msg.header.frame_id == "table" and nanoseconds_from_stamp(msg.header.stamp) == 4_500_000_000
-        back = received_poses(msg, expected_frame="table", received=0.0)
+        back = received_poses(msg, expected_frame="table", workspace=WORKSPACE, received=0.0)
         assert poses is not None
         assert [pose for _, pose in back.poses] == list(poses)
 
@@ -183,7 +206,7 @@ def test_a_realistic_stamp_goes_from_input_to_outputs_exactly(mixed_result: obje
     assert isinstance(mixed_result, SearchResult)
     tracker = InputTracker(["crate"])
     msg = pose_array_msg([TILTED], frame_id="table", stamp_ns=REALISTIC_STAMP_NS)
-    tracker.add_poses("crate", received_poses(msg, expected_frame="table", received=1.0))
+    tracker.add_poses("crate", received_poses(msg, expected_frame="table", workspace=WORKSPACE, received=1.0))
     stamp_ns = tracker.snapshot(1.0, InputSettings()).stamp_ns
     assert stamp_ns == REALISTIC_STAMP_NS
     messages = configuration_msgs(mixed_result, frame_id="table", stamp_ns=stamp_ns)
@@ -255,7 +278,9 @@ def test_diagnostics_hold_the_spec_keys_and_one_status_per_object() -> None:
         assert waiting.status[0].message == "waiting for hypotheses of: cube_left, cube_right, cube_top"
         for name, x, z in (("cube_left", -0.105, 0.1), ("cube_right", 0.105, 0.1), ("cube_top", 0.0, 0.3)):
             msg = pose_array_msg([Pose((x, 0.0, z))], frame_id="world", stamp_ns=1_000_000_000)
-            mapper.inputs.add_poses(name, received_poses(msg, expected_frame="world", received=1.0))
+            mapper.inputs.add_poses(
+                name, received_poses(msg, expected_frame="world", workspace=WORKSPACE, received=1.0)
+            )
             mapper.inputs.add_weights(name, received_weights(Float64MultiArray(data=[1.0]), received=1.0))
         report = mapper.tick(1.0, settings)
     finally:
@@ -277,6 +302,23 @@ def test_diagnostics_hold_the_spec_keys_and_one_status_per_object() -> None:
     assert dict((kv.key, kv.value) for kv in objects[0].values)["weights"] == "paired"
 
 
+def test_every_diagnostics_string_is_clipped() -> None:
+    """50 objects with 200-character names waiting for input: a 10,000-character message, clipped."""
+    names = [f"{index:03d}" + "o" * 197 for index in range(50)]
+    scene = Scene(objects=tuple(ObjectModel(name, Sphere(0.05)) for name in names))
+    mapper = Mapper(scene)
+    try:
+        report = mapper.tick(0.0, MapperSettings(SearchParams(), InputSettings()))
+    finally:
+        mapper.close()
+    diagnostics = diagnostics_msg(report, node_name="n", hardware_id="/n", stamp_ns=0)
+    texts = [status.message for status in diagnostics.status]
+    texts += [kv.value for status in diagnostics.status for kv in status.values]
+    assert max(len(text) for text in texts) == MAX_DIAGNOSTIC_TEXT
+    assert diagnostics.status[0].message.endswith(" characters)")
+    assert diagnostics.status[0].message.startswith(f"waiting for hypotheses of: {names[0]}, {names[1]}")
+
+
 def test_diagnostics_say_when_a_settling_continues_over_ticks() -> None:
     """A settling far longer than one tick's search (10 s simulated, 1 ms per tick) is named until it ends."""
     scene = load_scene(SCENES / "pyramid.yaml")
@@ -285,7 +327,9 @@ def test_diagnostics_say_when_a_settling_continues_over_ticks() -> None:
     try:
         for name, x, z in (("cube_left", -0.105, 0.1), ("cube_right", 0.105, 0.1), ("cube_top", 0.0, 0.3)):
             msg = pose_array_msg([Pose((x, 0.0, z))], frame_id="world", stamp_ns=1_000_000_000)
-            mapper.inputs.add_poses(name, received_poses(msg, expected_frame="world", received=1.0))
+            mapper.inputs.add_poses(
+                name, received_poses(msg, expected_frame="world", workspace=WORKSPACE, received=1.0)
+            )
         first = mapper.tick(1.0, settings)
         states = [first]
         while states[-1].settling_in_progress is not None and len(states) < 10_000:

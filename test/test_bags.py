@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import subprocess
 import sys
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from itertools import pairwise
 from pathlib import Path
 from typing import Any
@@ -305,6 +305,18 @@ def test_hypotheses_in_another_frame_leave_nothing_to_search(
     captured = capsys.readouterr()
     assert "warning: at no time does every object have usable hypotheses (frame_id must be 'world'" in captured.err
     assert captured.out.startswith("0 snapshots, 0 with a configuration")
+
+
+def test_a_corrupted_position_far_outside_the_workspace_is_not_searched(tmp_path: Path) -> None:
+    """A 4e292 m position, as corrupted bags give, is dropped by the input rules; the object's other pose is used."""
+    topics = {f"/hypotheses/{name}": (POSE_ARRAY, pose_array(1)) for name in PYRAMID}
+    corrupted = pose_array(2)
+    corrupted.poses[0] = replace(corrupted.poses[0], position=replace(corrupted.poses[0].position, x=4e292))
+    topics["/hypotheses/cube_top"] = (POSE_ARRAY, corrupted)
+    bag = write_bag(tmp_path / "corrupted", topics)
+    (snapshot,) = bag_snapshots(read_bag(bag), load_scene(SCENES / "pyramid.yaml"))
+    top = snapshot.hypotheses[2]
+    assert len(top) == 1 and top.pose(1).position == (0.0, 0.0, 0.1)
 
 
 def test_offline_output_path_is_checked_before_searching(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

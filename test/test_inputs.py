@@ -9,7 +9,7 @@ from typing import Any
 import pytest
 from conftest import SCENES
 
-from physics_mapper.core.scene import SearchParams
+from physics_mapper.core.scene import SearchParams, Workspace
 from physics_mapper.core.scene_files import load_scene
 from physics_mapper.mapping.inputs import (
     WEIGHTS_GRACE,
@@ -23,6 +23,8 @@ from physics_mapper.mapping.inputs import (
 )
 from physics_mapper.mapping.mapper import Mapper, MapperSettings, mapper_settings_problem
 
+#: A 20 m box about the origin, as a scene's default workspace may be.
+WORKSPACE = Workspace((-10.0, -10.0, -10.0), (10.0, 10.0, 10.0))
 IDENTITY = (0.0, 0.0, 0.0, 1.0)
 SETTINGS = InputSettings(max_age=10.0, max_hypotheses=100, require_weights=False)
 
@@ -30,7 +32,9 @@ SETTINGS = InputSettings(max_age=10.0, max_hypotheses=100, require_weights=False
 def poses(xs: Sequence[float], *, received: float, stamp_ns: int = 0, frame: str = "world") -> ReceivedPoses:
     """A PoseArray of unrotated poses at (x, 0, 0.1), stamped ``stamp_ns``, received at ``received`` seconds."""
     raw = [((x, 0.0, 0.1), IDENTITY) for x in xs]
-    return check_poses(raw, frame_id=frame, expected_frame="world", stamp_ns=stamp_ns, received=received)
+    return check_poses(
+        raw, frame_id=frame, expected_frame="world", workspace=WORKSPACE, stamp_ns=stamp_ns, received=received
+    )
 
 
 def xs_in_rank_order(inputs: ObjectInputs, now: float, settings: InputSettings = SETTINGS) -> list[float]:
@@ -47,9 +51,17 @@ def test_a_pose_array_in_another_frame_is_refused_as_a_whole() -> None:
     assert received.refusal == "frame_id 'camera' is not the scene frame 'world'"
 
 
+def test_a_huge_frame_id_is_quoted_clipped() -> None:
+    frame = "camera_" + "x" * 200_000
+    refusal = poses([0.0], received=1.0, frame=frame).refusal
+    assert refusal is not None and len(refusal) < 200
+    assert refusal == f"frame_id {frame[:57] + '... (200007 characters)'!r} is not the scene frame 'world'"
+
+
 def test_an_empty_pose_array_is_refused() -> None:
     assert (
-        check_poses([], frame_id="world", expected_frame="world", stamp_ns=0, received=0).refusal == "empty PoseArray"
+        check_poses([], frame_id="world", expected_frame="world", workspace=WORKSPACE, stamp_ns=0, received=0).refusal
+        == "empty PoseArray"
     )
 
 
@@ -60,13 +72,19 @@ def test_an_empty_pose_array_is_refused() -> None:
         ((0.0, math.inf, 0.1), IDENTITY, "non-finite value (NaN or Inf) in pose"),
         ((0.0, 0.0, 0.1), (0.0, 0.0, 0.0, 0.0), "zero quaternion"),
         ((0.0, 0.0, 0.1), (0.0, 0.0, 0.0, 2.0), "quaternion norm 2 is not 1"),
+        (
+            (0.0, 0.0, 1e15),
+            IDENTITY,
+            "(0, 0, 1e+15) m is outside the workspace x [-10, 10], y [-10, 10], z [-10, 10] m",
+        ),
+        ((4e292, 0.0, 0.1), IDENTITY, "(4e+292, 0, 0.1) m is outside the workspace"),
     ],
 )
 def test_a_bad_pose_is_dropped_and_the_others_kept(
     position: tuple[float, ...], orientation: tuple[float, ...], problem: str
 ) -> None:
     raw = [((0.5, 0.0, 0.1), IDENTITY), (position, orientation), ((0.7, 0.0, 0.1), IDENTITY)]
-    received = check_poses(raw, frame_id="world", expected_frame="world", stamp_ns=0, received=0.0)
+    received = check_poses(raw, frame_id="world", expected_frame="world", workspace=WORKSPACE, stamp_ns=0, received=0.0)
     assert received.refusal is None
     assert [index for index, _ in received.poses] == [0, 2]
     assert len(received.dropped) == 1
@@ -75,7 +93,7 @@ def test_a_bad_pose_is_dropped_and_the_others_kept(
 
 def test_a_pose_array_without_any_usable_pose_is_refused() -> None:
     raw = [((0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 0.0))] * 2
-    received = check_poses(raw, frame_id="world", expected_frame="world", stamp_ns=0, received=0.0)
+    received = check_poses(raw, frame_id="world", expected_frame="world", workspace=WORKSPACE, stamp_ns=0, received=0.0)
     assert received.refusal == "no usable pose (poses[0]: zero quaternion ...)"
 
 
@@ -201,7 +219,9 @@ def test_only_the_heaviest_hypotheses_are_kept() -> None:
 def test_dropped_poses_lose_their_weights_and_are_reported() -> None:
     raw = [((0.1, 0.0, 0.1), IDENTITY), ((0.2, 0.0, 0.1), (0.0, 0.0, 0.0, 0.0)), ((0.3, 0.0, 0.1), IDENTITY)]
     inputs = ObjectInputs("cube")
-    inputs.add_poses(check_poses(raw, frame_id="world", expected_frame="world", stamp_ns=0, received=1.0))
+    inputs.add_poses(
+        check_poses(raw, frame_id="world", expected_frame="world", workspace=WORKSPACE, stamp_ns=0, received=1.0)
+    )
     inputs.add_weights(check_weights([0.2, 0.7, 0.1], received=1.0))
     status = inputs.status(1.0, SETTINGS)
     assert status.level == Level.WARN
@@ -281,7 +301,10 @@ def feed_pyramid(mapper: Mapper, received: float, top_z: float = 0.3) -> None:
     for name, x, z in (("cube_left", -0.105, 0.1), ("cube_right", 0.105, 0.1), ("cube_top", 0.0, top_z)):
         raw = [((x, 0.0, z), IDENTITY), ((x, 0.0, z + 0.05), IDENTITY)]
         mapper.inputs.add_poses(
-            name, check_poses(raw, frame_id="world", expected_frame="world", stamp_ns=0, received=received)
+            name,
+            check_poses(
+                raw, frame_id="world", expected_frame="world", workspace=WORKSPACE, stamp_ns=0, received=received
+            ),
         )
 
 
@@ -328,7 +351,9 @@ def test_valid_settings_pass() -> None:
 
 def test_a_refused_pose_array_and_refused_weights_are_both_reported() -> None:
     inputs = ObjectInputs("cube")
-    inputs.add_poses(check_poses([], frame_id="world", expected_frame="world", stamp_ns=0, received=1.0))
+    inputs.add_poses(
+        check_poses([], frame_id="world", expected_frame="world", workspace=WORKSPACE, stamp_ns=0, received=1.0)
+    )
     inputs.add_weights(check_weights([], received=1.01))
     status = inputs.status(1.1, SETTINGS)
     assert status.message == "PoseArray refused: empty PoseArray; weights refused: empty weights array"

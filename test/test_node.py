@@ -263,6 +263,9 @@ BAD_INPUTS = {
         raw_pose_array(TOP, ((0.0, 0.0, 0.3), (0.0, 0.0, 0.0, 0.0))), [0.5, 0.5], "dropped 1 of 2 poses"
     ),
     "wrong_frame": BadInput(raw_pose_array(TOP, frame="camera"), [1.0], "frame_id 'camera' is not the scene frame"),
+    "outside_workspace": BadInput(
+        raw_pose_array(((0.0, 0.0, 1e15), TOP[1])), [1.0], "poses[0]: (0, 0, 1e+15) m is outside the workspace"
+    ),
     "empty_array": BadInput(raw_pose_array(), [], "PoseArray refused: empty PoseArray"),
     "negative_weights": BadInput(raw_pose_array(TOP, TOP), [-1.0, 2.0], "negative weight"),
     "all_zero_weights": BadInput(raw_pose_array(TOP, TOP), [0.0, 0.0], "weights sum to zero"),

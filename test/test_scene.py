@@ -21,7 +21,7 @@ from core_builders import cli
 from physics_mapper.cli import main
 from physics_mapper.core.errors import EXIT_BAD_INPUT
 from physics_mapper.core.limits import MAX_FILE_BYTES, MAX_HYPOTHESES_PER_OBJECT, MAX_NAME_LENGTH, MAX_YAML_DEPTH
-from physics_mapper.core.scene import Box
+from physics_mapper.core.scene import DEFAULT_WORKSPACE_MARGIN, Box, Scene, Workspace, bounding_radius
 from physics_mapper.core.scene_files import SceneError, load_problem, load_scene
 from physics_mapper.mapping.inputs import InputSettings
 from physics_mapper.mapping.mapper import MapperSettings, mapper_settings_problem
@@ -150,6 +150,50 @@ BAD_FILES = {
         + b", ".join(b"&l%d [" % k + b", ".join([b"*l%d" % (k - 1)] * 10) + b"]" for k in range(1, 10))
         + b"]\n",
     ),
+    "hypothesis 1e15 m up": BadFile(
+        "hypotheses.cube_a[1].position",
+        "(0, 0.01, 1e+15) m is outside the workspace x [-10, 10], y [-10, 10], z [-10, 10] m "
+        "(default: the scene's bodies plus 10 m; set workspace: to change it)",
+        ("hypotheses", "cube_a", 1, "position"),
+        [0.0, 0.01, 1e15],
+    ),
+    "hypothesis at 1e300 m": BadFile(
+        "hypotheses.cube_b[0].position",
+        "(1e+300, 0, 0.05) m is outside the workspace",
+        ("hypotheses", "cube_b", 0, "position"),
+        [1e300, 0.0, 0.05],
+    ),
+    "hypothesis outside an explicit workspace": BadFile(
+        "hypotheses.cube_b[0].position",
+        "(0.5, 0, 0.05) m is outside the workspace x [-0.3, 0.3], y [-0.3, 0.3], z [0, 0.5] m",
+        ("workspace",),
+        {"min": [-0.3, -0.3, 0.0], "max": [0.3, 0.3, 0.5]},
+    ),
+    "empty workspace": BadFile(
+        "workspace",
+        "min must be below max on every axis, but z: 0.5 >= 0.5",
+        ("workspace",),
+        {"min": [-1, -1, 0.5], "max": [1, 1, 0.5]},
+    ),
+    "workspace beyond the trusted range": BadFile(
+        "workspace.max[0]",
+        "must be within +-1e+07 m (where the physics is trusted), got 1e+15",
+        ("workspace",),
+        {"min": [-1, -1, 0], "max": [1e15, 1, 1]},
+    ),
+    "workspace without max": BadFile("workspace.max", "missing", ("workspace",), {"min": [-1, -1, 0]}),
+    "static body 1e15 m away": BadFile(
+        "static[0].pose.position[0]",
+        "must be within +-1e+07 m (where the physics is trusted), got 1e+15",
+        ("static", 0, "pose"),
+        {"position": [1e15, 0, 0]},
+    ),
+    "huge box": BadFile(
+        "objects[0].size[0]",
+        "must be within +-1e+07 m (where the physics is trusted), got 1e+09",
+        ("objects", 0, "size"),
+        [1e9, 0.1, 0.1],
+    ),
     "overlong name": BadFile(
         "objects[0].name",
         f"longer than {MAX_NAME_LENGTH} characters",
@@ -241,6 +285,36 @@ def test_problem_search_overrides_merge_with_the_scene_and_are_validated(tmp_pat
     with pytest.raises(SceneError) as raised:
         load_problem(path)
     assert (raised.value.key, raised.value.problem) == ("search.angular_weight", "must be at least 0, got -0.1")
+
+
+def test_the_default_workspace_holds_the_scene_and_its_ground_truth_plus_a_margin() -> None:
+    """Pyramid: a floor plane at the origin and three 20 cm cubes (bounding radius sqrt(3) x 0.1 m)."""
+    scene = load_scene(SCENES / "pyramid.yaml")
+    radius = math.sqrt(3.0) * 0.1
+    assert bounding_radius(scene.objects[0].shape) == pytest.approx(radius)
+    workspace = scene.workspace
+    assert workspace.derived and scene.explicit_workspace is None
+    margin = DEFAULT_WORKSPACE_MARGIN + radius
+    assert workspace.min_corner == pytest.approx((-0.105 - margin, -margin, 0.1 - margin))
+    assert workspace.max_corner == pytest.approx((0.105 + margin, margin, 0.3 + margin))
+    bare = Scene(objects=scene.objects)  # nothing placed: around the origin
+    assert (bare.workspace.min_corner, bare.workspace.max_corner) == ((-10.0,) * 3, (10.0,) * 3)
+
+
+def test_an_explicit_workspace_is_used_and_holds_the_ground_truth(tmp_path: Path) -> None:
+    text = (SCENES / "pyramid.yaml").read_text(encoding="utf-8")
+    path = tmp_path / "scene.yaml"
+    path.write_text(text + "workspace: {min: [-0.5, -0.5, 0], max: [0.5, 0.5, 1]}\n", encoding="utf-8")
+    scene = load_scene(path)
+    assert scene.workspace == Workspace((-0.5, -0.5, 0.0), (0.5, 0.5, 1.0))
+    assert str(scene.workspace) == "x [-0.5, 0.5], y [-0.5, 0.5], z [0, 1] m"
+    path.write_text(text + "workspace: {min: [-0.5, -0.5, 0], max: [0.5, 0.5, 0.25]}\n", encoding="utf-8")
+    with pytest.raises(SceneError) as raised:
+        load_scene(path)
+    assert (raised.value.key, raised.value.problem) == (
+        "ground_truth.cube_top.position",
+        "(0, 0, 0.3) m is outside the workspace x [-0.5, 0.5], y [-0.5, 0.5], z [0, 0.25] m",
+    )
 
 
 def test_numbers_are_read_in_every_usual_spelling(tmp_path: Path) -> None:

@@ -91,6 +91,7 @@ def bag_snapshots(bag: Bag, scene: Scene, settings: InputSettings | None = None)
                         data.poses,
                         frame_id=data.frame_id,
                         expected_frame=scene.frame_id,
+                        workspace=scene.workspace,
                         stamp_ns=data.stamp_ns,
                         received=received,
                     )

@@ -66,6 +66,10 @@ def _import_pybullet() -> ModuleType:
 
 pybullet = _import_pybullet()
 
+#: What pybullet raises when a world fails, e.g. once its physics server is disconnected: the
+#: checker is unusable then, and a new one must be built (:class:`~physics_mapper.mapping.mapper.Mapper` does).
+PhysicsEngineError: type[Exception] = pybullet.error
+
 #: Bullet's default step, 240 Hz, in seconds.
 TIME_STEP = 1.0 / 240.0
 GRAVITY = -9.81  # m/s^2 along z
@@ -155,7 +159,9 @@ class PhysicsChecker:
 
     def __init__(self, scene: Scene) -> None:
         self.scene = scene
-        self._client = pybullet.connect(pybullet.DIRECT)
+        self._client = int(pybullet.connect(pybullet.DIRECT))
+        if self._client < 0:
+            raise PhysicsEngineError("pybullet could not start a world")
         self._bodies: list[int] = []
         self._names: dict[int, str] = {}
         # The interrupted settling a resume continues, and its saved state once the world was
@@ -216,10 +222,16 @@ class PhysicsChecker:
             )
         )
 
+    @property
+    def client_id(self) -> int:
+        """pybullet's ``physicsClientId`` of this world (-1 once closed)."""
+        return self._client
+
     def close(self) -> None:
-        """Disconnect the pybullet world (idempotent)."""
+        """Disconnect the pybullet world (idempotent; also after the world failed)."""
         if self._client >= 0:
-            pybullet.disconnect(physicsClientId=self._client)  # frees every saved state
+            if pybullet.isConnected(physicsClientId=self._client):
+                pybullet.disconnect(physicsClientId=self._client)  # frees every saved state
             self._client = -1
             self._interrupted = self._interrupted_state = None
 

@@ -8,10 +8,13 @@ validating the YAML files is :mod:`physics_mapper.core.scene_files`.
 
 from __future__ import annotations
 
+import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
+from functools import cached_property
 from typing import Literal
 
-from physics_mapper.core.geometry import ORIGIN, Pose
+from physics_mapper.core.geometry import ORIGIN, Pose, Vector3
 from physics_mapper.core.hypotheses import RankedHypotheses
 
 Fallback = Literal["none", "settled", "refine"]
@@ -48,6 +51,46 @@ class Plane:
 Shape = Box | Sphere | Cylinder | Plane
 OBJECT_SHAPES = ("box", "sphere", "cylinder")
 STATIC_SHAPES = ("plane", "box", "sphere", "cylinder")
+
+
+def bounding_radius(shape: Shape) -> float | None:
+    """Radius (m) of the smallest sphere about the shape's pose that holds it; None for an unbounded plane."""
+    if isinstance(shape, Box):
+        return math.hypot(*shape.size) / 2.0
+    if isinstance(shape, Sphere):
+        return shape.radius
+    if isinstance(shape, Cylinder):
+        return math.hypot(shape.radius, shape.length / 2.0)
+    return None
+
+
+@dataclass(frozen=True)
+class Workspace:
+    """An axis-aligned box of the scene frame, corners in metres, that every hypothesis's position must lie in.
+
+    Bounds are inclusive. ``derived`` marks the default a scene without ``workspace:`` gets
+    (:func:`default_workspace`).
+    """
+
+    min_corner: Vector3
+    max_corner: Vector3
+    derived: bool = False
+
+    def problem(self, position: Sequence[float]) -> str | None:
+        """Say why ``position`` (m) lies outside the box, or return None when it lies inside."""
+        bounds = zip(self.min_corner, position, self.max_corner, strict=True)
+        if all(low <= value <= high for low, value, high in bounds):
+            return None
+        shown = ", ".join(f"{value:g}" for value in position)
+        return f"({shown}) m is outside the workspace {self}"
+
+    def __str__(self) -> str:
+        ranges = ", ".join(
+            f"{axis} [{low:g}, {high:g}]"
+            for axis, low, high in zip("xyz", self.min_corner, self.max_corner, strict=True)
+        )
+        origin = f" (default: the scene's bodies plus {DEFAULT_WORKSPACE_MARGIN:g} m; set workspace: to change it)"
+        return f"{ranges} m{origin if self.derived else ''}"
 
 
 @dataclass(frozen=True)
@@ -104,7 +147,7 @@ class SearchParams:
 
 @dataclass(frozen=True)
 class Scene:
-    """Environment, objects in code order, and default search parameters."""
+    """Environment, objects in code order, default search parameters and the workspace."""
 
     objects: tuple[ObjectModel, ...]
     static: tuple[StaticBody, ...] = ()
@@ -112,10 +155,41 @@ class Scene:
     frame_id: str = "world"
     #: Optional true pose of each object, in object order (for generating data and scoring).
     ground_truth: tuple[Pose, ...] | None = None
+    #: The scene file's ``workspace:`` box; None: the default (:attr:`workspace`).
+    explicit_workspace: Workspace | None = None
 
     @property
     def object_names(self) -> tuple[str, ...]:
         return tuple(o.name for o in self.objects)
+
+    @cached_property
+    def workspace(self) -> Workspace:
+        """The box hypotheses must lie in: :attr:`explicit_workspace`, else :func:`default_workspace`."""
+        return self.explicit_workspace or default_workspace(self)
+
+
+#: Metres the default workspace extends beyond the scene's bodies and ground truth on every side.
+DEFAULT_WORKSPACE_MARGIN = 10.0
+
+
+def default_workspace(scene: Scene) -> Workspace:
+    """The workspace of a scene without ``workspace:``: what it holds, plus a margin.
+
+    The smallest box holding every bounded static body and every ground-truth object (a sphere
+    of :func:`bounding_radius` about its pose) and the pose of every plane, grown by
+    :data:`DEFAULT_WORKSPACE_MARGIN` on every side. A scene with none of these is taken
+    around the origin of its frame.
+    """
+    shapes = [(body.pose, body.shape) for body in scene.static]
+    if scene.ground_truth is not None:
+        shapes += zip(scene.ground_truth, (model.shape for model in scene.objects), strict=True)
+    bodies = [(pose, bounding_radius(shape) or 0.0) for pose, shape in shapes]
+    if not bodies:
+        bodies = [(ORIGIN, 0.0)]
+    reach = [(pose.position, radius + DEFAULT_WORKSPACE_MARGIN) for pose, radius in bodies]
+    low = tuple(min(position[axis] - extra for position, extra in reach) for axis in range(3))
+    high = tuple(max(position[axis] + extra for position, extra in reach) for axis in range(3))
+    return Workspace((low[0], low[1], low[2]), (high[0], high[1], high[2]), derived=True)
 
 
 @dataclass(frozen=True)

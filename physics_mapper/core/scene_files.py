@@ -37,6 +37,7 @@ from physics_mapper.core.scene import (
     Shape,
     Sphere,
     StaticBody,
+    Workspace,
     search_params_problem,
 )
 from physics_mapper.core.yaml_files import FileError, read_yaml
@@ -219,7 +220,20 @@ def _read_search(reader: _Reader, value: Any, key: str) -> SearchParams:
     return params
 
 
-_SCENE_KEYS = ("frame_id", "static", "objects", "search", "ground_truth")
+def _read_workspace(reader: _Reader, value: Any, key: str) -> Workspace:
+    data = reader.mapping(value, key)
+    reader.known_keys(data, key, ("min", "max"))
+    low, high = (
+        reader.vector(reader.required(data, corner, key), f"{key}.{corner}", 3, magnitude=MAX_COORDINATE)
+        for corner in ("min", "max")
+    )
+    for axis, a, b in zip("xyz", low, high, strict=True):
+        if a >= b:
+            raise reader.fail(key, f"min must be below max on every axis, but {axis}: {a:g} >= {b:g}")
+    return Workspace((low[0], low[1], low[2]), (high[0], high[1], high[2]))
+
+
+_SCENE_KEYS = ("frame_id", "static", "objects", "search", "ground_truth", "workspace")
 
 
 def scene_from_dict(data: Any, source: str) -> Scene:
@@ -244,7 +258,17 @@ def scene_from_dict(data: Any, source: str) -> Scene:
     truth = None
     if "ground_truth" in top:
         truth = _read_per_object(reader, top["ground_truth"], "ground_truth", [o.name for o in objects], _read_pose)
-    return Scene(objects=objects, static=static, search=search, frame_id=frame_id, ground_truth=truth)
+    workspace = _read_workspace(reader, top["workspace"], "workspace") if "workspace" in top else None
+    scene = Scene(objects, static, search, frame_id, ground_truth=truth, explicit_workspace=workspace)
+    for model, pose in zip(objects, truth or (), strict=False):
+        _check_inside(reader, scene.workspace, pose, f"ground_truth.{model.name}")
+    return scene
+
+
+def _check_inside(reader: _Reader, workspace: Workspace, pose: Pose, key: str) -> None:
+    problem = workspace.problem(pose.position)
+    if problem is not None:
+        raise reader.fail(f"{key}.position", problem)
 
 
 def _read_per_object(
@@ -263,8 +287,11 @@ def _read_per_object(
     return tuple(items)
 
 
-def _read_hypotheses(reader: _Reader, value: Any, key: str) -> RankedHypotheses:
-    """An object's hypotheses, ranked; more than MAX_HYPOTHESES_PER_OBJECT keep the heaviest (noted)."""
+def _read_hypotheses(reader: _Reader, value: Any, key: str, workspace: Workspace) -> RankedHypotheses:
+    """An object's hypotheses, each inside ``workspace``, ranked.
+
+    More than :data:`~physics_mapper.core.limits.MAX_HYPOTHESES_PER_OBJECT` keep the heaviest, with a note.
+    """
     items = reader.sequence(value, key)
     if not items:
         raise reader.fail(key, "needs at least one hypothesis")
@@ -273,7 +300,8 @@ def _read_hypotheses(reader: _Reader, value: Any, key: str) -> RankedHypotheses:
         item_key = f"{key}[{i}]"
         data = reader.mapping(item, item_key)
         reader.known_keys(data, item_key, ("position", "orientation", "weight"))
-        pose = _read_pose(reader, {k: v for k, v in data.items() if k != "weight"}, item_key)
+        pose = _read_pose(reader, {k: v for k, v in data.items() if k != "weight"}, item_key, magnitude=None)
+        _check_inside(reader, workspace, pose, item_key)
         weight = reader.number(data.get("weight", 1.0), f"{item_key}.weight", minimum=0.0)
         hypotheses.append(Hypothesis(pose, weight))
     try:
@@ -305,7 +333,12 @@ def problem_from_dict(data: Any, source: str, base_dir: Path | None = None) -> P
     else:
         scene = scene_from_dict(top, source)
     given = reader.required(top, "hypotheses", "")
-    hypotheses = _read_per_object(reader, given, "hypotheses", scene.object_names, _read_hypotheses)
+    workspace = scene.workspace
+
+    def read_hypotheses(reader: _Reader, value: Any, key: str) -> RankedHypotheses:
+        return _read_hypotheses(reader, value, key, workspace)
+
+    hypotheses = _read_per_object(reader, given, "hypotheses", scene.object_names, read_hypotheses)
     return Problem(scene, hypotheses, tuple(reader.notes))
 
 

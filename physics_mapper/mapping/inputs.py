@@ -15,7 +15,8 @@ Rules:
   With no weights after that, weights are uniform (a warning), or, with ``require_weights``,
   the PoseArray is refused.
 - A refused message (wrong frame, empty, no usable pose, bad weights) never replaces the
-  hypotheses in use; the next usable one does. Single bad poses are dropped with their weights.
+  hypotheses in use; the next usable one does. Single bad poses (NaN/Inf, not a unit quaternion,
+  outside the scene's workspace) are dropped with their weights.
 - Hypotheses received more than ``max_age`` seconds ago are stale and not used.
 """
 
@@ -28,6 +29,8 @@ from enum import IntEnum
 
 from physics_mapper.core.geometry import Pose, make_pose
 from physics_mapper.core.hypotheses import Hypothesis, RankedHypotheses, weights_problem
+from physics_mapper.core.limits import MAX_QUOTED_TEXT, clipped
+from physics_mapper.core.scene import Workspace
 
 #: Seconds a new PoseArray waits for its weights message before uniform weights are assumed.
 WEIGHTS_GRACE = 0.5
@@ -87,12 +90,21 @@ class ReceivedWeights:
 
 
 def check_poses(
-    raw_poses: Sequence[RawPose], *, frame_id: str, expected_frame: str, stamp_ns: int, received: float
+    raw_poses: Sequence[RawPose],
+    *,
+    frame_id: str,
+    expected_frame: str,
+    workspace: Workspace,
+    stamp_ns: int,
+    received: float,
 ) -> ReceivedPoses:
-    """Validate a PoseArray's contents: frame, emptiness, and each pose (finite, unit quaternion)."""
+    """Validate a PoseArray's contents: frame, emptiness, and each pose (finite, unit quaternion, in ``workspace``).
+
+    A frame_id quoted in the refusal is clipped to :data:`~physics_mapper.core.limits.MAX_QUOTED_TEXT` characters.
+    """
     count = len(raw_poses)
     if frame_id != expected_frame:
-        refusal = f"frame_id {frame_id!r} is not the scene frame {expected_frame!r}"
+        refusal = f"frame_id {clipped(frame_id, MAX_QUOTED_TEXT)!r} is not the scene frame {expected_frame!r}"
         return ReceivedPoses(stamp_ns, received, count, (), refusal=refusal)
     if count == 0:
         return ReceivedPoses(stamp_ns, received, 0, (), refusal="empty PoseArray")
@@ -100,9 +112,15 @@ def check_poses(
     dropped: list[str] = []
     for index, (position, orientation) in enumerate(raw_poses):
         try:
-            usable.append((index, make_pose(tuple(position), tuple(orientation))))
+            pose = make_pose(tuple(position), tuple(orientation))
         except ValueError as error:
             dropped.append(f"poses[{index}]: {error}")
+            continue
+        outside = workspace.problem(pose.position)
+        if outside is None:
+            usable.append((index, pose))
+        else:
+            dropped.append(f"poses[{index}]: {outside}")
     if not usable:
         refusal = f"no usable pose ({dropped[0]}{' ...' if len(dropped) > 1 else ''})"
         return ReceivedPoses(stamp_ns, received, count, (), tuple(dropped), refusal)

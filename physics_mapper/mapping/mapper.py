@@ -10,7 +10,8 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass, replace
 
-from physics_mapper.core.physics import PhysicsChecker
+from physics_mapper.core.hypotheses import RankedHypotheses
+from physics_mapper.core.physics import PhysicsChecker, PhysicsEngineError
 from physics_mapper.core.scene import Scene, SearchParams, search_params_problem
 from physics_mapper.core.search import BranchAndBound, Code, SearchResult
 from physics_mapper.mapping.inputs import InputSettings, InputSnapshot, InputTracker
@@ -62,7 +63,9 @@ class TickReport:
     wall-clock seconds this tick spent in the search (at most ``deadline`` plus a small slack).
     ``resumed`` says the tick continued the previous search (same inputs and settings).
     ``settling_in_progress`` is the configuration whose settling the deadline cut short (a
-    settling longer than one tick's search): the next tick continues it.
+    settling longer than one tick's search): the next tick continues it. ``engine_fault`` says
+    how the physics engine failed this tick (``result`` is None then); the next tick searches
+    again in a rebuilt world.
     """
 
     snapshot: InputSnapshot
@@ -71,6 +74,7 @@ class TickReport:
     resumed: bool
     settings: MapperSettings
     settling_in_progress: Code | None = None
+    engine_fault: str | None = None
 
 
 def _continuable(running: SearchParams, wanted: SearchParams) -> bool:
@@ -83,16 +87,33 @@ def _continuable(running: SearchParams, wanted: SearchParams) -> bool:
 
 
 class Mapper:
-    """A scene's physics world, its inputs and the search in progress."""
+    """A scene's physics world, its inputs and the search in progress.
+
+    A world whose engine fails (:data:`~physics_mapper.core.physics.PhysicsEngineError`) is
+    discarded with the search that used it; the next tick builds a new one and searches again.
+    """
 
     def __init__(self, scene: Scene) -> None:
         self.scene = scene
         self.inputs = InputTracker(scene.object_names)
-        self._checker = PhysicsChecker(scene)
+        self._checker: PhysicsChecker | None = PhysicsChecker(scene)
         self._search: BranchAndBound | None = None
 
+    @property
+    def checker(self) -> PhysicsChecker:
+        """The scene's physics world, built anew if a fault discarded the last one."""
+        if self._checker is None:
+            self._checker = PhysicsChecker(self.scene)
+        return self._checker
+
+    def _discard_world(self) -> None:
+        """Forget a failed world and the search that used it."""
+        checker, self._checker, self._search = self._checker, None, None
+        if checker is not None:
+            checker.close()
+
     def close(self) -> None:
-        self._checker.close()
+        self._discard_world()
 
     def tick(self, now: float, settings: MapperSettings) -> TickReport:
         """Snapshot the inputs at ``now`` (seconds) and search until ``settings.search.deadline``."""
@@ -100,12 +121,23 @@ class Mapper:
         hypotheses = snapshot.hypotheses
         if hypotheses is None:
             return TickReport(snapshot, None, 0.0, False, settings)
+        try:
+            return self._search_tick(snapshot, hypotheses, settings)
+        except PhysicsEngineError as error:
+            self._discard_world()
+            fault = f"physics engine failed: {error}; the world is rebuilt and the search starts again at the next tick"
+            return TickReport(snapshot, None, 0.0, False, settings, engine_fault=fault)
+
+    def _search_tick(
+        self, snapshot: InputSnapshot, hypotheses: tuple[RankedHypotheses, ...], settings: MapperSettings
+    ) -> TickReport:
+        """Resume the search in progress if inputs and settings allow, else start a new one; run it to the deadline."""
         search = self._search
         resumed = (
             search is not None and search.hypotheses == hypotheses and _continuable(search.params, settings.search)
         )
         if search is None or not resumed:
-            search = self._search = BranchAndBound(self._checker, hypotheses, settings.search)
+            search = self._search = BranchAndBound(self.checker, hypotheses, settings.search)
         search.params = settings.search
         started = time.monotonic()
         result = search.run(settings.search.deadline)

@@ -155,13 +155,16 @@ class PhysicsMapperNode(Node):
         )
 
     def _subscribe(self, name: str) -> None:
-        frame = self.mapper.scene.frame_id
+        scene = self.mapper.scene
+        frame, workspace = scene.frame_id, scene.workspace
         inputs = self.mapper.inputs
         try:
             self.create_subscription(
                 PoseArray,
                 poses_topic(name),
-                lambda msg: inputs.add_poses(name, received_poses(msg, expected_frame=frame, received=self._now())),
+                lambda msg: inputs.add_poses(
+                    name, received_poses(msg, expected_frame=frame, workspace=workspace, received=self._now())
+                ),
                 INPUT_QOS,
             )
             self.create_subscription(
