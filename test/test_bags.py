@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import random
 import subprocess
 import sys
 from dataclasses import dataclass, replace
@@ -17,6 +18,7 @@ from rosbags.rosbag2 import Reader, StoragePlugin, Writer
 from rosbags.typesys import Stores, get_typestore
 
 from physics_mapper.bags.evaluation import recorded_results
+from physics_mapper.bags.mcap_storage import verify_checksums
 from physics_mapper.bags.snapshots import bag_snapshots, input_topics
 from physics_mapper.bags.storage import BagError, BagWriter, read_bag
 from physics_mapper.cli import main
@@ -216,6 +218,49 @@ def replay_error(capsys: pytest.CaptureFixture[str], bag: Path, scene: str = "py
     assert status == EXIT_BAD_INPUT
     assert len(errors) == 1, errors
     return errors[0]
+
+
+def test_bags_written_here_carry_every_mcap_checksum(tmp_path: Path) -> None:
+    """Chunk, data-section and summary CRCs, in generated bags and the shipped one (issue 12, point 8)."""
+    fresh = tmp_path / "fresh"
+    generate(fresh)
+    for mcap_file in (fresh / "fresh.mcap", DATA / "pyramid" / "pyramid.mcap"):
+        verified = verify_checksums(mcap_file)
+        assert verified.chunks >= 1 and verified.chunks_with_crc == verified.chunks
+        assert verified.data_section and verified.summary
+
+
+#: Copies of the shipped mcap bag with 16 bytes overwritten at a random place, and the seed choosing them.
+DAMAGED_COPIES, DAMAGE_SEED = 40, 12
+
+
+def test_a_damaged_mcap_is_reported_and_never_read_as_other_messages(tmp_path: Path) -> None:
+    """Issue 12: 16 random bytes overwritten gave exit 0 and silently different results in 7 of 40 copies."""
+    bag, storage_file = copy_of_fixture(tmp_path, "pyramid")
+    intact = storage_file.read_bytes()
+    rng = random.Random(DAMAGE_SEED)
+    reported = []
+    for _ in range(DAMAGED_COPIES):
+        offset = rng.randrange(len(intact) - 16)
+        damaged = bytearray(intact)
+        damaged[offset : offset + 16] = rng.randbytes(16)
+        storage_file.write_bytes(bytes(damaged))
+        with pytest.raises(BagError) as raised:
+            read_bag(bag)
+        reported.append(str(raised.value))
+    assert all(r.startswith(f"{bag}: cannot read bag (corrupt or truncated?): ") for r in reported)
+    assert sum("checksum mismatch" in r for r in reported) >= DAMAGED_COPIES // 2
+
+
+def test_a_damaged_chunk_is_one_error_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    bag, storage_file = copy_of_fixture(tmp_path, "pyramid")
+    data = bytearray(storage_file.read_bytes())
+    data[len(data) // 2] ^= 0x01  # one bit of a message, inside the only chunk
+    storage_file.write_bytes(bytes(data))
+    assert replay_error(capsys, bag) == (
+        f"physics-mapper replay: error: {bag}: cannot read bag (corrupt or truncated?): "
+        "pyramid.mcap: chunk checksum mismatch: the file is damaged"
+    )
 
 
 def test_truncated_mcap(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

@@ -12,6 +12,10 @@ Messages are kept as raw CDR bytes (what a publisher sends); :func:`pose_array_f
 :func:`weights_from_cdr` turn one into core values, the only conversion from bag messages here;
 :func:`decoding` names the bag, topic and time of a message that cannot be used. Reading is in
 memory, of every topic or only of the topics a caller needs. Time stamps are integer nanoseconds.
+
+MCAP files written here carry CRCs of every chunk, of the data section and of the summary
+(:mod:`physics_mapper.bags.mcap_storage`), and every CRC an MCAP file carries is checked before it
+is read, so a damaged bag is reported rather than read as other messages. SQLite has no checksums.
 """
 
 from __future__ import annotations
@@ -20,7 +24,7 @@ from collections.abc import Collection, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
-from types import TracebackType
+from types import MappingProxyType, TracebackType
 from typing import Any, Final, Literal
 
 import numpy as np
@@ -28,6 +32,7 @@ from rosbags.interfaces import Connection
 from rosbags.rosbag2 import Reader, StoragePlugin, Writer, WriterError
 from rosbags.typesys import Stores, get_typestore
 
+from physics_mapper.bags.mcap_storage import ChecksummedMcapStorage, verify_checksums
 from physics_mapper.core.geometry import Pose, Quaternion, Vector3, make_pose
 from physics_mapper.core.hypotheses import RankedHypotheses
 from physics_mapper.mapping.stamps import time_parts, to_nanoseconds
@@ -150,8 +155,14 @@ def weights_cdr(weights: Sequence[float]) -> bytes:
     return bytes(TYPESTORE.serialize_cdr(message, WEIGHTS))
 
 
+class _ChecksummedWriter(Writer):
+    """rosbags' rosbag2 writer, its MCAP files written with checksums."""
+
+    STORAGE_PLUGINS = MappingProxyType({**Writer.STORAGE_PLUGINS, StoragePlugin.MCAP: ChecksummedMcapStorage})
+
+
 class BagWriter:
-    """Writes a new bag (mcap or sqlite3); topics are added on their first message.
+    """Writes a new bag (mcap, with checksums, or sqlite3); topics are added on their first message.
 
     Use as a context manager; refuses (BagError) a path that already exists.
     """
@@ -159,7 +170,7 @@ class BagWriter:
     def __init__(self, path: str | Path, storage: Storage = "mcap") -> None:
         self.path = Path(path)
         try:
-            self._writer = Writer(self.path, version=BAG_VERSION, storage_plugin=_PLUGINS[storage])
+            self._writer = _ChecksummedWriter(self.path, version=BAG_VERSION, storage_plugin=_PLUGINS[storage])
             self._writer.open()
         except (WriterError, OSError) as error:
             raise BagError(f"cannot write bag {self.path}: {error}") from None
@@ -202,12 +213,15 @@ def read_bag(path: str | Path, topics: Collection[str] | None = None) -> Bag:
     """Read an mcap or sqlite3 bag: the messages of ``topics`` (absolute names; None: of every topic).
 
     :attr:`Bag.topics` lists every topic of the bag with its type, read or not. Raises BagError
-    if the bag is missing, corrupt or truncated.
+    if the bag is missing, corrupt or truncated, or an MCAP file's bytes fail a checksum it carries.
     """
     path = Path(path)
     if not path.exists():
         raise BagError(f"{path}: no such bag")
     try:
+        for storage_file in sorted(path.glob("*.mcap")) if path.is_dir() else [path]:
+            if storage_file.suffix == ".mcap":
+                verify_checksums(storage_file)
         with Reader(path) as reader:
             types = {recorded(c.topic): c.msgtype for c in reader.connections}
             wanted = [c for c in reader.connections if topics is None or recorded(c.topic) in topics]
@@ -221,8 +235,9 @@ def read_bag(path: str | Path, topics: Collection[str] | None = None) -> Bag:
                 else []
             )
     except Exception as error:
-        # A damaged file surfaces as whatever layer notices it first (ReaderError, apsw's CorruptError,
-        # struct.error, OverflowError, ...); the try holds only rosbags calls. One line: YAML errors span several.
+        # A damaged file surfaces as whatever layer notices it first (a ChecksumError, ReaderError,
+        # apsw's CorruptError, struct.error, OverflowError, ...); the try holds only bag-reading calls.
+        # One line: YAML errors span several.
         raise BagError(f"{path}: cannot read bag (corrupt or truncated?): {' '.join(str(error).split())}") from None
     messages.sort(key=lambda m: m.time_ns)
     return Bag(path, types, tuple(messages))
