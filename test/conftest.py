@@ -6,10 +6,20 @@ import os
 from pathlib import Path
 
 import pytest
+from hypothesis import settings
 
 REPO = Path(__file__).resolve().parent.parent
 SCENES = REPO / "config" / "scenes"
 PROBLEMS = REPO / "config" / "problems"
+
+
+# Property-based tests (test_fuzz.py). `make test` runs the "ci" profile: a fixed set of examples,
+# the same on every run (derandomized: seeded from each test's source), no example database.
+# `HYPOTHESIS_PROFILE=fuzz .venv/bin/pytest test/test_fuzz.py` searches at random, 50 times longer,
+# and keeps every failure in .hypothesis/ (git-ignored) to try it first on the next run.
+settings.register_profile("ci", max_examples=100, derandomize=True, database=None, deadline=None)
+settings.register_profile("fuzz", max_examples=5_000, deadline=None)
+settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))
 
 
 def _domain_id() -> int:

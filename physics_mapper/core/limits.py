@@ -22,6 +22,8 @@ MAX_HYPOTHESES_PER_OBJECT = 100
 MAX_NAME_LENGTH = 256
 #: Characters of an input's own text (a frame_id, a YAML value) quoted in an error or a diagnostic.
 MAX_QUOTED_TEXT = 80
+#: Characters of a key path (``hypotheses.cube[3].position``) named in a file error.
+MAX_KEY_TEXT = 200
 #: Characters of any one diagnostics string (a status message or a key-value's value).
 MAX_DIAGNOSTIC_TEXT = 1000
 

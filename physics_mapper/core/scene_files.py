@@ -64,7 +64,7 @@ class _Reader:
         return SceneError(self.source, key, problem)
 
     def note(self, key: str, what: str) -> None:
-        self.notes.append(f"{self.source}: {key}: {what}")
+        self.notes.append(str(FileError(self.source, key, what)))  # formatted as an error line is
 
     def mapping(self, value: Any, key: str) -> Mapping[str, Any]:
         if not isinstance(value, Mapping):
@@ -118,7 +118,7 @@ class _Reader:
         return value
 
     def known_keys(self, data: Mapping[str, Any], key: str, allowed: Sequence[str]) -> None:
-        unknown = sorted(set(data) - set(allowed))
+        unknown = sorted(set(data) - set(allowed), key=str)  # keys may be of any type: 1, null, true
         if unknown:
             prefix = f"{key}." if key else ""
             raise self.fail(f"{prefix}{unknown[0]}", f"unknown key (expected one of: {', '.join(allowed)})")

@@ -20,20 +20,31 @@ import yaml
 from yaml.composer import ComposerError
 from yaml.nodes import Node
 
-from physics_mapper.core.limits import MAX_FILE_BYTES, MAX_YAML_DEPTH
+from physics_mapper.core.limits import MAX_FILE_BYTES, MAX_KEY_TEXT, MAX_YAML_DEPTH, clipped
 
 #: A YAML 1.2 (core schema) float without the special values: ``.5``, ``1.``, ``1e-4``, ``-2.5E+3``.
 FLOAT_SPELLING = re.compile(r"^[-+]?(?:\.[0-9]+|[0-9]+(?:\.[0-9]*)?)(?:[eE][-+]?[0-9]+)?$")
 
 
 class FileError(ValueError):
-    """An input file cannot be used: names the file, the key path (if any) and the problem, on one line."""
+    """An input file cannot be used: names the file, the key path (if any) and the problem, on one line.
+
+    Text taken from the file (a key, a quoted value) is shown escaped if it holds line breaks or
+    other unprintable characters, and a key path is clipped to
+    :data:`~physics_mapper.core.limits.MAX_KEY_TEXT` characters.
+    """
 
     def __init__(self, source: str, key: str, problem: str) -> None:
+        key, problem = clipped(_printable(key), MAX_KEY_TEXT), _printable(problem)
         super().__init__(f"{source}: {key}: {problem}" if key else f"{source}: {problem}")
         self.source = source
         self.key = key
         self.problem = problem
+
+
+def _printable(text: str) -> str:
+    """``text`` with line breaks and other unprintable characters escaped as in a Python literal."""
+    return text if text.isprintable() else "".join(c if c.isprintable() else repr(c)[1:-1] for c in text)
 
 
 class _BoundedLoader(yaml.SafeLoader):
