@@ -364,6 +364,15 @@ def test_a_corrupted_position_far_outside_the_workspace_is_not_searched(tmp_path
     assert len(top) == 1 and top.pose(1).position == (0.0, 0.0, 0.1)
 
 
+def test_a_json_file_in_a_missing_folder_is_refused_before_replaying(capsys: pytest.CaptureFixture[str]) -> None:
+    capsys.readouterr()
+    arguments = ["replay", str(DATA / "pyramid"), "--scene", str(SCENES / "pyramid.yaml"), "--offline"]
+    assert main([*arguments, "--json", "/nonexistent/dir/x.json"]) == EXIT_BAD_INPUT
+    captured = capsys.readouterr()
+    missing = "/nonexistent/dir/x.json: folder /nonexistent/dir does not exist"
+    assert captured.err == f"physics-mapper replay: error: cannot write {missing}\n"
+
+
 def test_offline_output_path_is_checked_before_searching(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     (tmp_path / "taken").mkdir()
     capsys.readouterr()

@@ -150,12 +150,18 @@ def test_bad_deadline_exits_2_with_one_line(args: tuple[str, ...], message: str)
     assert "Traceback" not in completed.stderr
 
 
-def test_unwritable_trace_file_exits_2_without_traceback() -> None:
-    completed = cli("solve", PROBLEMS / "stack.yaml", "--trace", "/nonexistent/dir/trace.json")
+@pytest.mark.parametrize(
+    ("trace", "problem"),
+    [
+        ("/nonexistent/dir/trace.json", "folder /nonexistent/dir does not exist"),  # refused before the search
+        (str(PROBLEMS), "Is a directory"),  # found when writing, after the search
+    ],
+)
+def test_unwritable_trace_file_exits_2_without_traceback(trace: str, problem: str) -> None:
+    completed = cli("solve", PROBLEMS / "stack.yaml", "--trace", trace)
     assert completed.returncode == 2
-    # The search ran (pybullet's import banner may precede); the error is the last line.
-    last = completed.stderr.strip().splitlines()[-1]
-    assert last == "physics-mapper solve: error: cannot write /nonexistent/dir/trace.json: No such file or directory"
+    # pybullet's import banner may precede; the error is the last line.
+    assert completed.stderr.strip().splitlines()[-1] == f"physics-mapper solve: error: cannot write {trace}: {problem}"
     assert "Traceback" not in completed.stderr
 
 

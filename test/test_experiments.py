@@ -284,10 +284,11 @@ def test_trajectory_ends_where_settle_ends() -> None:
         (["fig8", "--particles", "2"], "--particles must be at least"),
         (["fig4", "--seed", "-1"], "--seed must not be negative"),
         (["peg", "--scenes", "/nonexistent"], "--scenes /nonexistent is not a folder"),
+        (["peg", "-o", "/dev/null/reports"], "cannot create /dev/null/reports: Not a directory"),
     ],
 )
 def test_bad_arguments_give_one_clear_line_and_exit_2(arguments: list[str], message: str, tmp_path: Path) -> None:
-    done = cli("experiment", *arguments, "-o", str(tmp_path))
+    done = cli("experiment", "-o", str(tmp_path), *arguments)  # a later -o wins
     assert done.returncode == 2
     errors = [line for line in done.stderr.splitlines() if line.startswith("physics-mapper experiment: error:")]
     assert len(errors) == 1 and message in errors[0]

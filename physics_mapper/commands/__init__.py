@@ -11,6 +11,7 @@ import sys
 from pathlib import Path
 from types import ModuleType
 
+from physics_mapper.core.errors import InputError
 from physics_mapper.core.scene import Problem
 from physics_mapper.core.scene_files import load_problem
 
@@ -31,4 +32,18 @@ def load_problem_file(path: Path, command: str) -> Problem:
     return problem
 
 
-__all__ = ["COMMANDS", "command_module", "load_problem_file"]
+def check_output_folder(path: Path) -> None:
+    """Refuse (InputError), before any work is done, an output file whose folder does not exist."""
+    if not path.parent.is_dir():
+        raise InputError(f"cannot write {path}: folder {path.parent} does not exist")
+
+
+def write_output(path: Path, text: str) -> None:
+    """Write an output file the user named; InputError (one line) if it cannot be written."""
+    try:
+        path.write_text(text, encoding="utf-8")
+    except OSError as error:
+        raise InputError(f"cannot write {path}: {error.strerror or error}") from None
+
+
+__all__ = ["COMMANDS", "check_output_folder", "command_module", "load_problem_file", "write_output"]

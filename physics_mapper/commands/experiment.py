@@ -52,6 +52,10 @@ def run(args: argparse.Namespace) -> int:
     top_m = TrackerSettings().top_m
     if args.particles is not None and args.particles < top_m:
         raise InputError(f"--particles must be at least {top_m} (the hypotheses kept per object), got {args.particles}")
+    try:
+        args.output.mkdir(parents=True, exist_ok=True)
+    except OSError as error:
+        raise InputError(f"cannot create {args.output}: {error.strerror or error}") from None
     options = ExperimentOptions(
         output_dir=args.output, seed=args.seed, runs=args.runs, particles=args.particles, progress=_progress
     )

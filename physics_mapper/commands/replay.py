@@ -13,6 +13,7 @@ from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from physics_mapper.commands import check_output_folder, write_output
 from physics_mapper.core.errors import EXIT_FAILURE, InputError
 
 if TYPE_CHECKING:
@@ -74,6 +75,8 @@ def run(args: argparse.Namespace) -> int:
         raise InputError("--start-node is for a live replay; --offline runs no node")
     if not args.offline and (args.deadline is not None or args.exhaustive):
         raise InputError("--deadline and --exhaustive are for --offline; a live node has its own deadline parameter")
+    if args.json is not None:
+        check_output_folder(args.json)
     scene = load_scene(args.scene)
     try:
         # Offline needs only the scene's topics; live plays every topic of the bag.
@@ -183,4 +186,4 @@ def _write_json(path: Path, mode: str, results: Sequence[SnapshotResult], object
         "mean_errors": mean_errors(results),
         "snapshots": [snapshot_result_dict(o) for o in results],
     }
-    path.write_text(json.dumps(data, indent=1) + "\n")
+    write_output(path, json.dumps(data, indent=1) + "\n")

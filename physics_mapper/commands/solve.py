@@ -7,7 +7,7 @@ import json
 from dataclasses import replace
 from pathlib import Path
 
-from physics_mapper.commands import load_problem_file
+from physics_mapper.commands import check_output_folder, load_problem_file, write_output
 from physics_mapper.core.errors import InputError
 from physics_mapper.core.physics import PhysicsChecker
 from physics_mapper.core.report import result_dict, result_summary, trace_entry_dict, trace_tree
@@ -28,6 +28,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.trace is not None:
+        check_output_folder(args.trace)
     problem = load_problem_file(args.problem, "solve")
     params = problem.scene.search
     if args.deadline is not None:
@@ -38,10 +40,7 @@ def run(args: argparse.Namespace) -> int:
     with PhysicsChecker(problem.scene) as checker:
         result = solve(checker, problem.hypotheses, params)
     if args.trace is not None:
-        try:
-            args.trace.write_text(json.dumps([trace_entry_dict(e) for e in result.trace], indent=1) + "\n")
-        except OSError as error:
-            raise InputError(f"cannot write {args.trace}: {error.strerror or error}") from None
+        write_output(args.trace, json.dumps([trace_entry_dict(e) for e in result.trace], indent=1) + "\n")
     if args.json:
         print(json.dumps(result_dict(result, problem.scene.object_names), indent=1))
         return 0
