@@ -245,7 +245,7 @@ def mapper_and_judge() -> Any:
     judge.close()
 
 
-@settings(max_examples=max(10, settings().max_examples // 4))  # each example simulates up to 9 configurations
+@settings(max_examples=max(10, settings().max_examples // 2))  # each example simulates up to 9 configurations
 @given(st.lists(st.lists(hypothesis_poses, min_size=1, max_size=3), min_size=2, max_size=2), st.booleans())
 def test_a_result_is_valid_only_if_both_rules_hold_inside_the_workspace(
     mapper_and_judge: Any, per_object: list[list[RawPose]], weighted: bool
