@@ -177,20 +177,20 @@ BAD_FILES = {
     ),
     "workspace beyond the trusted range": BadFile(
         "workspace.max[0]",
-        "must be within +-1e+07 m (where the physics is trusted), got 1e+15",
+        "must be within ±1e+07 m (where the physics is trusted), got 1e+15",
         ("workspace",),
         {"min": [-1, -1, 0], "max": [1e15, 1, 1]},
     ),
     "workspace without max": BadFile("workspace.max", "missing", ("workspace",), {"min": [-1, -1, 0]}),
     "static body 1e15 m away": BadFile(
         "static[0].pose.position[0]",
-        "must be within +-1e+07 m (where the physics is trusted), got 1e+15",
+        "must be within ±1e+07 m (where the physics is trusted), got 1e+15",
         ("static", 0, "pose"),
         {"position": [1e15, 0, 0]},
     ),
     "huge box": BadFile(
         "objects[0].size[0]",
-        "must be within +-1e+07 m (where the physics is trusted), got 1e+09",
+        "must be within ±1e+07 m (where the physics is trusted), got 1e+09",
         ("objects", 0, "size"),
         [1e9, 0.1, 0.1],
     ),

@@ -104,9 +104,11 @@ def verify_checksums(path: Path) -> VerifiedChecksums:
     data_section = False
     footer: Footer | None = None
     with path.open("rb") as file:
+        # No record is longer than the file: a damaged length field must not make the reader allocate more.
+        reader = StreamReader(file, validate_crcs=True, emit_chunks=True, record_size_limit=path.stat().st_size)
         try:
             # Chunks are emitted whole and checked here: cheaper than parsing every message record.
-            for record in StreamReader(file, validate_crcs=True, emit_chunks=True).records:
+            for record in reader.records:
                 if isinstance(record, Chunk):
                     chunks += 1
                     chunks_with_crc += record.uncompressed_crc != 0

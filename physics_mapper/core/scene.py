@@ -64,6 +64,10 @@ def bounding_radius(shape: Shape) -> float | None:
     return None
 
 
+#: Metres the default workspace extends beyond the scene's bodies and ground truth on every side.
+DEFAULT_WORKSPACE_MARGIN = 10.0
+
+
 @dataclass(frozen=True)
 class Workspace:
     """An axis-aligned box of the scene frame, corners in metres, that every hypothesis's position must lie in.
@@ -166,10 +170,6 @@ class Scene:
     def workspace(self) -> Workspace:
         """The box hypotheses must lie in: :attr:`explicit_workspace`, else :func:`default_workspace`."""
         return self.explicit_workspace or default_workspace(self)
-
-
-#: Metres the default workspace extends beyond the scene's bodies and ground truth on every side.
-DEFAULT_WORKSPACE_MARGIN = 10.0
 
 
 def default_workspace(scene: Scene) -> Workspace:

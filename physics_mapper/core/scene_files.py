@@ -64,7 +64,7 @@ class _Reader:
         return SceneError(self.source, key, problem)
 
     def note(self, key: str, what: str) -> None:
-        self.notes.append(str(FileError(self.source, key, what)))  # formatted as an error line is
+        self.notes.append(str(FileError(self.source, key, what)))  # one line, as an error is
 
     def mapping(self, value: Any, key: str) -> Mapping[str, Any]:
         if not isinstance(value, Mapping):
@@ -99,7 +99,7 @@ class _Reader:
         if minimum is not None and number < minimum:
             raise self.fail(key, f"must be at least {minimum:g}, got {number:g}")
         if magnitude is not None and abs(number) > magnitude:
-            raise self.fail(key, f"must be within +-{magnitude:g} m (where the physics is trusted), got {number:g}")
+            raise self.fail(key, f"must be within ±{magnitude:g} m (where the physics is trusted), got {number:g}")
         return number
 
     def vector(
