@@ -15,6 +15,12 @@ from physics_mapper.bags.evaluation import (
     snapshot_result_dict,
     write_results,
 )
+from physics_mapper.bags.mcap_storage import (
+    ChecksumError,
+    ChecksummedMcapStorage,
+    VerifiedChecksums,
+    verify_checksums,
+)
 from physics_mapper.bags.snapshots import (
     BURST_GAP_NS,
     MAX_BURST_NS,
@@ -58,8 +64,11 @@ __all__ = [
     "BagMessage",
     "BagSnapshot",
     "BagWriter",
+    "ChecksumError",
+    "ChecksummedMcapStorage",
     "PoseArrayData",
     "SnapshotResult",
+    "VerifiedChecksums",
     "bag_snapshots",
     "check_hypothesis_topics",
     "code_of",
@@ -73,6 +82,7 @@ __all__ = [
     "recorded_results",
     "search_offline",
     "snapshot_result_dict",
+    "verify_checksums",
     "weights_cdr",
     "weights_from_cdr",
     "write_results",
