@@ -12,7 +12,7 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
-from typing import Literal
+from typing import Literal, assert_never
 
 from physics_mapper.core.geometry import ORIGIN, Pose, Vector3
 from physics_mapper.core.hypotheses import RankedHypotheses
@@ -54,14 +54,19 @@ STATIC_SHAPES = ("plane", "box", "sphere", "cylinder")
 
 
 def bounding_radius(shape: Shape) -> float | None:
-    """Radius (m) of the smallest sphere about the shape's pose that holds it; None for an unbounded plane."""
+    """Radius (m) of the smallest sphere about the shape's pose that holds it; None for an unbounded plane.
+
+    Every shape must have a branch (mypy checks it): the default workspace is derived from these radii.
+    """
     if isinstance(shape, Box):
         return math.hypot(*shape.size) / 2.0
     if isinstance(shape, Sphere):
         return shape.radius
     if isinstance(shape, Cylinder):
         return math.hypot(shape.radius, shape.length / 2.0)
-    return None
+    if isinstance(shape, Plane):
+        return None
+    assert_never(shape)
 
 
 #: Metres the default workspace extends beyond the scene's bodies and ground truth on every side.
