@@ -1,6 +1,7 @@
 """``physics-mapper``: one entry point, one module per subcommand (SPEC section 5).
 
-Exit codes: 0 success, 1 a run-time failure, 2 bad arguments or input files.
+Exit codes: 0 success, 1 a run-time failure, 2 bad arguments or input files, 3 a report written
+without some of its bags (``evaluate``, ``sweep``), 130 stopped by Ctrl-C.
 """
 
 from __future__ import annotations
@@ -10,7 +11,7 @@ import sys
 from collections.abc import Sequence
 
 from physics_mapper.commands import COMMANDS, command_module
-from physics_mapper.core.errors import EXIT_BAD_INPUT, InputError
+from physics_mapper.core.errors import EXIT_BAD_INPUT, EXIT_INTERRUPTED, InputError
 from physics_mapper.core.scene_files import SceneError
 
 
@@ -36,4 +37,4 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"physics-mapper {args.command}: error: {error}", file=sys.stderr)
         return EXIT_BAD_INPUT
     except KeyboardInterrupt:
-        return 130
+        return EXIT_INTERRUPTED

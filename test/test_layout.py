@@ -27,9 +27,10 @@ ALLOWED: dict[str, set[str]] = {
     "bags": {"core", "mapping"},
     "bench": {"core"},
     "experiments": {"core", "perception"},
+    "batch": {"core", "mapping", "bags", "experiments"},
     "msg_adapters": {"core", "mapping"},
     "ros": {"core", "mapping", "bags", "msg_adapters"},
-    "commands": {"core", "mapping", "bags", "perception", "bench", "experiments", "msg_adapters", "ros"},
+    "commands": {"core", "mapping", "bags", "perception", "bench", "experiments", "batch", "msg_adapters", "ros"},
     "cli": {"core", "commands"},
 }
 #: Rooms that may import ROS: rclpy, message packages and the other ROS 2 Python packages.

@@ -10,7 +10,7 @@ object's top hypothesis), the chosen hypotheses and their settled poses.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -37,12 +37,17 @@ SAME_ORIENTATION = 1e-12
 
 @dataclass(frozen=True)
 class SnapshotResult:
-    """A snapshot and the configuration chosen for it (``code`` None: nothing was chosen or published)."""
+    """A snapshot and the configuration chosen for it (``code`` None: nothing was chosen or published).
+
+    ``search`` is the offline search's whole result (validity, fallback, counts, time); None for a
+    live node's recorded choice, whose validity the recording does not hold.
+    """
 
     snapshot: BagSnapshot
     code: Code | None
     chosen: tuple[Pose, ...] | None
     settled: tuple[Pose, ...] | None
+    search: SearchResult | None = None
 
 
 def search_offline(
@@ -59,7 +64,7 @@ def search_offline(
     with PhysicsChecker(scene) as checker:
         for index, snapshot in enumerate(snapshots):
             found = BranchAndBound(checker, snapshot.hypotheses, scene.search).run(budget)
-            results.append(SnapshotResult(snapshot, found.code, found.poses, found.settled_poses))
+            results.append(SnapshotResult(snapshot, found.code, found.poses, found.settled_poses, found))
             if progress is not None:
                 progress(index, found)
     return results
@@ -137,24 +142,45 @@ def _estimates(result: SnapshotResult) -> tuple[tuple[Pose, ...] | None, ...]:
     return rank_one_poses(result.snapshot.hypotheses), result.chosen, result.settled
 
 
-def _position_errors(result: SnapshotResult) -> dict[str, tuple[float, ...]] | None:
-    """Each estimate's per-object position error (m); None without a ground truth or a complete choice."""
+EstimateErrors = Mapping[str, Sequence[float] | None]
+
+
+def estimate_errors(result: SnapshotResult) -> dict[str, tuple[float, ...] | None] | None:
+    """Each estimate's per-object position errors in metres, keyed by :data:`ESTIMATES`.
+
+    ``chosen`` and ``settled`` are None where nothing was chosen (``top``, C11..1, always exists);
+    the whole is None without a ground truth.
+    """
     truth = result.snapshot.ground_truth
-    estimates = _estimates(result)
-    if truth is None or any(poses is None for poses in estimates):
+    if truth is None:
         return None
-    return {name: position_errors(poses or (), truth) for name, poses in zip(ESTIMATES, estimates, strict=True)}
+    return {
+        name: None if poses is None else position_errors(poses, truth)
+        for name, poses in zip(ESTIMATES, _estimates(result), strict=True)
+    }
+
+
+def is_scored(errors: EstimateErrors | None) -> bool:
+    """Whether a snapshot's :func:`estimate_errors` count in the means: a ground truth and a chosen configuration."""
+    return errors is not None and all(errors[name] is not None for name in ESTIMATES)
+
+
+def mean_scored_errors(errors: Iterable[EstimateErrors | None]) -> dict[str, tuple[float, ...]] | None:
+    """Per estimate (:data:`ESTIMATES`), each object's mean position error in metres.
+
+    ``errors`` are snapshots' :func:`estimate_errors`; the mean is over the scored ones
+    (:func:`is_scored`); None if there is none.
+    """
+    scored = [[e[name] for name in ESTIMATES] for e in errors if e is not None and is_scored(e)]
+    if not scored:
+        return None
+    means = np.mean(np.asarray(scored, dtype=float), axis=0)  # [estimate, object]
+    return {name: tuple(row.tolist()) for name, row in zip(ESTIMATES, means, strict=True)}
 
 
 def mean_errors(results: Sequence[SnapshotResult]) -> dict[str, tuple[float, ...]] | None:
-    """Per estimate (:data:`ESTIMATES`), each object's mean position error in metres.
-
-    Averaged over the results with a ground truth and a chosen configuration; None if there is none.
-    """
-    scored = [errors for errors in map(_position_errors, results) if errors is not None]
-    if not scored:
-        return None
-    return {name: tuple(np.mean([e[name] for e in scored], axis=0).tolist()) for name in ESTIMATES}
+    """:func:`mean_scored_errors` of the results: averaged over those with a ground truth and a chosen configuration."""
+    return mean_scored_errors(map(estimate_errors, results))
 
 
 def evaluation_summary(results: Sequence[SnapshotResult], object_names: Sequence[str]) -> str:
@@ -174,7 +200,7 @@ def evaluation_summary(results: Sequence[SnapshotResult], object_names: Sequence
         lines.append("no error against ground truth (no /ground_truth in the bag, or no configuration)")
         return "\n".join(lines)
     width = max(len(name) for name in (*object_names, "total"))
-    scored = sum(1 for o in results if _position_errors(o) is not None)
+    scored = sum(1 for o in results if is_scored(estimate_errors(o)))
     lines.append(f"mean position error against ground truth over the {scored} snapshots with a configuration [cm]:")
     labels = (top, "chosen", "settled")  # the names of ESTIMATES, for people
     lines.append(f"{'object':<{width}}" + "".join(f"{label:>10}" for label in labels))
@@ -185,12 +211,19 @@ def evaluation_summary(results: Sequence[SnapshotResult], object_names: Sequence
 
 
 def snapshot_result_dict(result: SnapshotResult) -> dict[str, Any]:
-    """One snapshot's result as plain data: times, code, and per-object position errors (m) of each estimate."""
-    snapshot = result.snapshot
+    """One snapshot's result as plain data: times, code, per-object position errors (m) of each estimate
+    (:func:`estimate_errors`) and, for an offline search, ``valid``, ``fallback_used``, ``visited`` (configurations
+    checked) and ``stopped_at_deadline`` (None for a live node's choice). Wall-clock times are left out, so that the
+    same search gives the same data on any machine."""
+    snapshot, search = result.snapshot, result.search
     return {
         "time_ns": snapshot.time_ns,
         "stamp_ns": snapshot.stamp_ns,
         "code": None if result.code is None else list(result.code),
         "code_text": code_text(result.code),
-        "errors": _position_errors(result),
+        "valid": None if search is None else search.valid,
+        "fallback_used": None if search is None else search.fallback_used,
+        "visited": None if search is None else search.stats.visited,
+        "stopped_at_deadline": None if search is None else search.stats.stopped_at_deadline,
+        "errors": estimate_errors(result),
     }

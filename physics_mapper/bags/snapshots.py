@@ -67,6 +67,14 @@ def input_topics(scene: Scene) -> tuple[str, ...]:
     return (*(topic for pair in per_object for topic in pair), GROUND_TRUTH_TOPIC)
 
 
+def no_snapshot_reason(scene: Scene) -> str:
+    """What a bag that gives no snapshot lacks: hypotheses of every object that pass the input rules."""
+    return (
+        "at no time does every object have usable hypotheses "
+        f"(frame_id must be {scene.frame_id!r}, poses finite with unit quaternions, weights valid)"
+    )
+
+
 def bag_snapshots(bag: Bag, scene: Scene, settings: InputSettings | None = None) -> list[BagSnapshot]:
     """Feed the bag's hypotheses through the node's input rules; one snapshot per new set of hypotheses.
 

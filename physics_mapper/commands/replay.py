@@ -65,7 +65,7 @@ def _progress(text: str) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from physics_mapper.bags.evaluation import evaluation_summary
-    from physics_mapper.bags.snapshots import bag_snapshots, input_topics
+    from physics_mapper.bags.snapshots import bag_snapshots, input_topics, no_snapshot_reason
     from physics_mapper.bags.storage import BagError, check_hypothesis_topics, read_bag
     from physics_mapper.core.scene_files import load_scene
 
@@ -85,10 +85,7 @@ def run(args: argparse.Namespace) -> int:
         snapshots = bag_snapshots(bag, scene)
         _progress(f"{args.bag}: {len(bag.messages)} messages, {len(snapshots)} snapshots of hypotheses")
         if not snapshots:
-            _progress(
-                "warning: at no time does every object have usable hypotheses "
-                f"(frame_id must be {scene.frame_id!r}, poses finite with unit quaternions, weights valid)"
-            )
+            _progress(f"warning: {no_snapshot_reason(scene)}")
         results = _offline(args, scene, snapshots) if args.offline else _live(args, scene, bag, snapshots)
     except BagError as error:
         raise InputError(str(error)) from None

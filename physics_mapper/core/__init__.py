@@ -9,6 +9,8 @@ from __future__ import annotations
 from physics_mapper.core.errors import (
     EXIT_BAD_INPUT,
     EXIT_FAILURE,
+    EXIT_INCOMPLETE,
+    EXIT_INTERRUPTED,
     InputError,
 )
 from physics_mapper.core.geometry import (
@@ -104,6 +106,7 @@ from physics_mapper.core.scene_files import (
     load_scene,
     problem_from_dict,
     scene_from_dict,
+    search_with_overrides,
 )
 from physics_mapper.core.scoring import (
     position_errors,
@@ -130,6 +133,8 @@ __all__ = [
     "ESCAPE_DIRECTIONS",
     "EXIT_BAD_INPUT",
     "EXIT_FAILURE",
+    "EXIT_INCOMPLETE",
+    "EXIT_INTERRUPTED",
     "FALLBACKS",
     "FLOAT_SPELLING",
     "GRAVITY",
@@ -213,6 +218,7 @@ __all__ = [
     "rotation_vector",
     "scene_from_dict",
     "search_params_problem",
+    "search_with_overrides",
     "solve",
     "trace_entry_dict",
     "trace_tree",

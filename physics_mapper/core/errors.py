@@ -6,6 +6,10 @@ CLI as ``__main__``) and the command modules share one ``InputError`` class.
 
 EXIT_FAILURE = 1
 EXIT_BAD_INPUT = 2
+#: ``evaluate`` and ``sweep``: the report was written, but some bags could not be evaluated (listed in it).
+EXIT_INCOMPLETE = 3
+#: Stopped by Ctrl-C (SIGINT), 128 + its signal number, as shells report it.
+EXIT_INTERRUPTED = 130
 
 
 class InputError(Exception):

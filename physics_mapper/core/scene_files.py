@@ -233,6 +233,15 @@ def _read_workspace(reader: _Reader, value: Any, key: str) -> Workspace:
     return Workspace((low[0], low[1], low[2]), (high[0], high[1], high[2]))
 
 
+def search_with_overrides(
+    params: SearchParams, overrides: Mapping[str, Any], source: str, key: str = "search"
+) -> SearchParams:
+    """``params`` with ``overrides`` (name -> value as YAML gives it) merged over them, validated as a
+    scene file's ``search:`` section is; raises :class:`SceneError` naming ``source`` and ``key.name``."""
+    merged = {f.name: getattr(params, f.name) for f in fields(SearchParams)} | dict(overrides)
+    return _read_search(_Reader(source), merged, key)
+
+
 _SCENE_KEYS = ("frame_id", "static", "objects", "search", "ground_truth", "workspace")
 
 
@@ -328,8 +337,7 @@ def problem_from_dict(data: Any, source: str, base_dir: Path | None = None) -> P
         scene = load_scene(scene_path)
         if "search" in top:
             overrides = reader.mapping(top["search"], "search")
-            merged = {f.name: getattr(scene.search, f.name) for f in fields(SearchParams)} | dict(overrides)
-            scene = replace(scene, search=_read_search(reader, merged, "search"))
+            scene = replace(scene, search=search_with_overrides(scene.search, overrides, source))
     else:
         scene = scene_from_dict(top, source)
     given = reader.required(top, "hypotheses", "")

@@ -1,0 +1,105 @@
+"""Progress of a batch run on stderr: a bar with the rate and an ETA on a terminal, one line per task otherwise.
+
+On a terminal (``auto`` when the stream is a TTY) one line is redrawn at most :data:`REDRAW_INTERVAL`
+apart; in a log (not a TTY) each finished task prints one line, with the same counts and ETA, and
+nothing else. The ETA is the snapshots left divided by the rate so far (snapshots per second since
+the start, start-up included, so it is pessimistic at first).
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+import time
+from collections.abc import Callable
+from typing import Literal, TextIO
+
+ProgressMode = Literal["auto", "bar", "lines", "off"]
+
+#: Seconds between two redraws of the bar.
+REDRAW_INTERVAL = 0.1
+BAR_WIDTH = 24
+
+
+def duration_text(seconds: float) -> str:
+    """``1:02:03``, ``2:03`` or ``0:07``: hours, minutes and seconds, rounded up."""
+    whole = math.ceil(seconds)
+    hours, rest = divmod(whole, 3600)
+    minutes, secs = divmod(rest, 60)
+    return f"{hours}:{minutes:02d}:{secs:02d}" if hours else f"{minutes}:{secs:02d}"
+
+
+class Progress:
+    """Counts snapshots and tasks done against their totals and shows them on ``stream``.
+
+    ``prefix`` starts every line (the command's name); ``clock`` is seconds (monotonic).
+    """
+
+    def __init__(
+        self,
+        prefix: str,
+        total_snapshots: int,
+        total_tasks: int,
+        stream: TextIO = sys.stderr,
+        mode: ProgressMode = "auto",
+        clock: Callable[[], float] = time.monotonic,
+    ) -> None:
+        self.prefix = prefix
+        self.total_snapshots = total_snapshots
+        self.total_tasks = total_tasks
+        self.stream = stream
+        self.mode: ProgressMode = ("bar" if stream.isatty() else "lines") if mode == "auto" else mode
+        self.clock = clock
+        self.started = clock()
+        self.snapshots = 0
+        self.tasks = 0
+        self._drawn_at: float | None = None
+        self._width = 0
+
+    def snapshot_done(self, count: int = 1) -> None:
+        """``count`` more snapshots searched."""
+        self.snapshots += count
+        self._redraw()
+
+    def task_done(self, what: str) -> None:
+        """One more task ended (``what`` says which, and how, for the log line)."""
+        self.tasks += 1
+        if self.mode == "lines":
+            print(f"{self.prefix}: {self.tasks}/{self.total_tasks} {what}; {self.status()}", file=self.stream)
+            self.stream.flush()
+        else:
+            self._redraw(force=True)
+
+    def status(self) -> str:
+        """Snapshots done of all, the rate and the ETA."""
+        elapsed = self.clock() - self.started
+        rate = self.snapshots / elapsed if elapsed > 0.0 else 0.0
+        left = self.total_snapshots - self.snapshots
+        eta = duration_text(left / rate) if rate > 0.0 else "--"
+        return f"{self.snapshots}/{self.total_snapshots} snapshots, {rate:.1f}/s, ETA {eta}"
+
+    def bar(self) -> str:
+        """The bar line: share of snapshots done, tasks done, :meth:`status`."""
+        share = self.snapshots / self.total_snapshots if self.total_snapshots else 1.0
+        filled = round(BAR_WIDTH * share)
+        bar = "#" * filled + "." * (BAR_WIDTH - filled)
+        return f"{self.prefix} [{bar}] {share:4.0%} {self.tasks}/{self.total_tasks} tasks, {self.status()}"
+
+    def _redraw(self, force: bool = False) -> None:
+        if self.mode != "bar":
+            return
+        now = self.clock()
+        if not force and self._drawn_at is not None and now - self._drawn_at < REDRAW_INTERVAL:
+            return
+        self._drawn_at = now
+        line = self.bar()
+        self.stream.write("\r" + line.ljust(self._width))
+        self.stream.flush()
+        self._width = len(line)
+
+    def close(self) -> None:
+        """End the bar's line, so that what follows starts on a new one."""
+        if self.mode == "bar" and self._drawn_at is not None:
+            self._redraw(force=True)
+            self.stream.write("\n")
+            self.stream.flush()
