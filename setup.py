@@ -1,10 +1,18 @@
 """ament_python package definition: `colcon build` on a ROS machine, `pip install -e .` here."""
 
 from glob import glob
+from pathlib import Path
 
 from setuptools import find_packages, setup
 
 PACKAGE = "physics_mapper"
+
+
+def requirements(file_name):
+    """The pinned requirements of a requirements file next to this one (comments and blank lines left out)."""
+    lines = (Path(__file__).resolve().parent / file_name).read_text().splitlines()
+    return [line.split("#")[0].strip() for line in lines if line.split("#")[0].strip()]
+
 
 setup(
     name=PACKAGE,
@@ -18,6 +26,8 @@ setup(
         (f"share/{PACKAGE}/config/params", glob("config/params/*.yaml")),
     ],
     install_requires=["setuptools"],
+    # Optional: Ray for `evaluate`/`sweep --ray` (pip install -e '.[ray]').
+    extras_require={"ray": requirements("requirements-ray.txt")},
     zip_safe=True,
     maintainer="physics_mapper developers",
     maintainer_email="physics-mapper@example.com",

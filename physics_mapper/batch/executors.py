@@ -23,6 +23,7 @@ import logging
 import multiprocessing
 import os
 import signal
+import socket
 import traceback
 from collections import deque
 from collections.abc import Callable, Sequence
@@ -268,6 +269,23 @@ class RayUnavailable(RuntimeError):
     """Ray is installed but the cluster cannot be reached or started."""
 
 
+#: Seconds to wait for a cluster's head to accept a connection (Ray itself would retry for minutes).
+CONNECT_TIMEOUT = 5.0
+
+
+def _check_reachable(address: str) -> None:
+    """InputError for an address of no known form; RayUnavailable if a ``HOST:PORT`` head does not answer."""
+    if address in ("auto", "local"):
+        return
+    host, _, port = address.removeprefix("ray://").rpartition(":")
+    if not host or not port.isdigit():
+        raise InputError(f"--ray {address}: expected auto, local, HOST:PORT or ray://HOST:PORT")
+    try:
+        socket.create_connection((host, int(port)), timeout=CONNECT_TIMEOUT).close()
+    except OSError as error:
+        raise RayUnavailable(f"cannot connect to Ray at {address}: {error.strerror or error}") from None
+
+
 #: Seconds between looks at the cluster for finished tasks.
 RAY_POLL_INTERVAL = 0.5
 _SCALARS = (int, float, str, bool, type(None))
@@ -280,8 +298,8 @@ class RayCluster:
 
     Each task runs in a Ray worker process with its own pybullet world; arguments shared between
     tasks (the scene, a bag's snapshots) are put in the object store once. Ray reruns a task whose
-    worker died once (``max_retries``). When Ray is already initialised in this process (a caller
-    connected), that connection is used and left open.
+    worker died once (``max_retries``). When this process is already connected to Ray (a program
+    that uses the API and called ``ray.init`` itself), that connection is used and left open.
     """
 
     def __init__(self, address: str, cpus: int | None = None) -> None:
@@ -297,6 +315,7 @@ class RayCluster:
                 "--ray needs Ray, an optional dependency: pip install 'physics_mapper[ray]' "
                 "(or the pinned version in requirements-ray.txt)"
             ) from None
+        _check_reachable(self.address)
         if ray.is_initialized():
             return self
         options: dict[str, Any] = {"log_to_driver": False, "logging_level": logging.ERROR}

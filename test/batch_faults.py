@@ -1,0 +1,54 @@
+"""Task functions that misbehave on purpose, for the executors' fault handling (``test_evaluate.py``).
+
+Executors import them by name in their worker processes, so they live in a module of their own. Each
+run of a task leaves a file ``<name>.<attempt>`` in ``marker_dir``, so a test can count the runs.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+from physics_mapper.bags.snapshots import BagSnapshot
+from physics_mapper.batch.tasks import TaskOutput, evaluate_snapshots
+from physics_mapper.core.scene import Scene
+
+
+def _attempt(marker_dir: str, name: str) -> int:
+    """Record one more run of task ``name`` and return its number (1 for the first)."""
+    attempt = 1 + sum(1 for path in Path(marker_dir).iterdir() if path.stem == name)
+    (Path(marker_dir) / f"{name}.{attempt}").touch()
+    return attempt
+
+
+def _die() -> None:
+    os.kill(os.getpid(), signal.SIGKILL)  # as the out-of-memory killer does: no clean-up, no exception
+
+
+def behave(marker_dir: str, name: str, behaviour: str, progress: Callable[[], None] | None = None) -> str:
+    """``ok``: return; ``die``: kill its own process every time; ``die_once``: only on the first run;
+    ``raise``: raise ValueError."""
+    attempt = _attempt(marker_dir, name)
+    if behaviour == "die" or (behaviour == "die_once" and attempt == 1):
+        _die()
+    if behaviour == "raise":
+        raise ValueError(f"{name} cannot be used")
+    if progress is not None:
+        progress()
+    return f"{name} done in run {attempt}"
+
+
+#: The worker of :func:`die_on_bags_of` dies on bags of this many snapshots.
+FATAL_SNAPSHOTS = 3
+
+
+def die_on_bags_of(
+    scene: Scene, snapshots: Sequence[BagSnapshot], budget: float | None, progress: Any = None
+) -> TaskOutput:
+    """The offline evaluation, except that a worker given a bag of FATAL_SNAPSHOTS snapshots dies, every time."""
+    if len(snapshots) == FATAL_SNAPSHOTS:
+        _die()
+    return evaluate_snapshots(scene, snapshots, budget, progress)
