@@ -8,12 +8,13 @@ from __future__ import annotations
 
 import os
 import signal
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from physics_mapper.bags.snapshots import BagSnapshot
-from physics_mapper.batch.tasks import TaskOutput, evaluate_snapshots
+from physics_mapper.bags.storage import Bag
+from physics_mapper.batch.sources import UnreadableBag
+from physics_mapper.batch.tasks import TaskOutput, evaluate_bag
 from physics_mapper.core.scene import Scene
 
 
@@ -41,14 +42,14 @@ def behave(marker_dir: str, name: str, behaviour: str, progress: Callable[[], No
     return f"{name} done in run {attempt}"
 
 
-#: The worker of :func:`die_on_bags_of` dies on bags of this many snapshots.
-FATAL_SNAPSHOTS = 3
+#: The worker of :func:`die_on_bag` dies on the bag of this name.
+FATAL_BAG = "b_pyramid_sqlite3"
 
 
-def die_on_bags_of(
-    scene: Scene, snapshots: Sequence[BagSnapshot], budget: float | None, progress: Any = None
+def die_on_bag(
+    scene: Scene, source: Path | Bag | UnreadableBag, budget: float | None, progress: Any = None
 ) -> TaskOutput:
-    """The offline evaluation, except that a worker given a bag of FATAL_SNAPSHOTS snapshots dies, every time."""
-    if len(snapshots) == FATAL_SNAPSHOTS:
+    """The offline evaluation, except that a worker given the bag FATAL_BAG dies, every time."""
+    if (source if isinstance(source, Path) else source.path).name == FATAL_BAG:
         _die()
-    return evaluate_snapshots(scene, snapshots, budget, progress)
+    return evaluate_bag(scene, source, budget, progress)

@@ -10,9 +10,11 @@ from __future__ import annotations
 import io
 import json
 import logging
+import os
 import shutil
 import signal
 import subprocess
+import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -29,11 +31,11 @@ from physics_mapper.bags.storage import POSE_ARRAY, WEIGHTS, BagWriter, pose_arr
 from physics_mapper.batch.executors import ATTEMPTS, ProcessPool, RayCluster, TaskFailure
 from physics_mapper.batch.progress import Progress, duration_text
 from physics_mapper.batch.reports import CRITERIA, ReportContext, best_setting, write_evaluation
-from physics_mapper.batch.runner import read_bags, run_batch
+from physics_mapper.batch.runner import run_batch, survey_bags
 from physics_mapper.batch.settings import grid_settings, node_parameters_yaml, node_rate_hz, parse_value, with_overrides
 from physics_mapper.batch.sources import find_bags
 from physics_mapper.cli import main
-from physics_mapper.commands.evaluate import exit_code
+from physics_mapper.commands.evaluate import exit_code, sigterm_as_interrupt
 from physics_mapper.core.errors import EXIT_BAD_INPUT, EXIT_FAILURE, EXIT_INCOMPLETE, EXIT_INTERRUPTED, InputError
 from physics_mapper.core.geometry import make_pose
 from physics_mapper.core.scene import SearchParams
@@ -53,7 +55,7 @@ def bag_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """Two bags: 2 snapshots (mcap) and, one folder down, 3 snapshots (sqlite3)."""
     root = tmp_path_factory.mktemp("bags")
     generate(root / "a_pyramid", 2, 1, "mcap")
-    generate(root / "nested" / "b_pyramid_sqlite3", batch_faults.FATAL_SNAPSHOTS, 2, "sqlite3")
+    generate(root / "nested" / batch_faults.FATAL_BAG, 3, 2, "sqlite3")
     return root
 
 
@@ -74,7 +76,8 @@ def local_ray() -> Iterator[None]:
     """A local Ray instance with 2 CPUs; ``--ray`` in this process uses it."""
     import ray
 
-    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False, logging_level=logging.ERROR)
+    # address="local": a new instance even where a cluster was started on this machine (ray start).
+    ray.init(address="local", num_cpus=2, include_dashboard=False, log_to_driver=False, logging_level=logging.ERROR)
     # Ray's workers do not have the test folder on sys.path: the fault functions travel by value.
     ray.cloudpickle.register_pickle_by_value(batch_faults)  # type: ignore[no-untyped-call]
     yield
@@ -220,7 +223,7 @@ def test_a_bag_whose_worker_dies_twice_is_reported_failed_and_the_others_evaluat
     bag_dir: Path, tmp_path: Path
 ) -> None:
     scene = load_scene(SCENE)
-    bags, _ = read_bags(find_bags([bag_dir]), scene)
+    bags, _ = survey_bags(find_bags([bag_dir]), scene)
     settings = grid_settings(scene.search, ["settle_time=0.5"])
     with ProcessPool(2) as pool:
         run = run_batch(
@@ -231,7 +234,7 @@ def test_a_bag_whose_worker_dies_twice_is_reported_failed_and_the_others_evaluat
             pool,
             progress_prefix="t",
             progress_mode="off",
-            function=batch_faults.die_on_bags_of,
+            function=batch_faults.die_on_bag,
         )
     assert exit_code(run) == EXIT_INCOMPLETE
     data = write_evaluation(run, ReportContext("test", SCENE), tmp_path).summary
@@ -242,8 +245,7 @@ def test_a_bag_whose_worker_dies_twice_is_reported_failed_and_the_others_evaluat
     assert data["counts"]["failed"] == 1 and data["overall"]["bags"] == 1
 
 
-@pytest.mark.parametrize("signal_number", [signal.SIGINT, signal.SIGTERM])
-def test_ctrl_c_writes_the_report_of_what_finished(bag_dir: Path, tmp_path: Path, signal_number: int) -> None:
+def test_ctrl_c_writes_the_report_of_what_finished(bag_dir: Path, tmp_path: Path) -> None:
     """Two workers: the small bag is done in a second, the shipped one (20 snapshots, exhaustive) takes longer."""
     command = [str(PHYSICS_MAPPER), "evaluate", str(bag_dir / "a_pyramid"), str(REPO / "test" / "data" / "pyramid")]
     command += ["--scene", str(SCENE), "--exhaustive", "--workers", "2", "--progress", "lines", "-o", str(tmp_path)]
@@ -253,7 +255,7 @@ def test_ctrl_c_writes_the_report_of_what_finished(bag_dir: Path, tmp_path: Path
     for line in process.stderr:
         lines.append(line)
         if line.startswith("evaluate: 1/2 "):
-            process.send_signal(signal_number)
+            process.send_signal(signal.SIGINT)
             break
     stdout, stderr = process.communicate(timeout=60)
     assert process.returncode == EXIT_INTERRUPTED, "".join(lines) + stderr
@@ -266,9 +268,17 @@ def test_ctrl_c_writes_the_report_of_what_finished(bag_dir: Path, tmp_path: Path
     assert "interrupted" in stdout
 
 
+def test_sigterm_stops_a_run_as_ctrl_c_does() -> None:
+    """A batch system's time limit or ``kill`` ends the run with its partial report, like Ctrl-C."""
+    with pytest.raises(KeyboardInterrupt), sigterm_as_interrupt():
+        os.kill(os.getpid(), signal.SIGTERM)
+        time.sleep(5.0)  # the signal arrives first; should it not, the test fails
+    assert signal.getsignal(signal.SIGTERM) is signal.SIG_DFL
+
+
 # --- sweep ----------------------------------------------------------------------------------------------
 
-GRID = ["--grid", "penetration_threshold=0.005,0.02", "--grid", "jitter_threshold=0.01,0.03"]
+GRID = ["--grid", "jitter_threshold=0.01,0.03", "--grid", "fallback=none,settled"]
 
 
 @pytest.fixture(scope="module")
@@ -284,7 +294,7 @@ def test_sweep_tables_every_setting_and_picks_the_best_by_its_criterion(sweep: t
     data = json.loads((output / "sweep.json").read_text())
     settings = data["settings"]
     assert [s["varied"] for s in settings] == [
-        {"penetration_threshold": p, "jitter_threshold": j} for p in (0.005, 0.02) for j in (0.01, 0.03)
+        {"jitter_threshold": j, "fallback": f} for j in (0.01, 0.03) for f in ("none", "settled")
     ]
     assert all(s["complete"] and s["counts"]["evaluated"] == 2 for s in settings)
     rank = [(s["overall"]["map_error_m"]["settled_or_top"], -s["overall"]["valid_share"], s["index"]) for s in settings]

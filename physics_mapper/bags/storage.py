@@ -209,6 +209,11 @@ class BagWriter:
         self.write(recorded_weights_topic(object_name), WEIGHTS, time_ns + 1, weights_cdr(weights))
 
 
+def _unreadable(path: Path, error: Exception) -> BagError:
+    """The error of a bag that cannot be read, on one line (YAML errors span several)."""
+    return BagError(f"{path}: cannot read bag (corrupt or truncated?): {' '.join(str(error).split())}")
+
+
 def read_bag(path: str | Path, topics: Collection[str] | None = None) -> Bag:
     """Read an mcap or sqlite3 bag: the messages of ``topics`` (absolute names; None: of every topic).
 
@@ -237,10 +242,27 @@ def read_bag(path: str | Path, topics: Collection[str] | None = None) -> Bag:
     except Exception as error:
         # A damaged file surfaces as whatever layer notices it first (a ChecksumError, ReaderError,
         # apsw's CorruptError, struct.error, OverflowError, ...); the try holds only bag-reading calls.
-        # One line: YAML errors span several.
-        raise BagError(f"{path}: cannot read bag (corrupt or truncated?): {' '.join(str(error).split())}") from None
+        raise _unreadable(path, error) from None
     messages.sort(key=lambda m: m.time_ns)
     return Bag(path, types, tuple(messages))
+
+
+def message_counts(path: str | Path) -> dict[str, int]:
+    """Each topic's message count (absolute names) as the bag's metadata states it, without reading messages.
+
+    Raises BagError if the bag is missing or its metadata or storage cannot be opened.
+    """
+    path = Path(path)
+    if not path.exists():
+        raise BagError(f"{path}: no such bag")
+    try:
+        with Reader(path) as reader:
+            counts: dict[str, int] = {}
+            for connection in reader.connections:
+                counts[recorded(connection.topic)] = counts.get(recorded(connection.topic), 0) + connection.msgcount
+    except Exception as error:  # as in read_bag: whatever layer notices the damage first
+        raise _unreadable(path, error) from None
+    return counts
 
 
 @contextmanager

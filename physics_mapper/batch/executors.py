@@ -63,7 +63,12 @@ class Events(Protocol):
 
 
 class Executor(Protocol):
-    """Runs tasks; a context manager (a cluster is connected on entry and left on exit)."""
+    """Runs tasks; a context manager (a cluster is connected on entry and left on exit).
+
+    ``remote_workers``: the workers may run on other machines, so tasks must carry their data, not paths.
+    """
+
+    remote_workers: bool
 
     def __enter__(self) -> Self: ...
 
@@ -100,6 +105,8 @@ class _Entered:
 
 class InProcess(_Entered):
     """Every task in this process, one after the other (``--workers 0``: for debugging and profiling)."""
+
+    remote_workers = False
 
     def description(self) -> dict[str, Any]:
         return {"executor": "in-process", "workers": 0}
@@ -182,6 +189,8 @@ class _Worker:
 class ProcessPool(_Entered):
     """``workers`` local processes (started per run, spawn), each running one task at a time in its own
     pybullet world; a worker that dies is replaced and its task run once more."""
+
+    remote_workers = False
 
     def __init__(self, workers: int) -> None:
         if workers < 1:
@@ -288,6 +297,8 @@ def _check_reachable(address: str) -> None:
 
 #: Seconds between looks at the cluster for finished tasks.
 RAY_POLL_INTERVAL = 0.5
+#: Tasks submitted at a time per CPU of the cluster: enough to keep every CPU busy.
+RAY_TASKS_PER_CPU = 2
 _SCALARS = (int, float, str, bool, type(None))
 
 
@@ -296,11 +307,16 @@ class RayCluster:
     belongs to, or RAY_ADDRESS), ``HOST:PORT`` of its head, ``ray://HOST:PORT`` (Ray Client) or
     ``local`` (a new one-machine instance for this run, ``cpus`` CPUs, stopped at the end).
 
-    Each task runs in a Ray worker process with its own pybullet world; arguments shared between
-    tasks (the scene, a bag's snapshots) are put in the object store once. Ray reruns a task whose
-    worker died once (``max_retries``). When this process is already connected to Ray (a program
-    that uses the API and called ``ray.init`` itself), that connection is used and left open.
+    Each task runs in a Ray worker process with its own pybullet world. At most
+    :data:`RAY_TASKS_PER_CPU` tasks per CPU of the cluster are submitted at a time, so that the data
+    of the tasks not yet running stays unread; arguments shared between tasks (the scene, a bag's
+    input topics) are put in the object store once and released when their tasks are done. Ray
+    reruns a task whose worker died once (``max_retries``). When this process is already connected
+    to Ray (a program that uses the API and called ``ray.init`` itself), that connection is used and
+    left open.
     """
+
+    remote_workers = True
 
     def __init__(self, address: str, cpus: int | None = None) -> None:
         self.address = address
@@ -324,7 +340,7 @@ class RayCluster:
         try:
             ray.init(address=self.address, **options)
         except (ConnectionError, RuntimeError, ValueError) as error:
-            raise RayUnavailable(f"cannot connect to Ray at {self.address!r}: {' '.join(str(error).split())}") from None
+            raise RayUnavailable(f"cannot connect to Ray at {self.address}: {' '.join(str(error).split())}") from None
         self._connected_here = True
         return self
 
@@ -346,38 +362,73 @@ class RayCluster:
 
     def run(self, function: Callable[..., Any], calls: Sequence[tuple[Any, ...]], events: Events) -> None:
         import ray
-        from ray.exceptions import RayError, RayTaskError
 
         remote = ray.remote(num_cpus=1, max_retries=ATTEMPTS - 1)(function)
-        stored: dict[int, Any] = {}
-
-        def shared(argument: Any) -> Any:
-            if isinstance(argument, _SCALARS):
-                return argument
-            if id(argument) not in stored:
-                stored[id(argument)] = ray.put(argument)
-            return stored[id(argument)]
-
-        pending = {
-            remote.remote(*(shared(argument) for argument in arguments), progress=None): index
-            for index, arguments in enumerate(calls)
-        }
+        store = _SharedObjects()
+        limit = max(1, RAY_TASKS_PER_CPU * int(ray.cluster_resources().get("CPU", 1)))  # type: ignore[no-untyped-call]
+        pending: dict[Any, tuple[int, list[int]]] = {}  # reference -> task index, the stored arguments it uses
+        submitted = 0
         try:
-            while pending:
-                ready, _ = ray.wait(list(pending), num_returns=len(pending), timeout=RAY_POLL_INTERVAL)
+            while submitted < len(calls) or pending:
+                while submitted < len(calls) and len(pending) < limit:
+                    arguments, keys = store.share(calls[submitted])
+                    pending[remote.remote(*arguments, progress=None)] = (submitted, keys)
+                    submitted += 1
+                ready, _ = ray.wait(list(pending), num_returns=1, timeout=RAY_POLL_INTERVAL)
                 for reference in ready:
-                    index = pending.pop(reference)
-                    try:
-                        output = ray.get(reference)
-                    except RayTaskError as error:
-                        cause = error.cause if isinstance(error.cause, BaseException) else error
-                        events.failed(index, TaskFailure(error_line(cause), 1))
-                    except RayError as error:
-                        text = f"worker died in each of {ATTEMPTS} runs ({type(error).__name__})"
-                        events.failed(index, TaskFailure(text, ATTEMPTS))
-                    else:
-                        events.finished(index, output)
+                    index, keys = pending.pop(reference)
+                    store.release(keys)
+                    _report(index, reference, events)
         except KeyboardInterrupt:
             for reference in pending:
                 ray.cancel(reference, force=True)
             raise
+
+
+class _SharedObjects:
+    """Task arguments in Ray's object store: each object put once, and dropped (so that Ray frees it)
+    when no submitted task uses it any more. The object is kept with its reference, so that its id()
+    cannot be taken by another object meanwhile."""
+
+    def __init__(self) -> None:
+        self._stored: dict[int, tuple[Any, Any, int]] = {}  # id -> (object, reference, tasks using it)
+
+    def share(self, arguments: tuple[Any, ...]) -> tuple[list[Any], list[int]]:
+        """The arguments with every non-scalar one as its object reference, and the ids used."""
+        import ray
+
+        shared, keys = [], []
+        for argument in arguments:
+            if isinstance(argument, _SCALARS):
+                shared.append(argument)
+                continue
+            key = id(argument)
+            kept, reference, users = self._stored.get(key, (argument, None, 0))
+            self._stored[key] = (kept, reference if reference is not None else ray.put(argument), users + 1)
+            shared.append(self._stored[key][1])
+            keys.append(key)
+        return shared, keys
+
+    def release(self, keys: Sequence[int]) -> None:
+        for key in keys:
+            kept, reference, users = self._stored[key]
+            if users == 1:
+                del self._stored[key]
+            else:
+                self._stored[key] = (kept, reference, users - 1)
+
+
+def _report(index: int, reference: Any, events: Events) -> None:
+    """A finished Ray task's result, or why there is none, to ``events``."""
+    import ray
+    from ray.exceptions import RayError, RayTaskError
+
+    try:
+        output = ray.get(reference)
+    except RayTaskError as error:
+        cause = error.cause if isinstance(error.cause, BaseException) else error
+        events.failed(index, TaskFailure(error_line(cause), 1))
+    except RayError as error:
+        events.failed(index, TaskFailure(f"worker died in each of {ATTEMPTS} runs ({type(error).__name__})", ATTEMPTS))
+    else:
+        events.finished(index, output)

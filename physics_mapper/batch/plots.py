@@ -140,7 +140,9 @@ def _heat_map(
     axes.figure.colorbar(image, ax=axes, shrink=0.8)
     for (row, column), value in np.ndenumerate(values):
         text = "-" if np.isnan(value) else f"{value:.{decimals}f}{unit}"
-        axes.text(column, row, text, ha="center", va="center", fontsize=7, color="k" if np.isnan(value) else "white")
+        red, green, blue, _ = image.cmap(image.norm(value))
+        light = np.isnan(value) or 0.299 * red + 0.587 * green + 0.114 * blue > 0.5  # perceived brightness
+        axes.text(column, row, text, ha="center", va="center", fontsize=7, color="black" if light else "white")
     if best is not None:
         axes.add_patch(Rectangle((best[1] - 0.5, best[0] - 0.5), 1, 1, fill=False, edgecolor="tab:red", linewidth=2))
     axes.set_xticks(range(len(columns[1])), [value_text(v) for v in columns[1]], fontsize=7)

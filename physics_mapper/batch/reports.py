@@ -21,6 +21,7 @@ from physics_mapper.batch.plots import evaluation_figure, sweep_figure
 from physics_mapper.batch.runner import BatchRun
 from physics_mapper.batch.settings import Setting, node_parameters_yaml, value_text
 from physics_mapper.batch.summary import bag_summary, overall_summary, time_summary
+from physics_mapper.batch.tasks import TaskOutput
 from physics_mapper.core.errors import InputError
 from physics_mapper.core.scene import SearchParams
 from physics_mapper.experiments.common import ExperimentOutput, write_outputs
@@ -59,33 +60,34 @@ def _mode(run: BatchRun) -> str:
     return "exhaustive" if run.exhaustive else "deadline"
 
 
+def _evaluated(run: BatchRun, setting: int) -> list[tuple[int, TaskOutput]]:
+    """(bag index, output) of each bag evaluated with ``setting``, in bag order."""
+    found = ((b, run.evaluated((setting, b))) for b in range(len(run.bags)))
+    return [(b, output) for b, output in found if output is not None]
+
+
 def _bag_records(run: BatchRun, setting: int) -> list[list[dict[str, Any]]]:
     """The records of each bag evaluated with ``setting``, in bag order."""
-    return [list(run.outputs[(setting, b)].records) for b in range(len(run.bags)) if (setting, b) in run.outputs]
+    return [list(output.records) for _, output in _evaluated(run, setting)]
 
 
 def _search_times(run: BatchRun, setting: int) -> list[float]:
-    return [
-        t for b in range(len(run.bags)) if (setting, b) in run.outputs for t in run.outputs[(setting, b)].search_times
-    ]
+    return [time for _, output in _evaluated(run, setting) for time in output.search_times]
 
 
 def _bag_entry(run: BatchRun, setting: int, bag: int, *, records: bool) -> dict[str, Any]:
-    loaded = run.bags[bag]
+    surveyed, output = run.bags[bag], run.evaluated((setting, bag))
     status, error = run.status((setting, bag))
     entry: dict[str, Any] = {
-        "path": str(loaded.path),
-        "storage": loaded.storage,
+        "path": str(surveyed.path),
+        "storage": surveyed.storage,
         "status": status,
         "error": error,
-        "snapshots": len(loaded.snapshots) if loaded.error is None else None,
-        "summary": None,
+        "snapshots": None if output is None else len(output.records),
+        "summary": None if output is None else bag_summary(output.records, run.scene.object_names),
     }
-    output = run.outputs.get((setting, bag))
-    if output is not None:
-        entry["summary"] = bag_summary(output.records, run.scene.object_names)
-        if records:
-            entry["records"] = list(output.records)
+    if records and output is not None:
+        entry["records"] = list(output.records)
     return entry
 
 
@@ -107,7 +109,7 @@ def _run_section(run: BatchRun, context: ReportContext, times: dict[str, Any]) -
         "started": run.started,
         "host": socket.gethostname(),
         "python": platform.python_version(),
-        "read_time_s": run.read_time,
+        "survey_time_s": run.survey_time,
         "wall_time_s": run.wall_time,
         "snapshots_evaluated": snapshots,
         "snapshots_per_second": snapshots / run.wall_time if run.wall_time > 0.0 else None,
@@ -137,11 +139,7 @@ def evaluation_data(run: BatchRun, context: ReportContext) -> dict[str, Any]:
     evaluated = _bag_records(run, 0)
     times = {
         "overall": time_summary(_search_times(run, 0)),
-        "bags": {
-            str(run.bags[b].path): time_summary(run.outputs[(0, b)].search_times)
-            for b in range(len(run.bags))
-            if (0, b) in run.outputs
-        },
+        "bags": {str(run.bags[b].path): time_summary(output.search_times) for b, output in _evaluated(run, 0)},
     }
     return _header(run, context, "physics-mapper evaluate") | {
         "search": asdict(run.settings[0].params),
@@ -181,6 +179,17 @@ def _mode_text(data: dict[str, Any], stopped: int, searches: int, deadline: floa
     )
 
 
+def deadline_note(times: dict[str, Any] | None, deadline: float) -> str | None:
+    """A warning when exhaustive searches took longer than the node's deadline (at the 90th percentile)."""
+    if times is None or times["p90_s"] <= deadline:
+        return None
+    return (
+        f"the exhaustive searches took longer than the deadline ({_ms(times['p90_s'])} ms at the 90th percentile, "
+        f"deadline {_ms(deadline)} ms): a node stopping at its deadline may choose otherwise; run without "
+        "--exhaustive to see what it chooses in time, or give it a longer deadline (and a slower rate_hz)"
+    )
+
+
 def _run_text(run: dict[str, Any]) -> str:
     executor = run["executor"]
     size = ", ".join(f"{key} {value}" for key, value in executor.items() if key != "executor")
@@ -189,8 +198,13 @@ def _run_text(run: dict[str, Any]) -> str:
         f"{executor['executor']} ({size}) on {run['host']}, started {run['started']}: "
         f"{run['snapshots_evaluated']} snapshots in {run['wall_time_s']:.1f} s"
         + (f" ({rate:.2f} snapshots/s)" if rate else "")
-        + f", bags read in {run['read_time_s']:.1f} s"
+        + f", bags surveyed in {run['survey_time_s']:.1f} s"
     )
+
+
+def _note_lines(data: dict[str, Any], times: dict[str, Any] | None, deadline: float) -> list[str]:
+    note = deadline_note(times, deadline) if data["search_mode"] == "exhaustive" else None
+    return [] if note is None else [f"- Note: {note}."]
 
 
 def _times_text(times: dict[str, Any] | None) -> str:
@@ -265,6 +279,7 @@ def evaluation_markdown(data: dict[str, Any], png_name: str) -> str:
         "",
         f"- Objects: {', '.join(names)}; search: {_search_text(SearchParams(**data['search']))}.",
         f"- Searches: {_mode_text(data, stopped, searches, data['search']['deadline'])}.",
+        *_note_lines(data, run["time_to_answer"]["overall"], data["search"]["deadline"]),
         f"- Run: {_run_text(run)}.",
         f"- Bags: {counts['evaluated']} evaluated, {counts['unreadable']} unreadable, {counts['failed']} failed, "
         f"{counts['not_evaluated']} not evaluated.",
@@ -406,13 +421,19 @@ def sweep_data(run: BatchRun, context: ReportContext, criterion: Criterion) -> d
         "grid": grid_of(run.settings),
         "criterion": {"name": used, "asked": criterion, "text": CRITERIA[used]},
         "best": None if best is None else {"index": best, "label": settings[best]["label"]},
-        "bags": [
-            {"path": str(bag.path), "storage": bag.storage, "error": bag.error, "snapshots": len(bag.snapshots)}
-            for bag in run.bags
-        ],
+        "bags": [_sweep_bag(run, b) for b in range(len(run.bags))],
         "settings": settings,
         "run": _run_section(run, context, times),
     }
+
+
+def _sweep_bag(run: BatchRun, bag: int) -> dict[str, Any]:
+    """A bag of a sweep: its error if it cannot be used (the same for every setting), its snapshots."""
+    surveyed = run.bags[bag]
+    outputs = [run.outputs[(s, bag)] for s in range(len(run.settings)) if (s, bag) in run.outputs]
+    error = surveyed.error or next((output.error for output in outputs if output.error is not None), None)
+    snapshots = next((len(output.records) for output in outputs if output.error is None), None)
+    return {"path": str(surveyed.path), "storage": surveyed.storage, "error": error, "snapshots": snapshots}
 
 
 def sweep_markdown(data: dict[str, Any], png_name: str, params_file: str | None) -> str:
@@ -445,6 +466,9 @@ def sweep_markdown(data: dict[str, Any], png_name: str, params_file: str | None)
             f"- Best: #{best['index']} ({best['label']}), as node parameters in `{params_file}`: "
             f"`physics-mapper node --ros-args --params-file {params_file}`."
         )
+    if best is not None:
+        times = run["time_to_answer"]["settings"][best["index"]]
+        lines += _note_lines(data, times, data["settings"][best["index"]]["search"]["deadline"])
     header = [
         "#",
         *keys,
@@ -505,6 +529,9 @@ def write_sweep(
             f"Made by: {context.command}",
             f"Run the node with it: physics-mapper node --ros-args --params-file {output_dir / PARAMS_FILE}",
         ]
+        note = deadline_note(data["run"]["time_to_answer"]["settings"][best["index"]], setting.params.deadline)
+        if data["search_mode"] == "exhaustive" and note is not None:
+            header.append(f"Note: {note}.")
         try:
             text = node_parameters_yaml(context.scene_file, setting.params, header)
         except InputError as error:

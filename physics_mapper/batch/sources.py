@@ -1,10 +1,15 @@
-"""The bags of a batch run: found under the paths given, read, and turned into snapshots (or an error).
+"""The bags of a batch run: found under the paths given, surveyed here, read into snapshots by the workers.
 
 A rosbag2 bag is a folder with a ``metadata.yaml`` and its storage files (``.mcap`` or ``.db3``).
 A folder with storage files but no ``metadata.yaml`` is a bag too, a broken one: it is listed so
-that the run reports it instead of passing over it. A bag that cannot be used (unreadable,
-corrupt, truncated, a topic of the wrong type, no hypotheses, or none that pass the node's input
-rules) keeps its one-line error and gets no task; the other bags are evaluated.
+that the run reports it instead of passing over it.
+
+The command only *surveys* each bag (its metadata: storage and message counts, for the progress
+bar and to hand out the longest bags first); the bag's messages are read where it is evaluated,
+so that at most the bags in flight are in memory and reading runs in parallel. A worker on another
+machine gets the bag's input topics read here (:func:`read_inputs`) instead of its path. A bag that
+cannot be used (unreadable, corrupt, truncated, a topic of the wrong type, no hypotheses, or none
+that pass the node's input rules) gives its one-line error; the other bags are evaluated.
 """
 
 from __future__ import annotations
@@ -15,9 +20,10 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from physics_mapper.bags.snapshots import BagSnapshot, bag_snapshots, input_topics, no_snapshot_reason
-from physics_mapper.bags.storage import BagError, check_hypothesis_topics, read_bag
+from physics_mapper.bags.storage import Bag, BagError, check_hypothesis_topics, message_counts, read_bag
 from physics_mapper.core.errors import InputError
 from physics_mapper.core.scene import Scene
+from physics_mapper.mapping.topics import recorded_poses_topic
 
 METADATA = "metadata.yaml"
 #: Storage file suffix -> rosbag2 storage plugin.
@@ -25,13 +31,22 @@ STORAGE_SUFFIXES = {".mcap": "mcap", ".db3": "sqlite3"}
 
 
 @dataclass(frozen=True)
-class LoadedBag:
-    """A bag of the run: its storage plugin (None if unknown), its snapshots, or why it cannot be evaluated."""
+class SurveyedBag:
+    """A bag of the run as its metadata describes it: storage plugin (None if unknown), the snapshots
+    to expect (the most messages on an object's hypotheses topic), or why it cannot be opened."""
 
     path: Path
     storage: str | None
-    snapshots: tuple[BagSnapshot, ...]
+    expected_snapshots: int
     error: str | None = None
+
+
+@dataclass(frozen=True)
+class UnreadableBag:
+    """What a remote worker gets for a bag that could not be read here: the error."""
+
+    path: Path
+    error: str
 
 
 def _is_bag(files: Sequence[str]) -> bool:
@@ -77,17 +92,41 @@ def storage_of(path: Path) -> str | None:
     return kinds.pop() if len(kinds) == 1 else None
 
 
-def load_bag(path: Path, scene: Scene) -> LoadedBag:
-    """Read a bag's input topics and take its snapshots as the node would; an unusable bag keeps its error."""
-    storage = storage_of(path) if path.is_dir() else None
+def _error_text(path: Path, error: BagError) -> str:
+    """A bag's error without the bag's path in front (reports show the path beside it)."""
+    return str(error).removeprefix(f"{path}: ")
+
+
+def survey_bag(path: Path, scene: Scene) -> SurveyedBag:
+    """A bag's storage and expected snapshots from its metadata, or the error that keeps it from opening."""
+    storage = storage_of(path)
     try:
-        bag = read_bag(path, input_topics(scene))
+        counts = message_counts(path)
+    except BagError as error:
+        return SurveyedBag(path, storage, 0, _error_text(path, error))
+    expected = max(counts.get(recorded_poses_topic(name), 0) for name in scene.object_names)
+    return SurveyedBag(path, storage, expected)
+
+
+def read_inputs(path: Path, scene: Scene) -> Bag | UnreadableBag:
+    """The bag's input topics read here, for a worker elsewhere (or the error)."""
+    try:
+        return read_bag(path, input_topics(scene))
+    except BagError as error:
+        return UnreadableBag(path, _error_text(path, error))
+
+
+def load_snapshots(source: Path | Bag | UnreadableBag, scene: Scene) -> tuple[BagSnapshot, ...]:
+    """A bag's snapshots as the node would take them; BagError (without the path in front) if it is unusable."""
+    if isinstance(source, UnreadableBag):
+        raise BagError(source.error)
+    path = source if isinstance(source, Path) else source.path
+    try:
+        bag = read_bag(source, input_topics(scene)) if isinstance(source, Path) else source
         check_hypothesis_topics(bag, scene.object_names)
         snapshots = tuple(bag_snapshots(bag, scene))
     except BagError as error:
-        return LoadedBag(path, storage, (), str(error).removeprefix(f"{path}: "))
-    except Exception as error:  # a bag must not end the run of the others, whatever breaks on it
-        return LoadedBag(path, storage, (), f"unexpected {type(error).__name__}: {error}")
+        raise BagError(_error_text(path, error)) from None
     if not snapshots:
-        return LoadedBag(path, storage, (), no_snapshot_reason(scene))
-    return LoadedBag(path, storage, snapshots)
+        raise BagError(no_snapshot_reason(scene))
+    return snapshots

@@ -140,7 +140,7 @@ def command_line(args: argparse.Namespace) -> str:
 
 
 @contextlib.contextmanager
-def _sigterm_as_interrupt() -> Iterator[None]:
+def sigterm_as_interrupt() -> Iterator[None]:
     """SIGTERM (a batch system's time limit, ``kill``) stops the run like Ctrl-C, with its partial report."""
 
     def interrupt(signum: int, frame: FrameType | None) -> None:
@@ -159,7 +159,7 @@ def run_batch_command(args: argparse.Namespace, scene: Scene, settings: Sequence
     None (with one error line) when the executor cannot start (no Ray cluster at the address).
     """
     from physics_mapper.batch.executors import RayUnavailable
-    from physics_mapper.batch.runner import read_bags, run_batch
+    from physics_mapper.batch.runner import run_batch, survey_bags
     from physics_mapper.batch.sources import find_bags
 
     name = args.command
@@ -167,18 +167,15 @@ def run_batch_command(args: argparse.Namespace, scene: Scene, settings: Sequence
     args.output.mkdir(parents=True, exist_ok=True)  # before the run: an unusable folder is known at once
     executor = executor_for(args)
     try:
-        with _sigterm_as_interrupt(), executor:
-            progress(name, f"reading {len(paths)} bag(s)")
-            bags, read_time = read_bags(paths, scene)
+        with sigterm_as_interrupt(), executor:
+            bags, survey_time = survey_bags(paths, scene)
             unreadable = sum(1 for bag in bags if bag.error is not None)
-            snapshots = sum(len(bag.snapshots) for bag in bags)
-            tasks = len(settings) * (len(bags) - unreadable)
             where = executor.description()
             size = ", ".join(f"{key} {value}" for key, value in where.items() if key != "executor")
             progress(
                 name,
-                f"{snapshots} snapshots in {len(bags) - unreadable} bag(s) ({unreadable} unreadable); "
-                f"{tasks} task(s) on {where['executor']} ({size})",
+                f"{len(bags)} bag(s) ({unreadable} unreadable), {len(settings) * (len(bags) - unreadable)} task(s) "
+                f"on {where['executor']} ({size})",
             )
             batch = run_batch(
                 scene,
@@ -188,7 +185,7 @@ def run_batch_command(args: argparse.Namespace, scene: Scene, settings: Sequence
                 executor,
                 progress_prefix=name,
                 progress_mode=args.progress,
-                read_time=read_time,
+                survey_time=survey_time,
             )
     except RayUnavailable as error:
         print(f"physics-mapper {name}: error: {error}", file=sys.stderr)
