@@ -216,9 +216,12 @@ class ProcessPool(_Entered):
                 busy = [worker for worker in workers if worker.task is not None]
                 ready = wait([w.connection for w in busy] + [w.process.sentinel for w in busy])
                 for worker in busy:
-                    if worker.connection in ready or worker.process.sentinel in ready:
-                        replacement = self._collect(context, worker, events, attempts, waiting)
-                        workers[workers.index(worker)] = replacement
+                    woken = worker.connection in ready or worker.process.sentinel in ready
+                    if woken and not self._collect(worker, events, attempts, waiting):
+                        worker.stop()
+                        workers.remove(worker)
+                        if waiting:  # a new worker for the task put back (or the next)
+                            workers.append(_Worker(context))
         finally:
             for worker in workers:
                 worker.stop()
@@ -237,10 +240,8 @@ class ProcessPool(_Entered):
         return worker
 
     @staticmethod
-    def _collect(
-        context: SpawnContext, worker: _Worker, events: Events, attempts: list[int], waiting: deque[int]
-    ) -> _Worker:
-        """Take one message from a busy worker, or bury it: its task goes back in front, or fails for good."""
+    def _collect(worker: _Worker, events: Events, attempts: list[int], waiting: deque[int]) -> bool:
+        """Take one message from a busy worker; False if it died: its task goes back in front, or fails for good."""
         index = worker.task
         assert index is not None
         try:
@@ -248,27 +249,26 @@ class ProcessPool(_Entered):
                 kind, _, payload = worker.connection.recv()
                 if kind == "progress":
                     events.progress(index)
-                    return worker
+                    return True
                 worker.task = None
                 if kind == "done":
                     events.finished(index, payload)
                 else:
                     events.failed(index, TaskFailure(payload, attempts[index]))
-                return worker
+                return True
         except (EOFError, OSError):
             pass  # the pipe broke: the worker is gone
         if worker.process.is_alive():
-            return worker  # woken by a message that another wait() will deliver
+            return True  # woken by a message that another wait() will deliver
         how = _death(worker.process)
         worker.task = None
-        worker.stop()
         if attempts[index] < ATTEMPTS:
             waiting.appendleft(index)
         else:
             events.failed(
                 index, TaskFailure(f"worker process died ({how}) in each of {attempts[index]} runs", ATTEMPTS)
             )
-        return _Worker(context)
+        return False
 
 
 # --- Ray ----------------------------------------------------------------------------------------------

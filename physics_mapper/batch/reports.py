@@ -23,7 +23,6 @@ from physics_mapper.batch.settings import Setting, node_parameters_yaml, value_t
 from physics_mapper.batch.summary import bag_summary, overall_summary, time_summary
 from physics_mapper.batch.tasks import TaskOutput
 from physics_mapper.core.errors import InputError
-from physics_mapper.core.scene import SearchParams
 from physics_mapper.experiments.common import ExperimentOutput, write_outputs
 
 Criterion = Literal["settled", "chosen", "valid"]
@@ -166,8 +165,8 @@ def _p(test: dict[str, Any] | None) -> str:
     return MISSING if test is None else f"{test['p_value']:.2g}"
 
 
-def _search_text(params: SearchParams) -> str:
-    return ", ".join(f"{key} {value_text(value)}" for key, value in asdict(params).items())
+def _search_text(search: dict[str, Any]) -> str:
+    return ", ".join(f"{key} {value_text(value)}" for key, value in search.items())
 
 
 def _mode_text(data: dict[str, Any], stopped: int, searches: int, deadline: float | None) -> str:
@@ -277,7 +276,7 @@ def evaluation_markdown(data: dict[str, Any], png_name: str) -> str:
         "",
         f"`{run['command']}`",
         "",
-        f"- Objects: {', '.join(names)}; search: {_search_text(SearchParams(**data['search']))}.",
+        f"- Objects: {', '.join(names)}; search: {_search_text(data['search'])}.",
         f"- Searches: {_mode_text(data, stopped, searches, data['search']['deadline'])}.",
         *_note_lines(data, run["time_to_answer"]["overall"], data["search"]["deadline"]),
         f"- Run: {_run_text(run)}.",
