@@ -184,6 +184,8 @@ def test_unreadable_bags_are_listed_and_the_others_evaluated(
     assert "## Bags not evaluated" in markdown and "| `" + str(root / "e_mistyped") + "` | unreadable |" in markdown
     assert data["search_mode"] == "deadline" and "deadline 0.2 s per snapshot, as the node's tick" in markdown
     assert captured.out.startswith("evaluated 2 of 6 bag(s) (4 unreadable, 0 failed, 0 not evaluated), 5 snapshots")
+    # A bag found unusable only when read (its metadata opens) makes the run incomplete too.
+    assert evaluate(tmp_path / "alone", str(root / "e_mistyped"), "--workers", "0")[0] == EXIT_INCOMPLETE
 
 
 @pytest.mark.parametrize("executor", ["pool", "ray"])
@@ -270,10 +272,11 @@ def test_ctrl_c_writes_the_report_of_what_finished(bag_dir: Path, tmp_path: Path
 
 def test_sigterm_stops_a_run_as_ctrl_c_does() -> None:
     """A batch system's time limit or ``kill`` ends the run with its partial report, like Ctrl-C."""
+    before = signal.getsignal(signal.SIGTERM)
     with pytest.raises(KeyboardInterrupt), sigterm_as_interrupt():
         os.kill(os.getpid(), signal.SIGTERM)
         time.sleep(5.0)  # the signal arrives first; should it not, the test fails
-    assert signal.getsignal(signal.SIGTERM) is signal.SIG_DFL
+    assert signal.getsignal(signal.SIGTERM) is before
 
 
 # --- sweep ----------------------------------------------------------------------------------------------

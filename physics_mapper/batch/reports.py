@@ -41,6 +41,8 @@ CRITERIA: dict[Criterion, str] = {
 
 #: The names of :data:`~physics_mapper.bags.evaluation.ESTIMATES` for people.
 ESTIMATE_NAMES = ("C11..1", "chosen", "settled")
+#: How the searches of each ``search_mode`` ran, for people.
+SEARCH_MODES = {"exhaustive": "exhaustive", "deadline": "each to its setting's deadline"}
 #: A table cell without a value.
 MISSING = "-"
 #: The node parameters file of a sweep's best setting, in the report folder.
@@ -446,8 +448,7 @@ def sweep_markdown(data: dict[str, Any], png_name: str, params_file: str | None)
         f"`{run['command']}`",
         "",
         "- Grid: " + "; ".join(f"{key} = {', '.join(map(value_text, values))}" for key, values in grid.items()) + ".",
-        f"- Searches: {'exhaustive' if data['search_mode'] == 'exhaustive' else 'to each setting deadline'}; "
-        f"run: {_run_text(run)}.",
+        f"- Searches: {SEARCH_MODES[data['search_mode']]}; run: {_run_text(run)}.",
         f"- Criterion ({criterion['name']}): {criterion['text']}."
         + (
             f" Asked for {criterion['asked']}, but no bag has a ground truth."
@@ -457,7 +458,7 @@ def sweep_markdown(data: dict[str, Any], png_name: str, params_file: str | None)
     ]
     best = data["best"]
     if best is None:
-        lines.append("- Best: none (no setting was evaluated on every readable bag).")
+        lines.append("- Best: none (no setting has results from every usable bag).")
     elif params_file is None:
         lines.append(f"- Best: #{best['index']} ({best['label']}); no parameters file: {best['params_file_error']}.")
     else:

@@ -172,11 +172,9 @@ def run_batch_command(args: argparse.Namespace, scene: Scene, settings: Sequence
             unreadable = sum(1 for bag in bags if bag.error is not None)
             where = executor.description()
             size = ", ".join(f"{key} {value}" for key, value in where.items() if key != "executor")
-            progress(
-                name,
-                f"{len(bags)} bag(s) ({unreadable} unreadable), {len(settings) * (len(bags) - unreadable)} task(s) "
-                f"on {where['executor']} ({size})",
-            )
+            found = f"{len(bags)} bag(s)" + (f", {unreadable} without readable metadata" if unreadable else "")
+            tasks = len(settings) * (len(bags) - unreadable)
+            progress(name, f"{found}; {tasks} task(s) on {where['executor']} ({size})")
             batch = run_batch(
                 scene,
                 settings,
@@ -203,7 +201,8 @@ def exit_code(batch: BatchRun) -> int:
     """130 interrupted, 3 some bags unreadable or failed, else 0."""
     if batch.interrupted:
         return EXIT_INTERRUPTED
-    if batch.failures or any(bag.error is not None for bag in batch.bags):
+    unusable = any(output.error is not None for output in batch.outputs.values())
+    if batch.failures or unusable or any(bag.error is not None for bag in batch.bags):
         return EXIT_INCOMPLETE
     return 0
 

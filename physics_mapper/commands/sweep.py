@@ -48,7 +48,7 @@ def run(args: argparse.Namespace) -> int:
     output, params_file = write_sweep(batch, context, args.criterion, args.output)
     best = output.summary["best"]
     if best is None:
-        print(f"{len(settings)} settings: none evaluated on every readable bag, no best")
+        print(f"{len(settings)} settings: none has results from every usable bag, no best")
     else:
         overall = output.summary["settings"][best["index"]]["overall"]
         print(
