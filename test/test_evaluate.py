@@ -342,8 +342,10 @@ def test_the_node_starts_with_the_sweep_s_parameters_file(sweep: tuple[int, Path
 
 
 def test_values_read_as_in_a_scene_file_with_every_number_a_number() -> None:
-    assert parse_value("1e-4") == 0.0001  # YAML 1.1 would give the string "1e-4"
-    assert parse_value("settled") == "settled" and parse_value("3") == 3 and parse_value("0.5") == 0.5
+    assert parse_value("1e-4", "--set") == 0.0001  # YAML 1.1 would give the string "1e-4"
+    assert parse_value("settled", "--set") == "settled" and parse_value("3", "--set") == 3
+    with pytest.raises(InputError, match="--set x: not valid YAML"):
+        parse_value("[", "--set x")
     params = with_overrides(SearchParams(), ["probability_threshold=1e-4", "fallback=settled", "settle_time=1"])
     assert (params.probability_threshold, params.fallback, params.settle_time) == (0.0001, "settled", 1.0)
 

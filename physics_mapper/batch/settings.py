@@ -3,9 +3,8 @@ the node parameters file of a chosen setting.
 
 Keys are the fields of :class:`~physics_mapper.core.scene.SearchParams`, and values are checked by
 the scene files' own reader (:func:`~physics_mapper.core.scene_files.search_with_overrides`), so a
-field added to the search is accepted here with the ranges a scene file has. A value is read as
-YAML, as in a scene file, except that every spelling of a number is a number (YAML 1.1, which
-PyYAML follows, reads ``1e-4`` as a string).
+field added to the search is accepted here with the ranges a scene file has. A value is read as a
+scene file's YAML is (:func:`~physics_mapper.core.yaml_files.parse_yaml`: ``1e-4`` is a number).
 """
 
 from __future__ import annotations
@@ -22,6 +21,7 @@ import yaml
 from physics_mapper.core.errors import InputError
 from physics_mapper.core.scene import SearchParams
 from physics_mapper.core.scene_files import search_with_overrides
+from physics_mapper.core.yaml_files import FileError, parse_yaml
 from physics_mapper.mapping.inputs import InputSettings
 from physics_mapper.mapping.mapper import DEFAULT_RATE_HZ, MapperSettings, mapper_settings_problem
 from physics_mapper.mapping.topics import NODE_NAME
@@ -53,18 +53,13 @@ def value_text(value: Any) -> str:
     return f"{value:g}" if isinstance(value, float) else str(value)
 
 
-def parse_value(text: str) -> Any:
-    """A command-line value as a scene file's YAML would give it, numbers in any spelling as numbers."""
+def parse_value(text: str, option: str) -> Any:
+    """A command-line value as a scene file would give it (YAML, float spellings of YAML 1.2 included);
+    InputError naming ``option`` for text that is not YAML."""
     try:
-        value = yaml.safe_load(text)
-    except yaml.YAMLError:
-        return text
-    if isinstance(value, str):
-        try:
-            return float(value)
-        except ValueError:
-            return value
-    return value
+        return parse_yaml(text, option)
+    except FileError as error:
+        raise InputError(str(error)) from None
 
 
 def _assignment(text: str, option: str) -> tuple[str, str]:
@@ -81,7 +76,7 @@ def with_overrides(params: SearchParams, assignments: Sequence[str]) -> SearchPa
         key, value = _assignment(text, "--set")
         if key in overrides:
             raise InputError(f"--set {key} is given twice")
-        overrides[key] = parse_value(value)
+        overrides[key] = parse_value(value, f"--set {key}")
     return search_with_overrides(params, overrides, "--set")
 
 
@@ -98,7 +93,7 @@ def grid_settings(base: SearchParams, grid: Sequence[str], fixed: Sequence[str] 
             raise InputError(f"--grid {key} is given twice")
         if key in fixed:
             raise InputError(f"--grid {key}: the key is also given with --set")
-        axes[key] = [parse_value(value.strip()) for value in values.split(",")]
+        axes[key] = [parse_value(value.strip(), f"--grid {key}") for value in values.split(",")]
     settings = []
     for combination in itertools.product(*axes.values()):
         varied = tuple(zip(axes, combination, strict=True))
