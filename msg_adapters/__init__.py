@@ -22,10 +22,14 @@ from msg_adapters.results import (
     LABEL_COLOR,
     LABEL_HEIGHT,
     LABEL_NAMESPACE,
+    PLANE_MARKER_SIZE,
     SHAPE_NAMESPACE,
+    STATIC_COLOR,
+    STATIC_NAMESPACE,
     VALID_COLOR,
     configuration_msgs,
     markers_msg,
+    static_markers_msg,
 )
 
 __all__ = [
@@ -33,7 +37,10 @@ __all__ = [
     "LABEL_COLOR",
     "LABEL_HEIGHT",
     "LABEL_NAMESPACE",
+    "PLANE_MARKER_SIZE",
     "SHAPE_NAMESPACE",
+    "STATIC_COLOR",
+    "STATIC_NAMESPACE",
     "VALID_COLOR",
     "configuration_msgs",
     "diagnostics_msg",
@@ -47,5 +54,6 @@ __all__ = [
     "received_weights",
     "search_values",
     "stamp_from_nanoseconds",
+    "static_markers_msg",
     "weights_msg",
 ]

@@ -1,4 +1,14 @@
-"""Search results -> map messages: chosen and settled PoseArrays, and RViz markers."""
+"""Search results -> map messages: chosen and settled PoseArrays, and RViz markers.
+
+Marker namespaces (``ns``), each with ``id`` = the body's index in its scene list:
+
+* ``objects``: every object in its true shape: CUBE, SPHERE, CYLINDER, or MESH_RESOURCE (the mesh
+  file by a URI RViz resolves, scaled); green at the chosen poses, orange at the settled poses
+  of a fallback;
+* ``labels``: a text ``name`` / ``J=`` above each object;
+* ``static``: the fixed bodies (floor, walls, table, tray) in grey, so RViz shows the whole scene;
+  a plane as a thin square of :data:`PLANE_MARKER_SIZE` whose top face is the plane.
+"""
 
 from __future__ import annotations
 
@@ -7,17 +17,22 @@ from std_msgs.msg import ColorRGBA, Header
 from visualization_msgs.msg import Marker, MarkerArray
 
 from msg_adapters.hypotheses import pose_array_msg, pose_msg, stamp_from_nanoseconds
-from physics_mapper.core.geometry import Pose
-from physics_mapper.core.scene import Box, Cylinder, ObjectModel, Scene, Sphere
+from physics_mapper.core.geometry import Pose, compose_poses
+from physics_mapper.core.scene import Box, Cylinder, Mesh, Plane, Scene, Shape, Sphere
 from physics_mapper.core.search import SearchResult
 
-#: Marker namespaces: one shape and one label per object, ``id`` = object index.
+#: Marker namespaces (see the module docstring), ``id`` = the body's index in its scene list.
 SHAPE_NAMESPACE = "objects"
 LABEL_NAMESPACE = "labels"
+STATIC_NAMESPACE = "static"
 LABEL_HEIGHT = 0.04  # metres, height of an upper-case letter in RViz
+#: Side and thickness, metres, of the square that stands for an infinite plane.
+PLANE_MARKER_SIZE = 4.0
+PLANE_MARKER_THICKNESS = 0.002
 VALID_COLOR = ColorRGBA(r=0.2, g=0.7, b=0.3, a=0.8)
 FALLBACK_COLOR = ColorRGBA(r=0.95, g=0.6, b=0.1, a=0.8)
 LABEL_COLOR = ColorRGBA(r=1.0, g=1.0, b=1.0, a=1.0)
+STATIC_COLOR = ColorRGBA(r=0.6, g=0.6, b=0.62, a=0.6)
 
 
 def configuration_msgs(result: SearchResult, *, frame_id: str, stamp_ns: int) -> tuple[PoseArray, PoseArray] | None:
@@ -33,9 +48,8 @@ def configuration_msgs(result: SearchResult, *, frame_id: str, stamp_ns: int) ->
     )
 
 
-def _shape(marker: Marker, model: ObjectModel) -> None:
-    """Set the marker type and scale (full extents, metres) to the object's true shape."""
-    shape = model.shape
+def _shape(marker: Marker, shape: Shape) -> None:
+    """Set the marker type and scale (full extents, metres) to the shape's, and offset a plane's pose."""
     if isinstance(shape, Box):
         marker.type = Marker.CUBE
         marker.scale = Vector3(x=shape.size[0], y=shape.size[1], z=shape.size[2])
@@ -43,28 +57,64 @@ def _shape(marker: Marker, model: ObjectModel) -> None:
         marker.type = Marker.SPHERE
         diameter = 2.0 * shape.radius
         marker.scale = Vector3(x=diameter, y=diameter, z=diameter)
-    else:
-        assert isinstance(shape, Cylinder)
+    elif isinstance(shape, Cylinder):
         marker.type = Marker.CYLINDER  # RViz's cylinder is along local z, like pybullet's
         diameter = 2.0 * shape.radius
         marker.scale = Vector3(x=diameter, y=diameter, z=shape.length)
+    elif isinstance(shape, Mesh):
+        marker.type = Marker.MESH_RESOURCE  # posed in the file's frame, as pybullet and URDF do
+        marker.mesh_resource = shape.uri
+        marker.scale = Vector3(x=shape.scale[0], y=shape.scale[1], z=shape.scale[2])
+    else:
+        assert isinstance(shape, Plane)
+        marker.type = Marker.CUBE
+        marker.scale = Vector3(x=PLANE_MARKER_SIZE, y=PLANE_MARKER_SIZE, z=PLANE_MARKER_THICKNESS)
 
 
-def _top(model: ObjectModel) -> float:
-    """Half height of the object's bounding box (metres), to put its label above it."""
-    shape = model.shape
+def _top(shape: Shape) -> float:
+    """Height above the pose's origin (metres) of the shape's top, unrotated, to put a label above it."""
     if isinstance(shape, Box):
         return shape.size[2] / 2.0
     if isinstance(shape, Sphere):
         return shape.radius
-    return max(shape.length / 2.0, shape.radius)
+    if isinstance(shape, Cylinder):
+        return max(shape.length / 2.0, shape.radius)
+    assert isinstance(shape, Mesh)
+    return shape.geometry.bounds[1][2]
+
+
+def _marker_pose(shape: Shape, pose: Pose) -> Pose:
+    """Where the marker goes: the body's pose, or for a plane the centre of its thin square, below the plane."""
+    if isinstance(shape, Plane):
+        return compose_poses(pose, Pose((0.0, 0.0, -PLANE_MARKER_THICKNESS / 2.0)))
+    return pose
+
+
+def static_markers(scene: Scene, header: Header) -> list[Marker]:
+    """The scene's fixed bodies in their shapes, grey, namespace ``static``."""
+    markers = []
+    for index, body in enumerate(scene.static):
+        marker = Marker(header=header, ns=STATIC_NAMESPACE, id=index, action=Marker.ADD)
+        marker.pose = pose_msg(_marker_pose(body.shape, body.pose))
+        _shape(marker, body.shape)
+        marker.color = STATIC_COLOR
+        markers.append(marker)
+    return markers
+
+
+def static_markers_msg(scene: Scene, *, stamp_ns: int) -> MarkerArray:
+    """The fixed bodies alone (:func:`static_markers`), so RViz shows the scene before the first map."""
+    return MarkerArray(
+        markers=static_markers(scene, Header(frame_id=scene.frame_id, stamp=stamp_from_nanoseconds(stamp_ns)))
+    )
 
 
 def markers_msg(result: SearchResult, scene: Scene, *, stamp_ns: int) -> MarkerArray:
-    """One marker per object in its true shape, plus a text label ``name J=...``.
+    """One marker per object in its true shape, a text label ``name J=...``, and the fixed bodies.
 
     A valid configuration is drawn green at its chosen poses; a fallback orange at its settled
-    poses, the corrected estimate (SPEC section 2). J is the object's jitter J_i. Empty if
+    poses, the corrected estimate (SPEC section 2). J is the object's jitter J_i. The fixed
+    bodies come with every map, since RViz keeps only the last latched MarkerArray. Empty if
     nothing was chosen. Headers are stamped ``stamp_ns`` (integer nanoseconds).
     """
     if result.poses is None or result.settled_poses is None or result.object_jitters is None:
@@ -75,13 +125,14 @@ def markers_msg(result: SearchResult, scene: Scene, *, stamp_ns: int) -> MarkerA
     markers = []
     for index, (model, pose) in enumerate(zip(scene.objects, poses, strict=True)):
         shape = Marker(header=header, ns=SHAPE_NAMESPACE, id=index, action=Marker.ADD, pose=pose_msg(pose))
-        _shape(shape, model)
+        _shape(shape, model.shape)
         shape.color = VALID_COLOR if result.valid else FALLBACK_COLOR
-        label_pose = pose_msg(Pose((pose.position[0], pose.position[1], pose.position[2] + _top(model) + LABEL_HEIGHT)))
+        label_height = pose.position[2] + _top(model.shape) + LABEL_HEIGHT
+        label_pose = pose_msg(Pose((pose.position[0], pose.position[1], label_height)))
         label = Marker(header=header, ns=LABEL_NAMESPACE, id=index, action=Marker.ADD, pose=label_pose)
         label.type = Marker.TEXT_VIEW_FACING
         label.scale = Vector3(z=LABEL_HEIGHT)
         label.color = LABEL_COLOR
         label.text = f"{model.name}\nJ={jitters[index]:.4f}"
         markers += [shape, label]
-    return MarkerArray(markers=markers)
+    return MarkerArray(markers=markers + static_markers(scene, header))

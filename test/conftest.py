@@ -37,3 +37,11 @@ def ros_environment() -> None:
     os.environ["ROS_DOMAIN_ID"] = str(_domain_id())
     os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
     os.environ.setdefault("RMW_IMPLEMENTATION", "rmw_fastrtps_cpp")
+
+
+@pytest.fixture(scope="session", autouse=True)
+def decomposition_cache(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A decomposition cache of this run's own (inherited by child processes), never the user's."""
+    folder = tmp_path_factory.mktemp("cache")
+    os.environ["PHYSICS_MAPPER_CACHE_DIR"] = str(folder)
+    return folder / "decompositions"

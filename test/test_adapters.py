@@ -8,6 +8,7 @@ import pytest
 from conftest import PROBLEMS, SCENES
 from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PoseArray
+from mesh_builders import MUG_FILE, floor_scene_dict, load_inline, mesh_object
 from ros_helpers import SPEC_DIAGNOSTIC_KEYS
 from std_msgs.msg import Float64MultiArray
 from visualization_msgs.msg import Marker
@@ -21,7 +22,17 @@ from msg_adapters.hypotheses import (
     received_weights,
     stamp_from_nanoseconds,
 )
-from msg_adapters.results import FALLBACK_COLOR, LABEL_NAMESPACE, SHAPE_NAMESPACE, configuration_msgs, markers_msg
+from msg_adapters.results import (
+    FALLBACK_COLOR,
+    LABEL_NAMESPACE,
+    PLANE_MARKER_SIZE,
+    SHAPE_NAMESPACE,
+    STATIC_COLOR,
+    STATIC_NAMESPACE,
+    configuration_msgs,
+    markers_msg,
+    static_markers_msg,
+)
 from physics_mapper.core.geometry import Pose, make_pose
 from physics_mapper.core.hypotheses import Hypothesis, RankedHypotheses
 from physics_mapper.core.limits import MAX_DIAGNOSTIC_TEXT
@@ -347,3 +358,32 @@ def test_diagnostics_say_when_a_settling_continues_over_ticks() -> None:
         kv.key: kv.value for kv in diagnostics_msg(last, node_name="n", hardware_id="/n", stamp_ns=0).status[0].values
     }
     assert values["search"] == "resumed, exhausted (every node visited)"
+
+
+# --- meshes and fixed bodies in RViz ------------------------------------------------------------------
+
+
+def test_a_mesh_object_is_a_mesh_resource_and_fixed_bodies_are_drawn_grey() -> None:
+    table = {"name": "table", "shape": "box", "size": [1.0, 1.0, 0.05], "pose": {"position": [0.0, 0.0, 0.575]}}
+    mug = mesh_object("mug", MUG_FILE, scale=[1.0, 1.0, 1.5], mass=0.3)
+    scene = load_inline(floor_scene_dict(mug, static=(table,)), SCENES)
+    with PhysicsChecker(scene) as checker:
+        hypotheses = [RankedHypotheses.from_weighted([Hypothesis(Pose((0.0, 0.0, 0.6)), 1.0)])]
+        result = BranchAndBound(checker, hypotheses, scene.search).run(None)
+    assert result.valid
+    markers = markers_msg(result, scene, stamp_ns=0).markers
+    (shape,) = [m for m in markers if m.ns == SHAPE_NAMESPACE]
+    assert shape.type == Marker.MESH_RESOURCE
+    assert shape.mesh_resource.startswith("file:///") and shape.mesh_resource.endswith("/pybullet_data/objects/mug.obj")
+    assert (shape.scale.x, shape.scale.y, shape.scale.z) == (1.0, 1.0, 1.5)
+    (label,) = [m for m in markers if m.ns == LABEL_NAMESPACE]
+    assert label.pose.position.z == pytest.approx(0.6 + 1.5 * 0.1 + 0.04)  # above the mug's top
+    floor, table_marker = [m for m in markers if m.ns == STATIC_NAMESPACE]
+    assert [m.id for m in (floor, table_marker)] == [0, 1]
+    assert (floor.type, floor.scale.x, floor.scale.z) == (Marker.CUBE, PLANE_MARKER_SIZE, pytest.approx(0.002))
+    assert floor.pose.position.z == pytest.approx(-0.001)  # its top face is the plane
+    assert (table_marker.type, table_marker.pose.position.z) == (Marker.CUBE, 0.575)
+    assert all(m.color == STATIC_COLOR for m in (floor, table_marker))
+    alone = static_markers_msg(scene, stamp_ns=5).markers
+    assert [(m.ns, m.id, m.type) for m in alone] == [(m.ns, m.id, m.type) for m in (floor, table_marker)]
+    assert all(m.header.frame_id == scene.frame_id and m.header.stamp.nanosec == 5 for m in alone)

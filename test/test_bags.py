@@ -152,6 +152,14 @@ def test_same_seed_same_messages(tmp_path: Path) -> None:
             "generate config/scenes/sphere_groove.yaml -o test/data/sphere_groove_sqlite3 --runs 2 --sigma 0.1 "
             "--seed 2 --storage sqlite3",
         ),
+        *(
+            (
+                scene,
+                f"generate config/scenes/{scene}.yaml -o test/data/{scene} --runs 1 --particles 300 --sigma 0.005 "
+                f"--seed {seed}",
+            )
+            for scene, seed in (("tabletop", 1), ("tray_pile", 2), ("jenga_tower", 3))
+        ),
     ],
 )
 def test_shipped_bags_are_what_their_recorded_command_makes(

@@ -24,6 +24,8 @@ from physics_mapper.core.scene_files import load_scene
 
 RUNS = 3
 PARTICLES = 300
+#: Seconds per search of the clutter experiment: a first answer on the tabletop and the tray, not the tower.
+SEARCH_BUDGET = 0.05
 ITERATIONS = 10
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 
@@ -32,7 +34,8 @@ PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 def reports(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, str]:
     """The output folder of one reduced ``experiment all`` run, and its stderr."""
     output = tmp_path_factory.mktemp("reports")
-    done = cli("experiment", "all", "-o", str(output), "--runs", str(RUNS), "--particles", str(PARTICLES))
+    sizes = ["--runs", str(RUNS), "--particles", str(PARTICLES), "--search-budget", str(SEARCH_BUDGET)]
+    done = cli("experiment", "all", "-o", str(output), *sizes)
     assert done.returncode == 0, done.stderr
     return output, done.stderr
 
@@ -50,7 +53,7 @@ def all_numbers(data: Any) -> list[float]:
     return [number for value in values for number in all_numbers(value)]
 
 
-@pytest.mark.parametrize("name", ["fig4", "fig6", "fig8", "peg"])
+@pytest.mark.parametrize("name", ["fig4", "fig6", "fig8", "peg", "clutter"])
 def test_each_experiment_writes_a_real_png_and_summaries(reports: tuple[Path, str], name: str) -> None:
     output, stderr = reports
     png = output / f"{name}.png"
@@ -241,6 +244,29 @@ def test_fig8_summary_is_consistent(reports: tuple[Path, str]) -> None:
         )
         mean = sum(per_iteration[estimate]) / ITERATIONS
         assert math.isclose(data["mean_error_cm"][estimate], mean)
+
+
+def test_clutter_summary_is_consistent(reports: tuple[Path, str]) -> None:
+    data = summary(reports, "clutter")
+    assert set(data["scenes"]) == {"tabletop", "tray_pile", "jenga_tower"}
+    assert data["particles"] == PARTICLES and data["iterations"] == ITERATIONS
+    for name, part in data["scenes"].items():
+        scene = load_scene(SCENES / f"{name}.yaml")
+        assert part["objects"] == list(scene.object_names)
+        assert part["runs"] == RUNS and part["searches"] == RUNS * ITERATIONS
+        assert part["search_budget_s"] == SEARCH_BUDGET
+        # Every answer is a valid map or the fallback's, and each was timed when it appeared.
+        answered = part["searches"] - part["no_map"]
+        assert part["valid"] + part["fallback_used"] == answered == part["first_map_s"]["count"]
+        assert part["first_valid_s"]["count"] == part["valid"] >= part["root_valid"]
+        for estimate in ("C11..1", "chosen", "settled"):
+            per_object = part["per_object_cm"][estimate]
+            assert list(per_object) == part["objects"] and all(e >= 0.0 for e in per_object.values())
+            assert math.isclose(part["mean_total_cm"][estimate], sum(per_object.values()))
+            assert len(part["total_per_iteration_cm"][estimate]) == ITERATIONS
+    markdown = (reports[0] / "clutter.md").read_text()
+    assert f"--search-budget {SEARCH_BUDGET:g}" in markdown
+    assert markdown.count("| total |") == 3
 
 
 def test_peg_overlaps_are_rejected_with_the_wall_named_and_the_dropped_peg_ends_in_the_hole(

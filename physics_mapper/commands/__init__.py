@@ -16,7 +16,19 @@ from physics_mapper.core.scene import Problem
 from physics_mapper.core.scene_files import load_problem
 
 #: Subcommand names, each a module of this package, in the order ``--help`` lists them.
-COMMANDS = ("solve", "generate", "replay", "evaluate", "sweep", "node", "publish", "demo", "experiment", "bench")
+COMMANDS = (
+    "solve",
+    "generate",
+    "replay",
+    "evaluate",
+    "sweep",
+    "node",
+    "publish",
+    "demo",
+    "experiment",
+    "bench",
+    "decompose",
+)
 
 
 def command_module(name: str) -> ModuleType:

@@ -94,6 +94,45 @@ def rotation_vector(orientation: Quaternion) -> Vector3:
     return (float(x), float(y), float(z))
 
 
+def quaternion_multiply(a: Quaternion, b: Quaternion) -> Quaternion:
+    """The Hamilton product a * b (x, y, z, w): rotation ``b`` first, then ``a``."""
+    ax, ay, az, aw = a
+    bx, by, bz, bw = b
+    return (
+        aw * bx + ax * bw + ay * bz - az * by,
+        aw * by - ax * bz + ay * bw + az * bx,
+        aw * bz + ax * by - ay * bx + az * bw,
+        aw * bw - ax * bx - ay * by - az * bz,
+    )
+
+
+def rotate_vector(orientation: Quaternion, vector: Vector3) -> Vector3:
+    """``vector`` rotated by the unit quaternion ``orientation``: v' = v + 2w (u x v) + 2 u x (u x v)."""
+    ux, uy, uz, w = orientation
+    vx, vy, vz = vector
+    tx, ty, tz = 2.0 * (uy * vz - uz * vy), 2.0 * (uz * vx - ux * vz), 2.0 * (ux * vy - uy * vx)
+    return (
+        vx + w * tx + (uy * tz - uz * ty),
+        vy + w * ty + (uz * tx - ux * tz),
+        vz + w * tz + (ux * ty - uy * tx),
+    )
+
+
+def compose_poses(a: Pose, b: Pose) -> Pose:
+    """The pose ``b``, given in the frame of ``a``, expressed in the frame ``a`` is given in (a * b)."""
+    x, y, z = rotate_vector(a.orientation, b.position)
+    ax, ay, az = a.position
+    return Pose((ax + x, ay + y, az + z), quaternion_multiply(a.orientation, b.orientation))
+
+
+def inverse_pose(pose: Pose) -> Pose:
+    """The pose whose composition with ``pose`` is the identity: ``compose_poses(pose, inverse_pose(pose))``."""
+    x, y, z, w = pose.orientation
+    conjugate = (-x, -y, -z, w)
+    px, py, pz = rotate_vector(conjugate, pose.position)
+    return Pose((-px, -py, -pz), conjugate)
+
+
 def translation_distance(a: Pose, b: Pose) -> float:
     """Euclidean distance in metres between the positions of two poses."""
     return math.dist(a.position, b.position)

@@ -44,8 +44,8 @@ from dataclasses import dataclass, replace
 from types import ModuleType
 from typing import overload
 
-from physics_mapper.core.geometry import IDENTITY, ORIGIN, Pose, Vector3, pose_displacement
-from physics_mapper.core.scene import Box, Cylinder, Plane, Scene, Shape, Sphere
+from physics_mapper.core.geometry import IDENTITY, ORIGIN, Pose, Vector3, compose_poses, inverse_pose, pose_displacement
+from physics_mapper.core.scene import Box, Cylinder, Mesh, Plane, Scene, Shape, Sphere
 
 
 def _import_pybullet() -> ModuleType:
@@ -151,6 +151,14 @@ class TrajectorySample:
     poses: tuple[Pose, ...]
 
 
+def inertial_frame(shape: Shape) -> Pose | None:
+    """Where a body's centre of mass and principal axes are, in its own frame; None at its origin (primitives)."""
+    if not isinstance(shape, Mesh) or shape.geometry.mass_properties is None:
+        return None
+    properties = shape.geometry.mass_properties
+    return Pose(properties.centre_of_mass, properties.principal_axes)
+
+
 class PhysicsChecker:
     """A pybullet (DIRECT) world holding a scene's static bodies and objects.
 
@@ -183,6 +191,8 @@ class PhysicsChecker:
             uid = self._create(body.shape, 0.0, body.pose)
             pybullet.changeDynamics(uid, -1, lateralFriction=body.friction, physicsClientId=client)
             self._names[uid] = body.name
+        # Per object, where its centre of mass frame is in its pose's frame (None: at the pose).
+        self._inertial_frames: list[Pose | None] = []
         for model in self.scene.objects:
             uid = self._create(model.shape, model.mass, ORIGIN)
             pybullet.changeDynamics(
@@ -194,30 +204,80 @@ class PhysicsChecker:
             )
             self._names[uid] = model.name
             self._bodies.append(uid)
+            self._inertial_frames.append(inertial_frame(model.shape))
+        self._pose_frames = [None if frame is None else inverse_pose(frame) for frame in self._inertial_frames]
         # Object uid -> scene index: which contacts count for Rule 1, and how a pair is ordered.
         self._object_index = {uid: index for index, uid in enumerate(self._bodies)}
         self._initial_state = pybullet.saveState(physicsClientId=client)
 
     def _create(self, shape: Shape, mass: float, pose: Pose) -> int:
+        """A body of ``shape`` at ``pose`` (its own frame: a mesh's file frame), with ``mass`` kg (0: fixed).
+
+        pybullet puts a body's centre of mass and principal axes at its *inertial frame*, given
+        in the body's frame; the primitives' is the body frame. A mesh's comes from its mass
+        properties, with its principal moments as the diagonal inertia (Bullet would otherwise
+        use its bounding box's). pybullet then reports and sets the inertial frame's world pose,
+        which :meth:`_place` and :meth:`_poses` convert.
+        """
+        client = self._client
+        frame = inertial_frame(shape) if mass > 0.0 else None
+        uid = int(
+            pybullet.createMultiBody(
+                baseMass=mass,
+                baseCollisionShapeIndex=self._collision_shape(shape),
+                basePosition=pose.position,
+                baseOrientation=pose.orientation,
+                baseInertialFramePosition=(frame or ORIGIN).position,
+                baseInertialFrameOrientation=(frame or ORIGIN).orientation,
+                physicsClientId=client,
+            )
+        )
+        if isinstance(shape, Mesh):
+            # Bullet inflates convex hulls by a 1 mm margin; the primitives are exact, and so are meshes.
+            pybullet.changeDynamics(uid, -1, collisionMargin=0.0, physicsClientId=client)
+            properties = shape.geometry.mass_properties
+            if mass > 0.0 and properties is not None:
+                inertia = [mass * moment for moment in properties.principal_moments]
+                pybullet.changeDynamics(uid, -1, localInertiaDiagonal=inertia, physicsClientId=client)
+        return uid
+
+    def _collision_shape(self, shape: Shape) -> int:
         client = self._client
         if isinstance(shape, Box):
             half = [s / 2.0 for s in shape.size]
-            collision = pybullet.createCollisionShape(pybullet.GEOM_BOX, halfExtents=half, physicsClientId=client)
-        elif isinstance(shape, Sphere):
-            collision = pybullet.createCollisionShape(pybullet.GEOM_SPHERE, radius=shape.radius, physicsClientId=client)
-        elif isinstance(shape, Cylinder):
-            collision = pybullet.createCollisionShape(
-                pybullet.GEOM_CYLINDER, radius=shape.radius, height=shape.length, physicsClientId=client
+            return int(pybullet.createCollisionShape(pybullet.GEOM_BOX, halfExtents=half, physicsClientId=client))
+        if isinstance(shape, Sphere):
+            return int(pybullet.createCollisionShape(pybullet.GEOM_SPHERE, radius=shape.radius, physicsClientId=client))
+        if isinstance(shape, Cylinder):
+            return int(
+                pybullet.createCollisionShape(
+                    pybullet.GEOM_CYLINDER, radius=shape.radius, height=shape.length, physicsClientId=client
+                )
             )
-        else:
-            assert isinstance(shape, Plane)
-            collision = pybullet.createCollisionShape(pybullet.GEOM_PLANE, physicsClientId=client)
+        if isinstance(shape, Mesh):
+            return self._mesh_collision_shape(shape)
+        assert isinstance(shape, Plane)
+        return int(pybullet.createCollisionShape(pybullet.GEOM_PLANE, physicsClientId=client))
+
+    def _mesh_collision_shape(self, mesh: Mesh) -> int:
+        """A triangle mesh, a convex hull, or a compound of convex parts loaded from the decomposition's OBJ."""
+        client, geometry = self._client, mesh.geometry
+        if mesh.collision == "triangle_mesh":
+            vertices, indices = geometry.vertices.tolist(), geometry.faces.ravel().tolist()
+            return int(
+                pybullet.createCollisionShape(
+                    pybullet.GEOM_MESH, vertices=vertices, indices=indices, physicsClientId=client
+                )
+            )
+        if mesh.collision == "convex_hull":
+            hull = geometry.parts[0].vertices.tolist()
+            return int(pybullet.createCollisionShape(pybullet.GEOM_MESH, vertices=hull, physicsClientId=client))
+        assert geometry.decomposition is not None
         return int(
-            pybullet.createMultiBody(
-                baseMass=mass,
-                baseCollisionShapeIndex=collision,
-                basePosition=pose.position,
-                baseOrientation=pose.orientation,
+            pybullet.createCollisionShape(
+                pybullet.GEOM_MESH,
+                fileName=str(geometry.decomposition.file),
+                meshScale=list(mesh.scale),
                 physicsClientId=client,
             )
         )
@@ -243,7 +303,11 @@ class PhysicsChecker:
 
     def _uids(self, objects: Sequence[int] | None) -> list[int]:
         """The bodies of the objects of these scene indices (None: every object, in scene order)."""
-        return self._bodies if objects is None else [self._bodies[index] for index in objects]
+        return [self._bodies[index] for index in self._indices(objects)]
+
+    def _indices(self, objects: Sequence[int] | None) -> Sequence[int]:
+        """These scene indices, or (None) every object's, in scene order."""
+        return range(len(self._bodies)) if objects is None else objects
 
     def _place(self, poses: Sequence[Pose], objects: Sequence[int] | None = None) -> None:
         """Put ``objects`` (None: all) at ``poses``, from rest; every other object stays parked."""
@@ -253,8 +317,25 @@ class PhysicsChecker:
         self._save_interrupted()
         pybullet.restoreState(self._initial_state, physicsClientId=self._client)
         self._empty_contact_caches()
-        for uid, pose in zip(uids, poses, strict=True):
-            pybullet.resetBasePositionAndOrientation(uid, pose.position, pose.orientation, physicsClientId=self._client)
+        for index, pose in zip(self._indices(objects), poses, strict=True):
+            self._set_pose(index, pose)
+
+    def _set_pose(self, index: int, pose: Pose) -> None:
+        """Put object ``index``'s own frame at ``pose`` (pybullet places its inertial frame, see :meth:`_create`)."""
+        frame = self._inertial_frames[index]
+        placed = pose if frame is None else compose_poses(pose, frame)
+        pybullet.resetBasePositionAndOrientation(
+            self._bodies[index], placed.position, placed.orientation, physicsClientId=self._client
+        )
+
+    def _get_pose(self, index: int) -> Pose:
+        """Object ``index``'s own frame's pose, from its inertial frame's pose that pybullet reports."""
+        position, orientation = pybullet.getBasePositionAndOrientation(
+            self._bodies[index], physicsClientId=self._client
+        )
+        pose = Pose((position[0], position[1], position[2]), tuple(orientation))
+        frame = self._pose_frames[index]
+        return pose if frame is None else compose_poses(pose, frame)
 
     def _empty_contact_caches(self) -> None:
         """Drop every contact point, so that no simulation inherits another's.
@@ -280,11 +361,8 @@ class PhysicsChecker:
         self._interrupted = self._interrupted_state = None
 
     def _poses(self, objects: Sequence[int] | None = None) -> tuple[Pose, ...]:
-        poses = []
-        for uid in self._uids(objects):
-            position, orientation = pybullet.getBasePositionAndOrientation(uid, physicsClientId=self._client)
-            poses.append(Pose((position[0], position[1], position[2]), tuple(orientation)))
-        return tuple(poses)
+        """The poses of ``objects`` (None: all), in their own frames."""
+        return tuple(self._get_pose(index) for index in self._indices(objects))
 
     def find_collision(self, poses: Sequence[Pose], penetration_threshold: float) -> Collision | None:
         """Rule 1: the deepest overlap beyond ``penetration_threshold`` metres, or None.
@@ -321,7 +399,7 @@ class PhysicsChecker:
         """
         self._place(poses, objects)
         client = self._client
-        indices = range(len(self._bodies)) if objects is None else objects
+        indices = self._indices(objects)
         placed = set(indices)
         found: list[Proximity] = []
         for index in indices:
@@ -348,7 +426,7 @@ class PhysicsChecker:
         """
         self._save_interrupted()
         client, uid = self._client, self._bodies[index]
-        pybullet.resetBasePositionAndOrientation(uid, pose.position, pose.orientation, physicsClientId=client)
+        self._set_pose(index, pose)
         low, high = pybullet.getAABB(uid, physicsClientId=client)
         deepest = 0.0
         for other, _link in pybullet.getOverlappingObjects(low, high, physicsClientId=client) or ():

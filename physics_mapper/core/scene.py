@@ -12,10 +12,12 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
+from pathlib import Path
 from typing import Literal, assert_never
 
 from physics_mapper.core.geometry import ORIGIN, Pose, Vector3
 from physics_mapper.core.hypotheses import RankedHypotheses
+from physics_mapper.core.meshes import MeshCollision, MeshGeometry
 
 Fallback = Literal["none", "settled", "refine"]
 FALLBACKS: tuple[Fallback, ...] = ("none", "settled", "refine")
@@ -48,15 +50,58 @@ class Plane:
     """Infinite plane through its pose, normal along its local +z (static bodies only)."""
 
 
-Shape = Box | Sphere | Cylinder | Plane
-OBJECT_SHAPES = ("box", "sphere", "cylinder")
-STATIC_SHAPES = ("plane", "box", "sphere", "cylinder")
+#: How a movable object's mesh may collide; static bodies may also use a triangle mesh.
+OBJECT_MESH_COLLISIONS: tuple[MeshCollision, ...] = ("convex_hull", "decomposition")
+STATIC_MESH_COLLISIONS: tuple[MeshCollision, ...] = ("convex_hull", "decomposition", "triangle_mesh")
+
+
+@dataclass(frozen=True)
+class Mesh:
+    """Triangle mesh read from ``file`` (OBJ or STL), posed in the file's own frame, scaled per axis.
+
+    ``file`` is the absolute path read; ``uri`` how RViz finds it (``package://`` where the scene
+    gave one, else ``file://``); ``collision`` how Bullet collides it (see
+    :mod:`~physics_mapper.core.meshes`); ``geometry`` the loaded mesh: scaled surface, convex
+    parts, mass properties.
+    """
+
+    file: Path
+    uri: str
+    scale: Vector3
+    collision: MeshCollision
+    geometry: MeshGeometry = field(compare=False, repr=False)
+
+
+Shape = Box | Sphere | Cylinder | Plane | Mesh
+ObjectShape = Box | Sphere | Cylinder | Mesh
+OBJECT_SHAPES = ("box", "sphere", "cylinder", "mesh")
+STATIC_SHAPES = ("plane", "box", "sphere", "cylinder", "mesh")
+
+
+def shape_volume(shape: ObjectShape) -> float:
+    """Volume in m^3 of a movable object's shape.
+
+    A mesh's is its solid's if it is closed, else its collision geometry's (its mass properties').
+    """
+    if isinstance(shape, Box):
+        return shape.size[0] * shape.size[1] * shape.size[2]
+    if isinstance(shape, Sphere):
+        return 4.0 / 3.0 * math.pi * shape.radius**3
+    if isinstance(shape, Cylinder):
+        return math.pi * shape.radius**2 * shape.length
+    properties = shape.geometry.mass_properties
+    if properties is None:
+        raise ValueError(f"{shape.file}: loaded without mass properties (a static body's mesh)")
+    return properties.volume
 
 
 def bounding_radius(shape: Shape) -> float | None:
     """Radius (m) of the smallest sphere about the shape's pose that holds it; None for an unbounded plane.
 
-    Every shape must have a branch (mypy checks it): the default workspace is derived from these radii.
+    Rotation-invariant: a body posed anywhere stays within this distance of its pose's position. A
+    mesh's pose is its file's origin, which need not be inside the mesh (the radius covers the mesh
+    and its convex parts from there). Every shape must have a branch (mypy checks it): the default
+    workspace is derived from these radii.
     """
     if isinstance(shape, Box):
         return math.hypot(*shape.size) / 2.0
@@ -64,6 +109,8 @@ def bounding_radius(shape: Shape) -> float | None:
         return shape.radius
     if isinstance(shape, Cylinder):
         return math.hypot(shape.radius, shape.length / 2.0)
+    if isinstance(shape, Mesh):
+        return shape.geometry.bounding_radius
     if isinstance(shape, Plane):
         return None
     assert_never(shape)
@@ -116,11 +163,13 @@ class StaticBody:
 class ObjectModel:
     """A movable rigid body; ``mass`` in kg, Coulomb ``friction`` coefficient.
 
-    ``rolling_friction`` (Bullet's, in metres) lets round objects come to rest.
+    ``rolling_friction`` (Bullet's, in metres) lets round objects come to rest. The centre of
+    mass and inertia are the shape's at uniform density: the pose's origin for the primitives,
+    the mesh's own (:class:`~physics_mapper.core.meshes.MassProperties`) for a mesh.
     """
 
     name: str
-    shape: Box | Sphere | Cylinder
+    shape: ObjectShape
     mass: float = 0.5
     friction: float = 0.8
     rolling_friction: float = 0.0

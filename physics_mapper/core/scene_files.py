@@ -15,6 +15,13 @@ from dataclasses import fields, replace
 from pathlib import Path
 from typing import Any, TypeVar
 
+from physics_mapper.core.decomposition import (
+    DECOMPOSITION_METHODS,
+    THRESHOLD_LIMITS,
+    DecompositionSettings,
+    Progress,
+    stderr_progress,
+)
 from physics_mapper.core.geometry import IDENTITY, ORIGIN, Pose, make_pose
 from physics_mapper.core.hypotheses import Hypothesis, RankedHypotheses
 from physics_mapper.core.limits import (
@@ -23,12 +30,17 @@ from physics_mapper.core.limits import (
     MAX_NAME_LENGTH,
     MAX_QUOTED_TEXT,
 )
+from physics_mapper.core.meshes import MeshCollision, MeshError, MeshGeometry, MeshRequest, load_mesh_geometry
+from physics_mapper.core.resources import ResourceError, resolve_resource, resource_uri
 from physics_mapper.core.scene import (
     FALLBACKS,
+    OBJECT_MESH_COLLISIONS,
     OBJECT_SHAPES,
+    STATIC_MESH_COLLISIONS,
     STATIC_SHAPES,
     Box,
     Cylinder,
+    Mesh,
     ObjectModel,
     Plane,
     Problem,
@@ -39,6 +51,7 @@ from physics_mapper.core.scene import (
     StaticBody,
     Workspace,
     search_params_problem,
+    shape_volume,
 )
 from physics_mapper.core.yaml_files import FileError, read_yaml
 
@@ -153,12 +166,108 @@ def _read_pose(reader: _Reader, value: Any, key: str, magnitude: float | None = 
 
 
 _SIZE: dict[str, Any] = {"positive": True, "magnitude": MAX_COORDINATE}
+#: Longest mesh file path or URL, characters (Linux's PATH_MAX).
+MAX_PATH_LENGTH = 4096
 
 
-def _read_shape(reader: _Reader, data: Mapping[str, Any], key: str, allowed: Sequence[str]) -> Shape:
+class _MeshLoader:
+    """Loads the meshes of one scene file: paths relative to its folder, each mesh file read once.
+
+    Bodies sharing a mesh file and its keys share one :class:`MeshGeometry`, so loading a scene
+    never reads (or decomposes) the same mesh twice.
+    """
+
+    def __init__(self, reader: _Reader, base_dir: Path | None, progress: Progress) -> None:
+        self.reader = reader
+        self.base_dir = base_dir
+        self.progress = progress
+        self._loaded: dict[MeshRequest, MeshGeometry] = {}
+
+    def resolve(self, value: Any, key: str) -> tuple[str, Path]:
+        """The text of a file key and the path it names; a missing file is an error here."""
+        if not isinstance(value, str) or not value:
+            raise self.reader.fail(key, f"must be a file path or package:// URL, got {_show(value)}")
+        if len(value) > MAX_PATH_LENGTH:
+            raise self.reader.fail(key, f"longer than {MAX_PATH_LENGTH} characters: {_show(value)}")
+        text = value
+        try:
+            path = resolve_resource(text, self.base_dir)
+        except ResourceError as error:
+            raise self.reader.fail(key, str(error)) from None
+        if not path.is_file():
+            raise self.reader.fail(key, f"{path}: missing file" if not path.exists() else f"{path}: not a file")
+        return text, path.resolve()
+
+    def load(self, data: Mapping[str, Any], key: str, collisions: Sequence[MeshCollision], *, movable: bool) -> Mesh:
+        reader = self.reader
+        text, path = self.resolve(reader.required(data, "file", key), f"{key}.file")
+        collision = data.get("collision", "convex_hull")
+        if collision not in collisions:
+            raise reader.fail(f"{key}.collision", f"must be one of {', '.join(collisions)}, got {_show(collision)}")
+        parts_file = None
+        if "parts" in data:
+            if collision != "decomposition" or "decomposition" in data:
+                problem = "only with collision: decomposition, and instead of decomposition settings"
+                raise reader.fail(f"{key}.parts", problem)
+            parts_file = self.resolve(data["parts"], f"{key}.parts")[1]
+        settings = DecompositionSettings()
+        if "decomposition" in data:
+            if collision != "decomposition":
+                raise reader.fail(f"{key}.decomposition", "only with collision: decomposition")
+            settings = _read_decomposition(reader, data["decomposition"], f"{key}.decomposition")
+        request = MeshRequest(
+            file=path,
+            scale=_read_scale(reader, data.get("scale", 1.0), f"{key}.scale"),
+            collision=collision,
+            decomposition=settings,
+            parts_file=parts_file,
+            mass_properties=movable,
+            needs_volume=movable and "density" in data,
+        )
+        if request not in self._loaded:
+            try:
+                self._loaded[request] = load_mesh_geometry(request, self.progress)
+            except MeshError as error:
+                raise reader.fail(f"{key}.parts" if error.path == parts_file else f"{key}.file", str(error)) from None
+        return Mesh(path, resource_uri(text, path), request.scale, collision, self._loaded[request])
+
+
+def _read_scale(reader: _Reader, value: Any, key: str) -> tuple[float, float, float]:
+    """``scale``: one positive number for every axis, or three."""
+    if isinstance(value, list):
+        x, y, z = reader.vector(value, key, 3, **_SIZE)
+        return (x, y, z)
+    factor = reader.number(value, key, **_SIZE)
+    return (factor, factor, factor)
+
+
+def _read_decomposition(reader: _Reader, value: Any, key: str) -> DecompositionSettings:
+    data = reader.mapping(value, key)
+    reader.known_keys(data, key, ("method", "threshold"))
+    method = data.get("method", "coacd")
+    if method not in DECOMPOSITION_METHODS:
+        raise reader.fail(f"{key}.method", f"must be one of {', '.join(DECOMPOSITION_METHODS)}, got {_show(method)}")
+    if "threshold" not in data:
+        return DecompositionSettings(method)
+    if method != "coacd":
+        raise reader.fail(f"{key}.threshold", "only for method: coacd (vhacd runs with pybullet's defaults)")
+    threshold = reader.number(data["threshold"], f"{key}.threshold")
+    low, high = THRESHOLD_LIMITS
+    if not low <= threshold <= high:
+        raise reader.fail(f"{key}.threshold", f"must be in [{low:g}, {high:g}], got {threshold:g}")
+    return DecompositionSettings(method, threshold)
+
+
+def _read_shape(
+    reader: _Reader, data: Mapping[str, Any], key: str, allowed: Sequence[str], meshes: _MeshLoader, *, movable: bool
+) -> Shape:
     kind = reader.required(data, "shape", key)
     if kind not in allowed:
         raise reader.fail(f"{key}.shape", f"unknown shape {_show(kind)} (expected one of: {', '.join(allowed)})")
+    if kind != "mesh":
+        for name in _MESH_KEYS:
+            if name in data:
+                raise reader.fail(f"{key}.{name}", "only for shape: mesh")
     if kind == "box":
         size = reader.vector(reader.required(data, "size", key), f"{key}.size", 3, **_SIZE)
         return Box((size[0], size[1], size[2]))
@@ -168,32 +277,42 @@ def _read_shape(reader: _Reader, data: Mapping[str, Any], key: str, allowed: Seq
         radius = reader.number(reader.required(data, "radius", key), f"{key}.radius", **_SIZE)
         length = reader.number(reader.required(data, "length", key), f"{key}.length", **_SIZE)
         return Cylinder(radius, length)
+    if kind == "mesh":
+        collisions = OBJECT_MESH_COLLISIONS if movable else STATIC_MESH_COLLISIONS
+        return meshes.load(data, key, collisions, movable=movable)
     return Plane()
 
 
-_SHAPE_KEYS = ("shape", "size", "radius", "length")
+_MESH_KEYS = ("file", "scale", "collision", "decomposition", "parts")
+_SHAPE_KEYS = ("shape", "size", "radius", "length", *_MESH_KEYS)
 
 
-def _read_static(reader: _Reader, value: Any, key: str) -> StaticBody:
+def _read_static(reader: _Reader, value: Any, key: str, meshes: _MeshLoader) -> StaticBody:
     data = reader.mapping(value, key)
     reader.known_keys(data, key, ("name", *_SHAPE_KEYS, "pose", "friction"))
     name = reader.name(reader.required(data, "name", key), f"{key}.name")
-    shape = _read_shape(reader, data, key, STATIC_SHAPES)
+    shape = _read_shape(reader, data, key, STATIC_SHAPES, meshes, movable=False)
     pose = _read_pose(reader, data["pose"], f"{key}.pose") if "pose" in data else ORIGIN
     friction = reader.number(data.get("friction", 0.8), f"{key}.friction", minimum=0.0)
     return StaticBody(name, shape, pose, friction)
 
 
-def _read_object(reader: _Reader, value: Any, key: str) -> ObjectModel:
+def _read_object(reader: _Reader, value: Any, key: str, meshes: _MeshLoader) -> ObjectModel:
     data = reader.mapping(value, key)
-    reader.known_keys(data, key, ("name", *_SHAPE_KEYS, "mass", "friction", "rolling_friction"))
+    reader.known_keys(data, key, ("name", *_SHAPE_KEYS, "mass", "density", "friction", "rolling_friction"))
     name = reader.name(reader.required(data, "name", key), f"{key}.name")
-    shape = _read_shape(reader, data, key, OBJECT_SHAPES)
+    if "mass" in data and "density" in data:
+        raise reader.fail(f"{key}.density", "give mass or density, not both")
+    shape = _read_shape(reader, data, key, OBJECT_SHAPES, meshes, movable=True)
     assert not isinstance(shape, Plane)  # excluded by OBJECT_SHAPES
+    if "density" in data:
+        mass = reader.number(data["density"], f"{key}.density", positive=True) * shape_volume(shape)
+    else:
+        mass = reader.number(data.get("mass", 0.5), f"{key}.mass", positive=True)
     return ObjectModel(
         name=name,
         shape=shape,
-        mass=reader.number(data.get("mass", 0.5), f"{key}.mass", positive=True),
+        mass=mass,
         friction=reader.number(data.get("friction", 0.8), f"{key}.friction", minimum=0.0),
         rolling_friction=reader.number(data.get("rolling_friction", 0.0), f"{key}.rolling_friction", minimum=0.0),
     )
@@ -245,20 +364,27 @@ def search_with_overrides(
 _SCENE_KEYS = ("frame_id", "static", "objects", "search", "ground_truth", "workspace")
 
 
-def scene_from_dict(data: Any, source: str) -> Scene:
-    """Build a validated :class:`Scene` from parsed YAML; ``source`` names it in errors."""
+def scene_from_dict(
+    data: Any, source: str, base_dir: Path | None = None, progress: Progress = stderr_progress
+) -> Scene:
+    """Build a validated :class:`Scene` from parsed YAML; ``source`` names it in errors.
+
+    Relative mesh paths are taken relative to ``base_dir`` (the scene file's folder; None: the
+    working directory). ``progress`` hears of convex decompositions being computed.
+    """
     reader = _Reader(source)
+    meshes = _MeshLoader(reader, base_dir, progress)
     top = reader.mapping(data, "")
     reader.known_keys(top, "", (*_SCENE_KEYS, "hypotheses", "scene"))
     frame_id = reader.name(top.get("frame_id", "world"), "frame_id")
     static = tuple(
-        _read_static(reader, item, f"static[{i}]")
+        _read_static(reader, item, f"static[{i}]", meshes)
         for i, item in enumerate(reader.sequence(top.get("static", []), "static"))
     )
     items = reader.sequence(reader.required(top, "objects", ""), "objects")
     if not items:
         raise reader.fail("objects", "needs at least one object")
-    objects = tuple(_read_object(reader, item, f"objects[{i}]") for i, item in enumerate(items))
+    objects = tuple(_read_object(reader, item, f"objects[{i}]", meshes) for i, item in enumerate(items))
     names = [o.name for o in objects] + [b.name for b in static]
     for i, name in enumerate(names):
         if name in names[:i]:
@@ -322,10 +448,13 @@ def _read_hypotheses(reader: _Reader, value: Any, key: str, workspace: Workspace
     return ranked
 
 
-def problem_from_dict(data: Any, source: str, base_dir: Path | None = None) -> Problem:
+def problem_from_dict(
+    data: Any, source: str, base_dir: Path | None = None, progress: Progress = stderr_progress
+) -> Problem:
     """Build a :class:`Problem`: an inline scene (or ``scene: path``) plus ``hypotheses``.
 
-    A relative ``scene:`` path is taken relative to ``base_dir`` (the problem file's folder).
+    A relative ``scene:`` path (and an inline scene's relative mesh paths) is taken relative to
+    ``base_dir`` (the problem file's folder).
     """
     reader = _Reader(source)
     top = reader.mapping(data, "")
@@ -334,12 +463,12 @@ def problem_from_dict(data: Any, source: str, base_dir: Path | None = None) -> P
         scene_path = Path(reader.name(top["scene"], "scene"))
         if not scene_path.is_absolute() and base_dir is not None:
             scene_path = base_dir / scene_path
-        scene = load_scene(scene_path)
+        scene = load_scene(scene_path, progress)
         if "search" in top:
             overrides = reader.mapping(top["search"], "search")
             scene = replace(scene, search=search_with_overrides(scene.search, overrides, source))
     else:
-        scene = scene_from_dict(top, source)
+        scene = scene_from_dict(top, source, base_dir, progress)
     given = reader.required(top, "hypotheses", "")
     workspace = scene.workspace
 
@@ -357,13 +486,16 @@ def _load_yaml(path: Path) -> Any:
         raise SceneError(error.source, error.key, error.problem) from None
 
 
-def load_scene(path: str | Path) -> Scene:
-    """Load and validate a scene file; raises :class:`SceneError`."""
+def load_scene(path: str | Path, progress: Progress = stderr_progress) -> Scene:
+    """Load and validate a scene file; raises :class:`SceneError`.
+
+    ``progress`` hears of convex decompositions being computed (by default: a line on stderr).
+    """
     path = Path(path)
-    return scene_from_dict(_load_yaml(path), str(path))
+    return scene_from_dict(_load_yaml(path), str(path), path.parent, progress)
 
 
-def load_problem(path: str | Path) -> Problem:
+def load_problem(path: str | Path, progress: Progress = stderr_progress) -> Problem:
     """Load and validate a problem file; raises :class:`SceneError`."""
     path = Path(path)
-    return problem_from_dict(_load_yaml(path), str(path), path.parent)
+    return problem_from_dict(_load_yaml(path), str(path), path.parent, progress)

@@ -58,6 +58,7 @@ class ExperimentOptions:
     """What an experiment run is asked for.
 
     ``runs`` and ``particles`` of None mean the paper's sizes (20 runs, 1000 particles).
+    ``search_budget`` (seconds per search, ``clutter``): None means each scene's ``deadline``.
     ``progress`` receives one short line per step, for people watching a long run.
     """
 
@@ -67,6 +68,7 @@ class ExperimentOptions:
     particles: int | None = None
     scenes_dir: Path = SCENES_DIR
     progress: Callable[[str], None] = _silent
+    search_budget: float | None = None
 
 
 @dataclass(frozen=True)
@@ -86,6 +88,8 @@ def reproduce_command(name: str, options: ExperimentOptions, *, sized: bool = Tr
         words += ["--runs", str(options.runs)]
     if sized and options.particles is not None:
         words += ["--particles", str(options.particles)]
+    if sized and options.search_budget is not None:
+        words += ["--search-budget", f"{options.search_budget:g}"]
     return " ".join(words)
 
 

@@ -28,8 +28,9 @@ from visualization_msgs.msg import MarkerArray
 
 from msg_adapters.diagnostics import diagnostics_msg
 from msg_adapters.hypotheses import received_poses, received_weights
-from msg_adapters.results import configuration_msgs, markers_msg
+from msg_adapters.results import configuration_msgs, markers_msg, static_markers_msg
 from physics_mapper.core.errors import EXIT_BAD_INPUT, InputError
+from physics_mapper.core.resources import ResourceError, resolve_resource
 from physics_mapper.core.scene import FALLBACKS, SEARCH_LIMITS, Fallback, SearchParams
 from physics_mapper.core.scene_files import SceneError, load_scene
 from physics_mapper.mapping.inputs import InputSettings
@@ -46,11 +47,6 @@ from physics_mapper.mapping.topics import (
 )
 from physics_mapper.ros.qos import DIAGNOSTICS_QOS, INPUT_QOS, MAP_QOS
 from physics_mapper.ros.spinning import shutdown_ros
-
-PACKAGE_URL = "package://"
-PACKAGE = "physics_mapper"
-#: The source checkout this module runs from (pip-only installs are editable installs of it).
-SOURCE_ROOT = Path(__file__).resolve().parents[2]
 
 
 @dataclass(frozen=True)
@@ -99,24 +95,17 @@ def _descriptor(spec: ParameterSpec) -> ParameterDescriptor:
 
 
 def resolve_scene_path(text: str) -> Path:
-    """A scene file path; ``package://<pkg>/<path>`` is taken inside the package's share directory.
+    """A scene file path, or a ``package://<pkg>/<path>`` URL (:mod:`physics_mapper.core.resources`).
 
     Without an ament index (pip-only, run from a source checkout), ``package://physics_mapper/``
     is the checkout, which holds the same ``config/`` tree as the installed share directory.
     """
     if not text:
         raise InputError("parameter scene_file is required, e.g. --ros-args -p scene_file:=config/scenes/pyramid.yaml")
-    if not text.startswith(PACKAGE_URL):
-        return Path(text)
-    package, _, relative = text[len(PACKAGE_URL) :].partition("/")
-    from ament_index_python.packages import PackageNotFoundError, get_package_share_directory
-
     try:
-        return Path(get_package_share_directory(package)) / relative
-    except (PackageNotFoundError, OSError):  # OSError: no AMENT_PREFIX_PATH at all
-        if package == PACKAGE and (SOURCE_ROOT / relative).exists():
-            return SOURCE_ROOT / relative
-        raise InputError(f"scene_file {text}: package {package!r} is not in the ament index") from None
+        return resolve_resource(text, None)
+    except ResourceError as error:
+        raise InputError(f"scene_file {error}") from None
 
 
 class PhysicsMapperNode(Node):
@@ -144,6 +133,8 @@ class PhysicsMapperNode(Node):
         self._settled_pub = self.create_publisher(PoseArray, SETTLED_TOPIC, MAP_QOS)
         self._markers_pub = self.create_publisher(MarkerArray, MARKERS_TOPIC, MAP_QOS)
         self._diagnostics_pub = self.create_publisher(DiagnosticArray, DIAGNOSTICS_TOPIC, DIAGNOSTICS_QOS)
+        # Latched: RViz shows the fixed bodies before the first map (each map repeats them).
+        self._markers_pub.publish(static_markers_msg(scene, stamp_ns=self._now_ns()))
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self._rate_hz = float(self.get_parameter("rate_hz").value)
         self._timer = self.create_timer(1.0 / self._rate_hz, self._tick)
