@@ -46,7 +46,7 @@ import time
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import asdict, dataclass
-from importlib.metadata import version
+from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
 from typing import Literal
 
@@ -132,10 +132,17 @@ def cache_key(mesh_bytes: bytes, settings: DecompositionSettings) -> str:
         parameters = {**asdict(settings), "max_part_vertices": COACD_MAX_PART_VERTICES, "seed": 0}
     else:
         parameters = {"method": "vhacd", "resolution": VHACD_RESOLUTION}
-    header = json.dumps({"format": CACHE_FORMAT, "settings": parameters, library: version(library)})
+    header = json.dumps({"format": CACHE_FORMAT, "settings": parameters, library: _version(library)})
     digest = hashlib.sha256(header.encode())
     digest.update(mesh_bytes)
     return digest.hexdigest()[:32]
+
+
+def _version(library: str) -> str:
+    try:
+        return version(library)
+    except PackageNotFoundError:  # decomposing says so, with what to do
+        return "not installed"
 
 
 def decompose(

@@ -59,6 +59,8 @@ MeshCollision = Literal["convex_hull", "decomposition", "triangle_mesh"]
 MESH_FORMATS = {".obj": "obj", ".stl": "stl"}
 #: Most vertices a mesh file may have (pybullet's own limit for a triangle mesh is 131072).
 MAX_MESH_VERTICES = 100_000
+#: Largest mesh file read, bytes (100,000 vertices take about 5 MB as OBJ text).
+MAX_MESH_FILE_BYTES = 64 * 1024 * 1024
 #: A part or mesh whose hull is thinner than this many metres in some direction has no volume.
 DEGENERATE_THICKNESS = 1e-9
 
@@ -191,6 +193,9 @@ def _read_surface(path: Path) -> trimesh.Trimesh:
     if kind is None:
         raise MeshError(path, f"unsupported mesh format {path.suffix!r} (expected one of: {', '.join(MESH_FORMATS)})")
     try:
+        size = path.stat().st_size
+        if size > MAX_MESH_FILE_BYTES:
+            raise MeshError(path, f"too large: {size} bytes (at most {MAX_MESH_FILE_BYTES}; simplify the mesh)")
         data = path.read_bytes()
     except OSError as error:
         raise MeshError(path, f"cannot read mesh file: {error.strerror or error}") from None
