@@ -259,6 +259,7 @@ def test_clutter_summary_is_consistent(reports: tuple[Path, str]) -> None:
         answered = part["searches"] - part["no_map"]
         assert part["valid"] + part["fallback_used"] == answered == part["first_map_s"]["count"]
         assert part["first_valid_s"]["count"] == part["valid"] >= part["root_valid"]
+        assert 0 <= part["root_bounded"] <= part["searches"]
         for estimate in ("C11..1", "chosen", "settled"):
             per_object = part["per_object_cm"][estimate]
             assert list(per_object) == part["objects"] and all(e >= 0.0 for e in per_object.values())

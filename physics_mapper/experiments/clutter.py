@@ -111,6 +111,7 @@ class SceneOutcome:
     budget: float
     errors: dict[str, NDArray[np.float64]]
     root_valid: NDArray[np.bool_]
+    root_bounded: NDArray[np.bool_]
     valid: NDArray[np.bool_]
     fallback_used: NDArray[np.bool_]
     answered: NDArray[np.bool_]
@@ -128,6 +129,7 @@ def _scored(timed: TimedSearch, hypotheses: Sequence[RankedHypotheses], truth: S
     return {
         "errors": [position_errors_cm(estimate, truth) for estimate in (rank_one, chosen, settled)],
         "root_valid": bool(result.trace) and result.trace[0].outcome == "valid",  # unchecked if the budget ran out
+        "root_bounded": bool(result.trace) and result.trace[0].bounded,
         "valid": result.valid,
         "fallback_used": result.fallback_used,
         "answered": result.code is not None,
@@ -167,6 +169,7 @@ def run_scene(scene_file: str, options: ExperimentOptions, settings: TrackerSett
         budget=budget,
         errors={estimate: errors[:, :, i, :] for i, estimate in enumerate(ESTIMATES)},
         root_valid=stacked("root_valid"),
+        root_bounded=stacked("root_bounded"),
         valid=stacked("valid"),
         fallback_used=stacked("fallback_used"),
         answered=stacked("answered"),
@@ -210,6 +213,7 @@ def scene_summary(outcome: SceneOutcome) -> dict[str, Any]:
         "total_per_iteration_cm": {estimate: total.mean(axis=0).tolist() for estimate, total in totals.items()},
         "searches": searches,
         "root_valid": int(outcome.root_valid.sum()),
+        "root_bounded": int(outcome.root_bounded.sum()),
         "valid": int(outcome.valid.sum()),
         "fallback_used": int(outcome.fallback_used.sum()),
         "no_map": int((~outcome.answered).sum()),
@@ -333,8 +337,9 @@ Rules: overlap at most {100 * part["penetration_threshold_m"]:g} cm, jitter at m
 
 - Valid map in {part["valid"]} of {searches} searches (C11..1 itself valid in {part["root_valid"]}); the fallback
   (settled poses of the most likely collision-free configuration) in {part["fallback_used"]}; no map in
-  {part["no_map"]}. {part["exhausted"]} searches emptied their queue within the budget; {part["visited_mean"]:.0f}
-  configurations visited on average.
+  {part["no_map"]}. {part["exhausted"]} searches emptied their queue within the budget, visiting
+  {part["visited_mean"]:.1f} configurations on average; in {part["root_bounded"]} the root C11..1 itself was
+  bounded (p(C) below `probability_threshold`), so that nothing beyond it was searched.
 - Time to the first map: {_seconds_text(part["first_map_s"])}; to the first valid map:
   {_seconds_text(part["first_valid_s"])}.
 - Settled against C11..1: {tests_text(part["settled_vs_c11"], "settled")}.

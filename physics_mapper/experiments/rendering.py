@@ -37,6 +37,8 @@ OBJECT_RGBA = (
 #: Direction from the objects towards the camera (front, a little to the right, from above).
 VIEW_DIRECTION = (0.3, -0.85, 0.6)
 FIELD_OF_VIEW_DEGREES = 40.0
+#: How much wider than the objects the picture is.
+MARGIN = 1.8
 
 
 def _visual_shape(client: int, shape: Shape, rgba: Sequence[float]) -> int:
@@ -111,7 +113,7 @@ def render_scene(scene: Scene, poses: Sequence[Pose], width: int = 640, height: 
             float(np.linalg.norm(centre - target)) + (bounding_radius(model.shape) or 0.0)
             for centre, model in zip(centres, scene.objects, strict=True)
         )
-        distance = 1.3 * reach / math.tan(math.radians(FIELD_OF_VIEW_DEGREES / 2.0))
+        distance = MARGIN * reach / math.tan(math.radians(FIELD_OF_VIEW_DEGREES / 2.0))
         direction = np.array(VIEW_DIRECTION) / np.linalg.norm(VIEW_DIRECTION)
         eye = target + distance * direction
         view = pybullet.computeViewMatrix(eye.tolist(), target.tolist(), [0.0, 0.0, 1.0], physicsClientId=client)
