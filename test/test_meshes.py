@@ -112,6 +112,10 @@ def test_a_box_mesh_has_the_mass_centre_of_mass_and_inertia_of_shape_box(tmp_pat
         tmp_path,
     )
     assert scene.objects[2].mass == pytest.approx(BOX_MASS, rel=1e-6)
+    primitive = load_inline(
+        floor_scene_dict({"name": "b", "shape": "box", "size": list(BOX_SIZE), "density": density}), tmp_path
+    )
+    assert primitive.objects[0].mass == pytest.approx(BOX_MASS)  # density works for every shape
     properties = mesh_of(scene, 1).geometry.mass_properties
     assert properties is not None and properties.source == "mesh"
     assert properties.volume == pytest.approx(math.prod(BOX_SIZE), rel=1e-6)
