@@ -1,11 +1,23 @@
 """ament_python package definition: `colcon build` on a ROS machine, `pip install -e .` here."""
 
-from glob import glob
 from pathlib import Path
 
 from setuptools import find_packages, setup
 
 PACKAGE = "physics_mapper"
+#: Folders installed under share/physics_mapper/ with their relative paths kept, so that the commands find
+#: them the same way installed or in a checkout (physics_mapper/core/shipped.py).
+SHIPPED = ("config", "test/data")
+
+
+def shipped_files() -> list[tuple[str, list[str]]]:
+    """data_files entries: every file below the SHIPPED folders, one entry per folder."""
+    folders: dict[str, list[str]] = {}
+    for root in SHIPPED:
+        for path in sorted(Path(root).rglob("*")):
+            if path.is_file() and "__pycache__" not in path.parts:
+                folders.setdefault(f"share/{PACKAGE}/{path.parent}", []).append(str(path))
+    return list(folders.items())
 
 
 def requirements(file_name):
@@ -21,9 +33,7 @@ setup(
     data_files=[
         ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE}"]),
         (f"share/{PACKAGE}", ["package.xml"]),
-        (f"share/{PACKAGE}/config/scenes", glob("config/scenes/*.yaml")),
-        (f"share/{PACKAGE}/config/problems", glob("config/problems/*.yaml")),
-        (f"share/{PACKAGE}/config/params", glob("config/params/*.yaml")),
+        *shipped_files(),
     ],
     install_requires=["setuptools"],
     # Optional: Ray for `evaluate`/`sweep --ray` (pip install -e '.[ray]').

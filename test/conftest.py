@@ -3,6 +3,10 @@
 from __future__ import annotations
 
 import os
+import shutil
+import subprocess
+import sys
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -11,6 +15,10 @@ from hypothesis import settings
 REPO = Path(__file__).resolve().parent.parent
 SCENES = REPO / "config" / "scenes"
 PROBLEMS = REPO / "config" / "problems"
+PACKAGE = "physics_mapper"
+COLCON = Path(sys.executable).parent / "colcon"
+#: Top-level entries of the checkout that are not package sources.
+NOT_SOURCES = {".venv", ".git", "build", "install", "log", "reports", ".mypy_cache", ".ruff_cache", ".pytest_cache"}
 
 
 # Property-based tests (test_fuzz.py). `make test` runs the "ci" profile: a fixed set of examples,
@@ -45,3 +53,31 @@ def decomposition_cache(tmp_path_factory: pytest.TempPathFactory) -> Path:
     folder = tmp_path_factory.mktemp("cache")
     os.environ["PHYSICS_MAPPER_CACHE_DIR"] = str(folder)
     return folder / "decompositions"
+
+
+def _not_sources(directory: str, names: list[str]) -> set[str]:
+    ignored = {n for n in names if n == "__pycache__" or n.endswith(".egg-info")}
+    if Path(directory) == REPO:
+        ignored |= NOT_SOURCES & set(names)
+    return ignored
+
+
+@pytest.fixture(scope="session")
+def colcon_workspace(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Path]:
+    """A colcon workspace holding a copy of the package sources, built (``install/`` as on a ROS machine)."""
+    root = tmp_path_factory.mktemp("colcon_ws")
+    shutil.copytree(REPO, root / "src" / PACKAGE, ignore=_not_sources)
+    built = subprocess.run([str(COLCON), "build"], cwd=root, capture_output=True, text=True, timeout=300, check=False)
+    assert built.returncode == 0, built.stdout + built.stderr
+    yield root
+
+
+def run_installed(
+    workspace: Path, arguments: str, cwd: Path, timeout: float = 120.0
+) -> subprocess.CompletedProcess[str]:
+    """Run the installed ``physics-mapper ARGUMENTS`` in ``cwd`` with the workspace's colcon environment sourced."""
+    script = workspace.resolve() / "install" / PACKAGE / "lib" / PACKAGE / "physics-mapper"
+    command = f"source {workspace.resolve() / 'install' / 'setup.bash'} && exec {script} {arguments}"
+    return subprocess.run(
+        ["bash", "-c", command], cwd=cwd, capture_output=True, text=True, timeout=timeout, check=False
+    )

@@ -3,21 +3,15 @@
 from __future__ import annotations
 
 import json
-import shutil
+import re
 import signal
 import subprocess
-import sys
-from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
-from conftest import REPO
+from conftest import COLCON, PACKAGE, REPO, run_installed
 from ros_helpers import RosClient, object_status, search_status
 
-#: Top-level entries of the checkout that are not package sources.
-NOT_SOURCES = {".venv", ".git", "build", "install", "log", "reports", ".mypy_cache", ".ruff_cache", ".pytest_cache"}
-COLCON = Path(sys.executable).parent / "colcon"
-PACKAGE = "physics_mapper"
 #: Runs the installed ``node`` script's own code (argv[1]) without starting the node, loads its
 #: entry point as the script does, and prints where the entry point and our packages came from.
 IMPORT_PROBE = """
@@ -33,21 +27,9 @@ print(json.dumps(files))
 """
 
 
-def _ignore(directory: str, names: list[str]) -> set[str]:
-    ignored = {n for n in names if n == "__pycache__" or n.endswith(".egg-info")}
-    if Path(directory) == REPO:
-        ignored |= NOT_SOURCES & set(names)
-    return ignored
-
-
 @pytest.fixture(scope="module")
-def workspace(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Path]:
-    """A colcon workspace holding a copy of the package sources, built."""
-    root = tmp_path_factory.mktemp("colcon_ws")
-    shutil.copytree(REPO, root / "src" / PACKAGE, ignore=_ignore)
-    built = subprocess.run([str(COLCON), "build"], cwd=root, capture_output=True, text=True, timeout=300, check=False)
-    assert built.returncode == 0, built.stdout + built.stderr
-    yield root
+def workspace(colcon_workspace: Path) -> Path:
+    return colcon_workspace
 
 
 def test_colcon_lists_an_ament_python_package(workspace: Path) -> None:
@@ -111,3 +93,23 @@ def test_the_installed_node_imports_the_installed_packages(workspace: Path) -> N
         PACKAGE: str(site_packages / PACKAGE / "__init__.py"),
         "msg_adapters": str(site_packages / "msg_adapters" / "__init__.py"),
     }
+
+
+def test_installed_shipped_files_mirror_the_checkout(workspace: Path) -> None:
+    share = workspace / "install" / PACKAGE / "share" / PACKAGE
+    for folder in ("config", "test/data"):
+        shipped = sorted(p.relative_to(REPO) for p in (REPO / folder).rglob("*") if p.is_file())
+        installed = sorted(p.relative_to(share) for p in (share / folder).rglob("*") if p.is_file())
+        assert installed == shipped
+
+
+def test_installed_commands_find_their_files_from_another_directory(workspace: Path, tmp_path: Path) -> None:
+    """bench's default problem and experiment's scenes come from the share directory, not the working directory."""
+    share = workspace.resolve() / "install" / PACKAGE / "share" / PACKAGE
+    bench = run_installed(workspace, "bench --repeats 1", cwd=tmp_path)
+    assert bench.returncode == 0, bench.stderr
+    assert bench.stdout.startswith(f"{share}/config/problems/pyramid.yaml: 3 objects")
+    experiment = run_installed(workspace, "experiment peg -o out --runs 1", cwd=tmp_path)
+    assert experiment.returncode == 0, experiment.stderr
+    assert re.search(r"peg: wrote out/peg\.png", experiment.stderr)
+    assert (tmp_path / "out" / "peg.json").is_file()

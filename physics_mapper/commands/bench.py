@@ -7,6 +7,7 @@ from pathlib import Path
 
 from physics_mapper.commands import load_problem_file
 from physics_mapper.core.errors import InputError
+from physics_mapper.core.shipped import shipped_path
 
 HELP = "time the physics checks (Rule 1, Rule 2, rebuilt world) and an exhaustive search on a problem file"
 
@@ -16,8 +17,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "problem",
         type=Path,
         nargs="?",
-        default=Path("config/problems/pyramid.yaml"),
-        help="problem YAML (default: config/problems/pyramid.yaml)",
+        help="problem YAML (default: the shipped config/problems/pyramid.yaml)",
     )
     parser.add_argument("--repeats", type=int, default=50, help="timed repetitions per figure (default: 50)")
 
@@ -25,12 +25,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     if args.repeats < 1:
         raise InputError(f"--repeats must be at least 1, got {args.repeats}")
-    problem = load_problem_file(args.problem, "bench")
+    path = args.problem or shipped_path("config/problems/pyramid.yaml")
+    problem = load_problem_file(path, "bench")
     from physics_mapper.bench.physics_costs import costs_text, measure
 
     scene = problem.scene
     print(
-        f"{args.problem}: {len(scene.objects)} objects, {len(scene.static)} static bodies, "
+        f"{path}: {len(scene.objects)} objects, {len(scene.static)} static bodies, "
         f"settle_time {scene.search.settle_time} s; medians of {args.repeats} runs"
     )
     print(costs_text(measure(problem, args.repeats)))

@@ -25,9 +25,13 @@ SEARCH_STATUS = "physics_mapper: search"
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--scene", type=Path, default=Path("config/scenes/pyramid.yaml"), help="scene the node loads")
     parser.add_argument(
-        "--bag", type=Path, default=Path("test/data/pyramid"), help="bag of hypotheses to replay (with ground truth)"
+        "--scene", type=Path, help="scene the node loads (default: the shipped config/scenes/pyramid.yaml)"
+    )
+    parser.add_argument(
+        "--bag",
+        type=Path,
+        help="bag of hypotheses and ground truth (default: the shipped test/data/pyramid)",
     )
     parser.add_argument("--rate", type=float, default=1.0, help="playback speed factor (default: 1.0)")
 
@@ -73,16 +77,19 @@ def _last_map(recorded: Path) -> tuple[PoseArray | None, DiagnosticArray | None]
 
 def run(args: argparse.Namespace) -> int:
     from physics_mapper.core.scene_files import load_scene
+    from physics_mapper.core.shipped import shipped_path
 
-    names = load_scene(args.scene).object_names
+    scene = args.scene or shipped_path("config/scenes/pyramid.yaml")
+    bag = args.bag or shipped_path("test/data/pyramid")
+    names = load_scene(scene).object_names
     with tempfile.TemporaryDirectory(prefix="physics_mapper_demo_") as folder:
         recorded = Path(folder) / "outputs"
         parser = argparse.ArgumentParser()
         replay.add_arguments(parser)
         replay_args = parser.parse_args(
-            [str(args.bag), "--scene", str(args.scene), "--start-node", "--rate", str(args.rate), "-o", str(recorded)]
+            [str(bag), "--scene", str(scene), "--start-node", "--rate", str(args.rate), "-o", str(recorded)]
         )
-        print(f"replaying {args.bag} into a node started on {args.scene} (progress on stderr)\n", flush=True)
+        print(f"replaying {bag} into a node started on {scene} (progress on stderr)\n", flush=True)
         status = replay.run(replay_args)
         if status != 0:
             return status

@@ -45,7 +45,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--scenes",
         type=Path,
         metavar="DIR",
-        help="folder of the shipped scene files (default: config/scenes of the source tree)",
+        help="folder of the scene files (default: the shipped config/scenes)",
     )
 
 

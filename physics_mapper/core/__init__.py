@@ -152,6 +152,11 @@ from physics_mapper.core.search import (
     TraceEntry,
     solve,
 )
+from physics_mapper.core.shipped import (
+    PACKAGE,
+    share_directory,
+    shipped_path,
+)
 from physics_mapper.core.yaml_files import (
     FLOAT_SPELLING,
     FileError,
@@ -186,6 +191,7 @@ __all__ = [
     "OBJECT_SHAPES",
     "ORIGIN",
     "OVERLAP_TOLERANCE",
+    "PACKAGE",
     "QUATERNION_NORM_TOLERANCE",
     "SEARCH_LIMITS",
     "STATIC_MESH_COLLISIONS",
@@ -277,6 +283,8 @@ __all__ = [
     "search_params_problem",
     "search_with_overrides",
     "shape_volume",
+    "share_directory",
+    "shipped_path",
     "solve",
     "trace_entry_dict",
     "trace_tree",

@@ -5,8 +5,10 @@
 1. the package's share directory in the ament index (each prefix of ``AMENT_PREFIX_PATH`` that
    has ``share/ament_index/resource_index/packages/<package>``: what ``ament_index_python`` and
    RViz's resource retriever look up);
-2. for ``physics_mapper`` itself, run from a source checkout without an ament index (pip-only
-   installs are editable installs of one), the checkout, which holds the same ``config/`` tree;
+2. for ``physics_mapper`` itself, without an ament index (pip wheels only), this installation's
+   shipped files (:func:`~physics_mapper.core.shipped.share_directory`: a source checkout, or
+   ``<prefix>/share/physics_mapper`` of the prefix the package is installed in), which hold the
+   same ``config/`` tree;
 3. an installed Python package of that name, e.g. ``package://pybullet_data/objects/mug.obj``
    for the meshes that come with pybullet (used where they are, never copied).
 
@@ -21,10 +23,10 @@ import importlib.util
 import os
 from pathlib import Path
 
+from physics_mapper.core.errors import InputError
+from physics_mapper.core.shipped import PACKAGE, shipped_path
+
 PACKAGE_URL = "package://"
-#: This project's package name, and the source checkout this module runs from.
-THIS_PACKAGE = "physics_mapper"
-SOURCE_ROOT = Path(__file__).resolve().parents[2]
 
 
 class ResourceError(ValueError):
@@ -53,8 +55,11 @@ def resolve_package_url(url: str) -> Path:
     share = ament_share_directory(package)
     if share is not None:
         return share / relative
-    if package == THIS_PACKAGE and (SOURCE_ROOT / relative).exists():
-        return SOURCE_ROOT / relative
+    if package == PACKAGE:
+        try:
+            return shipped_path(relative)
+        except InputError as error:  # an installation without its share directory
+            raise ResourceError(f"{url}: {error}") from None
     spec = importlib.util.find_spec(package) if package.isidentifier() else None
     if spec is not None and spec.submodule_search_locations:
         return Path(next(iter(spec.submodule_search_locations))) / relative

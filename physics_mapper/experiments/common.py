@@ -10,7 +10,7 @@ from __future__ import annotations
 import json
 import math
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -29,9 +29,7 @@ from physics_mapper.core.scene import Box, Cylinder, Scene, SearchParams, Static
 from physics_mapper.core.scene_files import SceneError, load_scene
 from physics_mapper.core.scoring import position_errors
 from physics_mapper.core.search import SearchResult, solve
-
-#: The shipped scenes, in the source tree next to this package.
-SCENES_DIR = Path(__file__).resolve().parents[2] / "config" / "scenes"
+from physics_mapper.core.shipped import shipped_path
 
 #: Wall-clock budget, seconds, of each search. The experiments have at most 5^3 = 125
 #: configurations of ~4 ms each, so the search always empties its queue well before it;
@@ -60,13 +58,14 @@ class ExperimentOptions:
     ``runs`` and ``particles`` of None mean the paper's sizes (20 runs, 1000 particles).
     ``search_budget`` (seconds per search, ``clutter``): None means each scene's ``deadline``.
     ``progress`` receives one short line per step, for people watching a long run.
+    ``scenes_dir`` defaults to the shipped ``config/scenes`` (installed or in the checkout).
     """
 
     output_dir: Path
     seed: int = 0
     runs: int | None = None
     particles: int | None = None
-    scenes_dir: Path = SCENES_DIR
+    scenes_dir: Path = field(default_factory=lambda: shipped_path("config/scenes"))
     progress: Callable[[str], None] = _silent
     search_budget: float | None = None
 

@@ -97,8 +97,8 @@ def _descriptor(spec: ParameterSpec) -> ParameterDescriptor:
 def resolve_scene_path(text: str) -> Path:
     """A scene file path, or a ``package://<pkg>/<path>`` URL (:mod:`physics_mapper.core.resources`).
 
-    Without an ament index (pip-only, run from a source checkout), ``package://physics_mapper/``
-    is the checkout, which holds the same ``config/`` tree as the installed share directory.
+    Without an ament index (pip wheels only), ``package://physics_mapper/`` is this installation's
+    shipped files (:func:`~physics_mapper.core.shipped.share_directory`: the same ``config/`` tree).
     """
     if not text:
         raise InputError("parameter scene_file is required, e.g. --ros-args -p scene_file:=config/scenes/pyramid.yaml")
