@@ -47,7 +47,7 @@ setup(
     entry_points={
         "console_scripts": [
             # `ros2 run physics_mapper node` runs lib/physics_mapper/node (setup.cfg puts scripts there).
-            "node = physics_mapper.ros.node:main",
+            "node = physics_mapper.commands.node:main",
             "physics-mapper = physics_mapper.cli:main",
         ],
     },

@@ -5,6 +5,7 @@ from __future__ import annotations
 from msg_adapters.diagnostics import (
     diagnostics_msg,
     search_values,
+    tick_values,
 )
 from msg_adapters.hypotheses import (
     hypotheses_msgs,
@@ -12,10 +13,15 @@ from msg_adapters.hypotheses import (
     pose_array_msg,
     pose_msg,
     raw_pose,
+    received_pose_array,
     received_poses,
     received_weights,
     stamp_from_nanoseconds,
     weights_msg,
+)
+from msg_adapters.pose_array_cdr import (
+    PoseArrayView,
+    pose_array_view,
 )
 from msg_adapters.results import (
     FALLBACK_COLOR,
@@ -29,6 +35,7 @@ from msg_adapters.results import (
     VALID_COLOR,
     configuration_msgs,
     markers_msg,
+    object_pose_msgs,
     static_markers_msg,
 )
 
@@ -42,18 +49,23 @@ __all__ = [
     "STATIC_COLOR",
     "STATIC_NAMESPACE",
     "VALID_COLOR",
+    "PoseArrayView",
     "configuration_msgs",
     "diagnostics_msg",
     "hypotheses_msgs",
     "markers_msg",
     "nanoseconds_from_stamp",
+    "object_pose_msgs",
     "pose_array_msg",
+    "pose_array_view",
     "pose_msg",
     "raw_pose",
+    "received_pose_array",
     "received_poses",
     "received_weights",
     "search_values",
     "stamp_from_nanoseconds",
     "static_markers_msg",
+    "tick_values",
     "weights_msg",
 ]

@@ -1,7 +1,8 @@
 """A tick's report -> ``diagnostic_msgs/DiagnosticArray``.
 
-One status for the search (name ``<node>: search``) with the key-values of SPEC section 4,
-then one status per object (name ``<node>: hypotheses/<object>``) saying what its input is.
+One status for the search (name ``<node>: search``) with the key-values of SPEC section 4 and,
+from the node, how its ticks kept time since the previous message, then one status per object
+(name ``<node>: hypotheses/<object>``) saying what its input is.
 Every status's ``hardware_id`` is the node's fully qualified name, which tells apart nodes
 of the same name in different namespaces on the shared ``/diagnostics`` topic.
 Times are in seconds, p(C) and J as in the paper. Every message and value is clipped to
@@ -20,6 +21,7 @@ from physics_mapper.core.report import code_text, refinement_text
 from physics_mapper.core.search import SearchResult, SearchStats
 from physics_mapper.mapping.inputs import Level, ObjectStatus
 from physics_mapper.mapping.mapper import TickReport
+from physics_mapper.mapping.tick_statistics import TickPeriod
 
 LEVELS = {Level.OK: DiagnosticStatus.OK, Level.WARN: DiagnosticStatus.WARN, Level.ERROR: DiagnosticStatus.ERROR}
 
@@ -45,6 +47,8 @@ def _search_level_and_message(report: TickReport) -> tuple[Level, str]:
     result = report.result
     if report.engine_fault is not None:
         return Level.ERROR, report.engine_fault
+    if result is None and not report.snapshot.missing:
+        return Level.OK, "hypotheses of every object received; the next tick searches"
     if result is None:
         return Level.ERROR, f"waiting for hypotheses of: {', '.join(report.snapshot.missing)}"
     if result.valid:
@@ -92,6 +96,18 @@ def search_values(report: TickReport) -> list[tuple[str, str]]:
     return values
 
 
+def tick_values(ticks: TickPeriod) -> list[tuple[str, str]]:
+    """How the ticks kept time: counts since the node started, and the longest times since the last message."""
+    return [
+        ("ticks", str(ticks.ticks)),
+        ("ticks since the last diagnostics", str(ticks.period_ticks)),
+        ("search overruns", str(ticks.overruns)),
+        ("late ticks", str(ticks.late)),
+        ("max search time [s]", f"{ticks.max_search_time:.6f}"),
+        ("max tick time [s]", f"{ticks.max_tick_time:.6f}"),
+    ]
+
+
 def _status(level: Level, name: str, message: str, hardware_id: str, values: list[tuple[str, str]]) -> DiagnosticStatus:
     return DiagnosticStatus(
         level=LEVELS[level],
@@ -108,13 +124,17 @@ def _object_status(status: ObjectStatus, node_name: str, hardware_id: str) -> Di
     )
 
 
-def diagnostics_msg(report: TickReport, *, node_name: str, hardware_id: str, stamp_ns: int) -> DiagnosticArray:
+def diagnostics_msg(
+    report: TickReport, *, node_name: str, hardware_id: str, stamp_ns: int, ticks: TickPeriod | None = None
+) -> DiagnosticArray:
     """The search status (its level the worst of search and inputs), then one status per object.
 
-    ``stamp_ns``: the header stamp, integer nanoseconds (the node's clock at the tick).
+    ``stamp_ns``: the header stamp, integer nanoseconds (the node's clock). ``ticks``: the node's
+    tick timing since the previous message (:func:`tick_values`), appended to the search status.
     """
     level, message = _search_level_and_message(report)
     level = max([level, *(o.level for o in report.snapshot.objects)])
-    statuses = [_status(level, f"{node_name}: search", message, hardware_id, search_values(report))]
+    values = search_values(report) + ([] if ticks is None else tick_values(ticks))
+    statuses = [_status(level, f"{node_name}: search", message, hardware_id, values)]
     statuses += [_object_status(o, node_name, hardware_id) for o in report.snapshot.objects]
     return DiagnosticArray(header=Header(stamp=stamp_from_nanoseconds(stamp_ns)), status=statuses)

@@ -2,7 +2,8 @@
 
 Incoming messages become :class:`~physics_mapper.inputs.ReceivedPoses` and
 :class:`~physics_mapper.inputs.ReceivedWeights`, validated by the core (every problem
-collected, none raised); outgoing hypotheses become the same two message types. Header
+collected, none raised); the node receives PoseArrays serialised (:func:`received_pose_array`,
+see :mod:`msg_adapters.pose_array_cdr`); outgoing hypotheses become the same two message types. Header
 stamps are integer nanoseconds (``stamp_ns``), exact both ways: a float of seconds since the
 epoch resolves only about 0.2 microseconds, and outputs carry their input's stamp (SPEC section 4).
 """
@@ -14,8 +15,10 @@ from collections.abc import Sequence
 from builtin_interfaces.msg import Time
 from geometry_msgs.msg import Point, PoseArray, Quaternion
 from geometry_msgs.msg import Pose as PoseMsg
+from rclpy.serialization import deserialize_message
 from std_msgs.msg import Float64MultiArray, Header
 
+from msg_adapters.pose_array_cdr import pose_array_view
 from physics_mapper.core.geometry import Pose
 from physics_mapper.core.hypotheses import RankedHypotheses
 from physics_mapper.core.scene import Workspace
@@ -52,9 +55,28 @@ def received_poses(msg: PoseArray, *, expected_frame: str, workspace: Workspace,
     )
 
 
+def received_pose_array(raw: bytes, *, expected_frame: str, workspace: Workspace, received: float) -> ReceivedPoses:
+    """A serialised PoseArray (a raw subscription's message) received at ``received`` seconds.
+
+    Read without building a Python object per pose; encodings other than plain CDR go through rclpy.
+    """
+    view = pose_array_view(raw)
+    if view is None:
+        message = deserialize_message(raw, PoseArray)
+        return received_poses(message, expected_frame=expected_frame, workspace=workspace, received=received)
+    return check_poses(
+        view.poses,
+        frame_id=view.frame_id,
+        expected_frame=expected_frame,
+        workspace=workspace,
+        stamp_ns=view.stamp_ns,
+        received=received,
+    )
+
+
 def received_weights(msg: Float64MultiArray, *, received: float) -> ReceivedWeights:
     """A weights message received at ``received`` seconds (``layout`` is ignored: one flat vector)."""
-    return check_weights(list(msg.data), received=received)
+    return check_weights(msg.data, received=received)
 
 
 def pose_msg(pose: Pose) -> PoseMsg:

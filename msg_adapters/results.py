@@ -1,4 +1,4 @@
-"""Search results -> map messages: chosen and settled PoseArrays, and RViz markers.
+"""Search results -> map messages: chosen and settled PoseArrays, per-object PoseStamped, and RViz markers.
 
 Marker namespaces (``ns``), each with ``id`` = the body's index in its scene list:
 
@@ -12,7 +12,7 @@ Marker namespaces (``ns``), each with ``id`` = the body's index in its scene lis
 
 from __future__ import annotations
 
-from geometry_msgs.msg import PoseArray, Vector3
+from geometry_msgs.msg import PoseArray, PoseStamped, Vector3
 from std_msgs.msg import ColorRGBA, Header
 from visualization_msgs.msg import Marker, MarkerArray
 
@@ -45,6 +45,22 @@ def configuration_msgs(result: SearchResult, *, frame_id: str, stamp_ns: int) ->
     return (
         pose_array_msg(result.poses, frame_id=frame_id, stamp_ns=stamp_ns),
         pose_array_msg(result.settled_poses, frame_id=frame_id, stamp_ns=stamp_ns),
+    )
+
+
+def object_pose_msgs(
+    result: SearchResult, *, frame_id: str, stamp_ns: int
+) -> tuple[tuple[PoseStamped, PoseStamped], ...] | None:
+    """Per object, in scene order, its chosen and its settled pose; None if nothing was chosen.
+
+    Same header as :func:`configuration_msgs`: a consumer of one object gets the map's frame and stamp.
+    """
+    if result.poses is None or result.settled_poses is None:
+        return None
+    header = Header(frame_id=frame_id, stamp=stamp_from_nanoseconds(stamp_ns))
+    return tuple(
+        (PoseStamped(header=header, pose=pose_msg(chosen)), PoseStamped(header=header, pose=pose_msg(settled)))
+        for chosen, settled in zip(result.poses, result.settled_poses, strict=True)
     )
 
 

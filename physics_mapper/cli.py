@@ -1,18 +1,31 @@
-"""``physics-mapper``: one entry point, one module per subcommand (SPEC section 5).
+"""``physics-mapper``: one entry point, one module per subcommand (SPEC section 5); and the ``node`` script.
 
 Exit codes: 0 success, 1 a run-time failure, 2 bad arguments or input files, 3 a report written
-without some of its bags (``evaluate``, ``sweep``), 130 stopped by Ctrl-C.
+without some of its bags (``evaluate``, ``sweep``); a command stopped by SIGINT or SIGTERM exits
+130, except those meant to run until stopped (the node, ``publish``), which exit 0. From the
+first line run here on, SIGTERM stops like Ctrl-C; for the node both are held pending until it
+handles them (``physics_mapper.commands.node.hold_stop_signals``). Heavy imports come after.
 """
 
 from __future__ import annotations
 
 import argparse
+import signal
 import sys
 from collections.abc import Sequence
 
 from physics_mapper.commands import COMMANDS, command_module
-from physics_mapper.core.errors import EXIT_BAD_INPUT, EXIT_INTERRUPTED, InputError
-from physics_mapper.core.scene_files import SceneError
+from physics_mapper.commands.node import hold_stop_signals
+
+#: Commands that run until they are stopped: a signal is how they end, not an interruption.
+RUN_UNTIL_STOPPED = ("node", "publish")
+#: ``core.errors.EXIT_INTERRUPTED``, here without importing the core (numpy) before the signals are set up.
+EXIT_INTERRUPTED = 130
+
+
+def _stop_on_sigterm_like_ctrl_c() -> None:
+    """Until a command installs its own handlers, SIGTERM raises KeyboardInterrupt, as SIGINT does."""
+    signal.signal(signal.SIGTERM, signal.default_int_handler)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -30,11 +43,20 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
+    arguments = list(sys.argv[1:] if argv is None else argv)
+    if arguments[:1] == ["node"]:
+        hold_stop_signals()
+    else:
+        _stop_on_sigterm_like_ctrl_c()
     try:
-        return int(args.run(args))
-    except (SceneError, InputError) as error:
-        print(f"physics-mapper {args.command}: error: {error}", file=sys.stderr)
-        return EXIT_BAD_INPUT
+        from physics_mapper.core.errors import EXIT_BAD_INPUT, InputError
+        from physics_mapper.core.scene_files import SceneError
+
+        args = build_parser().parse_args(arguments)
+        try:
+            return int(args.run(args))
+        except (SceneError, InputError) as error:
+            print(f"physics-mapper {args.command}: error: {error}", file=sys.stderr)
+            return EXIT_BAD_INPUT
     except KeyboardInterrupt:
-        return EXIT_INTERRUPTED
+        return 0 if arguments[:1] and arguments[0] in RUN_UNTIL_STOPPED else EXIT_INTERRUPTED

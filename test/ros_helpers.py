@@ -19,7 +19,7 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import PoseArray
 from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
-from rclpy.parameter import Parameter
+from rclpy.parameter import Parameter, parameter_value_to_python
 from rclpy.parameter_client import AsyncParameterClient
 from std_msgs.msg import Float64MultiArray
 from visualization_msgs.msg import Marker, MarkerArray
@@ -193,11 +193,38 @@ class RosClient:
 
     def set_parameter(self, name: str, value: object) -> tuple[bool, str]:
         """Set one of the node's parameters through its SetParameters service: (successful, reason)."""
+        return self.set_parameters({name: value})[0]
+
+    def set_parameters(self, values: Mapping[str, object]) -> list[tuple[bool, str]]:
+        """Set several parameters in one SetParameters request, in the mapping's order: each (successful, reason)."""
         self.wait_for(lambda: self.parameters.wait_for_services(timeout_sec=0.1), what="parameter services")
-        future = self.parameters.set_parameters([Parameter(name, value=value)])  # type: ignore[no-untyped-call]
-        self.wait_for(future.done, what=f"set_parameters {name}")
-        result = future.result().results[0]  # type: ignore[no-untyped-call]
+        request = [Parameter(name, value=value) for name, value in values.items()]  # type: ignore[no-untyped-call]
+        future = self.parameters.set_parameters(request)
+        self.wait_for(future.done, what=f"set_parameters {', '.join(values)}")
+        results = future.result().results  # type: ignore[no-untyped-call]
+        return [(bool(result.successful), str(result.reason)) for result in results]
+
+    def set_parameters_atomically(self, values: Mapping[str, object]) -> tuple[bool, str]:
+        """Set several parameters through the SetParametersAtomically service: (successful, reason)."""
+        self.wait_for(lambda: self.parameters.wait_for_services(timeout_sec=0.1), what="parameter services")
+        request = [Parameter(name, value=value) for name, value in values.items()]  # type: ignore[no-untyped-call]
+        future = self.parameters.set_parameters_atomically(request)
+        self.wait_for(future.done, what=f"set_parameters_atomically {', '.join(values)}")
+        result = future.result().result  # type: ignore[no-untyped-call]
         return bool(result.successful), str(result.reason)
+
+    def get_parameters(self, *names: str) -> list[object]:
+        """The node's current values of ``names``."""
+        self.wait_for(lambda: self.parameters.wait_for_services(timeout_sec=0.1), what="parameter services")
+        future = self.parameters.get_parameters(list(names))
+        self.wait_for(future.done, what=f"get_parameters {', '.join(names)}")
+        return [parameter_value_to_python(v) for v in future.result().values]  # type: ignore[no-untyped-call]
+
+    def latched(self, msg_type: type, topic: str) -> list[Any]:
+        """Subscribe anew (a late joiner) to one of the node's latched outputs; its messages arrive in the list."""
+        messages: list[Any] = []
+        self.node.create_subscription(msg_type, output_topic(topic, self.namespace), messages.append, MAP_QOS)
+        return messages
 
 
 def run_cli(*args: str, cwd: Path | None = None, timeout: float = 120.0) -> subprocess.CompletedProcess[str]:

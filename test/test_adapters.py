@@ -4,12 +4,15 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 import pytest
 from conftest import PROBLEMS, SCENES
 from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PoseArray
 from mesh_builders import MUG_FILE, floor_scene_dict, load_inline, mesh_object
+from rclpy.serialization import serialize_message
 from ros_helpers import SPEC_DIAGNOSTIC_KEYS
+from rosbags.typesys import Stores, get_typestore
 from std_msgs.msg import Float64MultiArray
 from visualization_msgs.msg import Marker
 
@@ -18,10 +21,13 @@ from msg_adapters.hypotheses import (
     hypotheses_msgs,
     nanoseconds_from_stamp,
     pose_array_msg,
+    raw_pose,
+    received_pose_array,
     received_poses,
     received_weights,
     stamp_from_nanoseconds,
 )
+from msg_adapters.pose_array_cdr import pose_array_view
 from msg_adapters.results import (
     FALLBACK_COLOR,
     LABEL_NAMESPACE,
@@ -31,6 +37,7 @@ from msg_adapters.results import (
     STATIC_NAMESPACE,
     configuration_msgs,
     markers_msg,
+    object_pose_msgs,
     static_markers_msg,
 )
 from physics_mapper.core.geometry import Pose, make_pose
@@ -80,12 +87,48 @@ def test_stamps_round_trip_to_the_nanosecond() -> None:
     assert nanoseconds_from_stamp(stamp_from_nanoseconds(2_500_000_000)) == 2_500_000_000
 
 
-def test_poses_round_trip_through_a_pose_array() -> None:
+@pytest.mark.parametrize("serialised", [False, True], ids=["message", "serialised"])
+def test_poses_round_trip_through_a_pose_array(serialised: bool) -> None:
     msg = pose_array_msg([TILTED, Pose((1.0, 2.0, 3.0))], frame_id="world", stamp_ns=7_250_000_000)
     assert msg.header.frame_id == "world"
-    received = received_poses(msg, expected_frame="world", workspace=WORKSPACE, received=8.0)
+    if serialised:  # as the node's raw subscription receives it
+        received = received_pose_array(
+            serialize_message(msg), expected_frame="world", workspace=WORKSPACE, received=8.0
+        )
+    else:
+        received = received_poses(msg, expected_frame="world", workspace=WORKSPACE, received=8.0)
     assert (received.stamp_ns, received.received, received.count, received.refusal) == (7_250_000_000, 8.0, 2, None)
-    assert [pose for _, pose in received.poses] == [TILTED, Pose((1.0, 2.0, 3.0))]
+    in_use = rank(received, None, max_hypotheses=100)
+    assert not isinstance(in_use, str)
+    assert [h.pose for h in in_use.hypotheses.hypotheses] == [TILTED, Pose((1.0, 2.0, 3.0))]
+
+
+def test_serialised_pose_arrays_are_read_like_rclpy_reads_them() -> None:
+    """Every frame_id length (the padding before the poses), both byte orders, and bytes that are not one."""
+    rng = np.random.default_rng(3)
+    for length in range(13):
+        for count in (0, 1, 3):
+            msg = pose_array_msg([], frame_id="f" * length, stamp_ns=int(rng.integers(0, 2**31 * 10**9)))
+            for values in rng.normal(size=(count, 7)):
+                pose = pose_array_msg([Pose((0.0, 0.0, 0.0))], frame_id="", stamp_ns=0).poses[0]
+                p, q = pose.position, pose.orientation
+                p.x, p.y, p.z, q.x, q.y, q.z, q.w = (float(v) for v in values)
+                msg.poses.append(pose)
+            for raw in (serialize_message(msg), big_endian(serialize_message(msg))):
+                view = pose_array_view(raw)
+                assert view is not None
+                assert (view.stamp_ns, view.frame_id) == (nanoseconds_from_stamp(msg.header.stamp), msg.header.frame_id)
+                expected = [[*raw_pose(pose)[0], *raw_pose(pose)[1]] for pose in msg.poses]
+                assert view.poses.tolist() == expected
+    assert pose_array_view(serialize_message(msg)[:-1]) is None  # truncated
+    assert pose_array_view(b"\x00\x07\x00\x00" + bytes(serialize_message(msg))[4:]) is None  # not plain CDR
+
+
+def big_endian(raw: bytes) -> bytes:
+    """The same PoseArray serialised big-endian (rosbags; rclpy writes the machine's order)."""
+    typestore = get_typestore(Stores.ROS2_JAZZY)
+    message = typestore.deserialize_cdr(raw, "geometry_msgs/msg/PoseArray")
+    return bytes(typestore.serialize_cdr(message, "geometry_msgs/msg/PoseArray", little_endian=False))
 
 
 def test_hypotheses_round_trip_through_pose_array_and_weights() -> None:
@@ -122,13 +165,13 @@ def test_every_bad_pose_class_is_named(
     msg = pose_array(((0.0, 0.0, 0.1), (0.0, 0.0, 0.0, 1.0)), (position, orientation))
     received = received_poses(msg, expected_frame="world", workspace=WORKSPACE, received=0.0)
     assert received.refusal is None
-    assert len(received.poses) == 1
-    assert len(received.dropped) == 1
-    assert received.dropped[0].startswith(f"poses[1]: {problem}")
-    alone = received_poses(
-        pose_array((position, orientation)), expected_frame="world", workspace=WORKSPACE, received=0.0
-    )
-    assert alone.refusal == f"no usable pose ({received.dropped[0].replace('poses[1]', 'poses[0]')})"
+    in_use = rank(received, None, max_hypotheses=100)
+    assert not isinstance(in_use, str)
+    assert len(in_use.hypotheses) == 1
+    assert in_use.notes[1].startswith(f"dropped 1 of 2 poses: poses[1]: {problem}")
+    alone_msg = pose_array((position, orientation))
+    alone = rank(received_poses(alone_msg, expected_frame="world", workspace=WORKSPACE, received=0.0), None, 100)
+    assert isinstance(alone, str) and alone.startswith(f"no usable pose (poses[0]: {problem}")
 
 
 def test_a_wrong_frame_and_an_empty_array_are_refused() -> None:
@@ -207,7 +250,21 @@ def test_configuration_messages_hold_chosen_and_settled_poses(mixed_result: obje
         assert msg.header.frame_id == "table" and nanoseconds_from_stamp(msg.header.stamp) == 4_500_000_000
         back = received_poses(msg, expected_frame="table", workspace=WORKSPACE, received=0.0)
         assert poses is not None
-        assert [pose for _, pose in back.poses] == list(poses)
+        assert back.poses.tolist() == [[*pose.position, *pose.orientation] for pose in poses]
+
+
+def test_each_object_gets_its_chosen_and_settled_pose_with_the_map_s_header(mixed_result: object) -> None:
+    from physics_mapper.core.search import SearchResult
+
+    assert isinstance(mixed_result, SearchResult)
+    assert mixed_result.poses is not None and mixed_result.settled_poses is not None
+    per_object = object_pose_msgs(mixed_result, frame_id="table", stamp_ns=REALISTIC_STAMP_NS)
+    configurations = configuration_msgs(mixed_result, frame_id="table", stamp_ns=REALISTIC_STAMP_NS)
+    assert per_object is not None and configurations is not None and len(per_object) == len(MIXED.objects)
+    for index, (chosen, settled) in enumerate(per_object):
+        assert chosen.header == settled.header == configurations[0].header
+        assert chosen.pose == configurations[0].poses[index]
+        assert settled.pose == configurations[1].poses[index]
 
 
 def test_a_realistic_stamp_goes_from_input_to_outputs_exactly(mixed_result: object) -> None:

@@ -89,7 +89,7 @@ def test_the_installed_node_imports_the_installed_packages(workspace: Path) -> N
     files = json.loads(probe.stdout.splitlines()[-1])
     (site_packages,) = (workspace.resolve() / "install" / PACKAGE / "lib").glob("python3*/site-packages")
     assert files == {
-        "entry point": str(site_packages / PACKAGE / "ros" / "node.py"),
+        "entry point": str(site_packages / PACKAGE / "commands" / "node.py"),
         PACKAGE: str(site_packages / PACKAGE / "__init__.py"),
         "msg_adapters": str(site_packages / "msg_adapters" / "__init__.py"),
     }

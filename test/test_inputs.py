@@ -15,11 +15,13 @@ from physics_mapper.mapping.inputs import (
     WEIGHTS_GRACE,
     InputSettings,
     InputTracker,
+    InUse,
     Level,
     ObjectInputs,
     ReceivedPoses,
     check_poses,
     check_weights,
+    rank,
 )
 from physics_mapper.mapping.mapper import Mapper, MapperSettings, mapper_settings_problem
 
@@ -85,16 +87,45 @@ def test_a_bad_pose_is_dropped_and_the_others_kept(
 ) -> None:
     raw = [((0.5, 0.0, 0.1), IDENTITY), (position, orientation), ((0.7, 0.0, 0.1), IDENTITY)]
     received = check_poses(raw, frame_id="world", expected_frame="world", workspace=WORKSPACE, stamp_ns=0, received=0.0)
-    assert received.refusal is None
-    assert [index for index, _ in received.poses] == [0, 2]
-    assert len(received.dropped) == 1
-    assert received.dropped[0].startswith(f"poses[1]: {problem}")
+    assert received.refusal is None  # poses are checked when they are adopted
+    in_use = rank(received, check_weights([0.2, 0.5, 0.3], received=0.0), max_hypotheses=100)
+    assert isinstance(in_use, InUse)
+    assert [h.pose.position[0] for h in in_use.hypotheses.hypotheses] == [0.7, 0.5]
+    assert [h.weight for h in in_use.hypotheses.hypotheses] == pytest.approx([0.6, 0.4])  # its weight dropped too
+    assert len(in_use.notes) == 1 and in_use.notes[0].startswith(f"dropped 1 of 3 poses: poses[1]: {problem}")
 
 
 def test_a_pose_array_without_any_usable_pose_is_refused() -> None:
     raw = [((0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 0.0))] * 2
     received = check_poses(raw, frame_id="world", expected_frame="world", workspace=WORKSPACE, stamp_ns=0, received=0.0)
-    assert received.refusal == "no usable pose (poses[0]: zero quaternion ...)"
+    assert rank(received, None, max_hypotheses=100) == "no usable pose (poses[0]: zero quaternion ...)"
+    inputs = ObjectInputs("cube")
+    inputs.add_poses(received)
+    status = inputs.status(1.0, SETTINGS)
+    assert (status.level, status.hypotheses) == (Level.ERROR, None)
+    assert status.message == "PoseArray refused: no usable pose (poses[0]: zero quaternion ...)"
+
+
+def test_only_the_heaviest_poses_are_checked_and_converted() -> None:
+    """Adopting a huge array costs what its kept hypotheses cost: bad poses past them are never looked at."""
+    count, kept = 10_000, 5
+    raw = [((0.001 * i, 0.0, 0.1), IDENTITY) for i in range(count)]
+    raw[-1] = ((math.nan, 0.0, 0.1), IDENTITY)  # light, never reached
+    raw[3] = ((0.0, 0.0, 0.1), (0.0, 0.0, 0.0, 0.0))  # among the heaviest: dropped and named
+    weights = check_weights([float(count - i) for i in range(count)], received=0.0)  # index 0 heaviest
+    in_use = rank(
+        check_poses(raw, frame_id="world", expected_frame="world", workspace=WORKSPACE, stamp_ns=0, received=0.0),
+        weights,
+        kept,
+    )
+    assert isinstance(in_use, InUse)
+    assert [h.pose.position[0] for h in in_use.hypotheses.hypotheses] == pytest.approx(
+        [0.0, 0.001, 0.002, 0.004, 0.005]
+    )
+    assert in_use.notes == (
+        "dropped 1 of the 6 heaviest of 10000 poses: poses[3]: zero quaternion",
+        "kept the 5 heaviest of 10000 hypotheses (max_hypotheses_per_object)",
+    )
 
 
 @pytest.mark.parametrize(

@@ -22,7 +22,7 @@ import pytest
 import yaml
 from conftest import PROBLEMS, REPO, SCENES
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
-from geometry_msgs.msg import PoseArray
+from geometry_msgs.msg import PoseArray, PoseStamped
 from ros_helpers import (
     PHYSICS_MAPPER,
     SPEC_DIAGNOSTIC_KEYS,
@@ -43,12 +43,14 @@ from physics_mapper.core.geometry import Pose
 from physics_mapper.core.hypotheses import Hypothesis, RankedHypotheses
 from physics_mapper.core.scene import Problem
 from physics_mapper.core.scene_files import load_problem, load_scene
-from physics_mapper.mapping.mapper import DEADLINE_SLACK
+from physics_mapper.mapping.topics import object_pose_topic, object_settled_pose_topic
 
 PYRAMID_SCENE = SCENES / "pyramid.yaml"
 PYRAMID_PROBLEM = PROBLEMS / "pyramid.yaml"
 OBJECTS = ("cube_left", "cube_right", "cube_top")
 PUBLISH = (str(PHYSICS_MAPPER), "publish")
+#: The shared nodes report faster than the ~1 Hz default, so that tests waiting for diagnostics are quick.
+FAST_DIAGNOSTICS = 0.1
 
 
 @dataclass
@@ -60,7 +62,8 @@ class Running:
 @contextmanager
 def pyramid_node(log: Path, namespace: str) -> Iterator[Running]:
     """A node on the pyramid scene in ``namespace`` and a client, once the node publishes diagnostics."""
-    node = NodeProcess(PYRAMID_SCENE, {"rate_hz": 4.0, "deadline": 0.2, "max_age": 60.0}, log, namespace)
+    parameters = {"rate_hz": 4.0, "deadline": 0.2, "max_age": 60.0, "diagnostics_period": FAST_DIAGNOSTICS}
+    node = NodeProcess(PYRAMID_SCENE, parameters, log, namespace)
     client = RosClient(namespace)
     try:
         client.next_diagnostics(lambda d: True, timeout=30.0, what="the node's first diagnostics")
@@ -312,6 +315,75 @@ def test_stale_hypotheses_stop_the_map_until_fresh_ones_arrive(fed_pyramid: Runn
     assert fed_pyramid.node.alive
 
 
+def test_each_object_s_poses_are_latched_with_the_map_s_stamp_and_frame(fed_pyramid: Running) -> None:
+    """A grasp planner subscribes to the one object it needs, late, and gets the same as the map."""
+    client = fed_pyramid.client
+    late = {
+        name: (
+            client.latched(PoseStamped, object_pose_topic(name)),
+            client.latched(PoseStamped, object_settled_pose_topic(name)),
+        )
+        for name in OBJECTS
+    }
+    client.wait_for(lambda: all(chosen and settled for chosen, settled in late.values()), what="per-object poses")
+    configuration, settled_array = client.configurations[-1], client.settled[-1]
+    for index, name in enumerate(OBJECTS):
+        chosen, settled = late[name][0][-1], late[name][1][-1]
+        assert chosen.header == settled.header == configuration.header == settled_array.header
+        assert chosen.pose == configuration.poses[index]
+        assert settled.pose == settled_array.poses[index]
+
+
+def tick_count(diagnostics: DiagnosticArray) -> int:
+    search = search_status(diagnostics)
+    assert search is not None
+    return int(values(search)["ticks"])
+
+
+def test_diagnostics_keep_their_own_period_and_a_new_rate_applies_at_once(fed_pyramid: Running) -> None:
+    """At 0.01 Hz no tick comes for 100 s, yet diagnostics do; back at 4 Hz, ticks resume at once, not 100 s on."""
+    client = fed_pyramid.client
+    assert client.set_parameter("rate_hz", 0.01) == (True, "")
+    try:
+        first = client.next_diagnostics(lambda d: True)
+        idle = client.next_diagnostics(lambda d: True)
+        assert tick_count(idle) == tick_count(first)  # diagnostics without ticks
+        assert values(search_status(idle) or DiagnosticStatus())["ticks since the last diagnostics"] == "0"
+        assert client.set_parameter("rate_hz", 4.0) == (True, "")
+        client.next_diagnostics(lambda d: tick_count(d) > tick_count(idle), what="a tick at the new rate")
+        # The map keeps rate_hz while diagnostics are rare.
+        assert client.set_parameter("diagnostics_period", 3600.0) == (True, "")
+        published = len(client.configurations)
+        client.wait_for(lambda: len(client.configurations) >= published + 3, what="maps between diagnostics")
+        assert client.set_parameter("diagnostics_period", FAST_DIAGNOSTICS) == (True, "")
+        client.next_diagnostics(lambda d: True, what="diagnostics at once after a period change")
+    finally:
+        client.set_parameters({"rate_hz": 4.0, "diagnostics_period": FAST_DIAGNOSTICS})
+
+
+def test_rate_and_deadline_are_judged_together_whatever_their_order(pyramid: Running) -> None:
+    """ros2 param load sends one SetParameters request; its parameters are set one by one."""
+    client = pyramid.client
+    try:
+        # Faster and shorter: rate first used to be refused (deadline 0.2 s >= 1/10 Hz).
+        assert client.set_parameters({"rate_hz": 10.0, "deadline": 0.05}) == [(True, ""), (True, "")]
+        # Back, deadline first: it used to be refused (0.2 s >= 1/10 Hz).
+        assert client.set_parameters({"deadline": 0.2, "rate_hz": 4.0}) == [(True, ""), (True, "")]
+        assert client.get_parameters("rate_hz", "deadline") == [4.0, 0.2]
+        assert client.set_parameters_atomically({"rate_hz": 10.0, "deadline": 0.05}) == (True, "")
+        assert client.set_parameters_atomically({"deadline": 0.2, "rate_hz": 4.0}) == (True, "")
+        # A combination that is invalid as a whole is refused as a whole.
+        successful, reason = client.set_parameters_atomically({"rate_hz": 10.0, "deadline": 0.15})
+        assert not successful and reason == "deadline 0.15 s must be shorter than the tick period 1/rate_hz = 0.1 s"
+        assert client.get_parameters("rate_hz", "deadline") == [4.0, 0.2]
+        # Set one by one, an invalid end state keeps a valid one: the deadline applies, the rate does not.
+        (deadline_result, rate_result) = client.set_parameters({"deadline": 0.15, "rate_hz": 10.0})
+        assert deadline_result == (True, "") and not rate_result[0]
+        assert client.get_parameters("rate_hz", "deadline") == [4.0, 0.15]
+    finally:
+        client.set_parameters({"deadline": 0.2, "rate_hz": 4.0})
+
+
 # --- deadline, parameters, shutdown (busy node) ---------------------------------------------
 
 BUSY_HYPOTHESES = 60  # per object: 60^3 configurations, each simulated: never finished in a test
@@ -348,7 +420,13 @@ BUSY_DEADLINE = 0.1
 @pytest.fixture(scope="module")
 def busy(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Running]:
     log = tmp_path_factory.mktemp("busy") / "node.log"
-    parameters = {"rate_hz": BUSY_RATE_HZ, "deadline": BUSY_DEADLINE, "probability_threshold": 0.0, "max_age": 600.0}
+    parameters = {
+        "rate_hz": BUSY_RATE_HZ,
+        "deadline": BUSY_DEADLINE,
+        "probability_threshold": 0.0,
+        "max_age": 600.0,
+        "diagnostics_period": 1.0 / BUSY_RATE_HZ,
+    }
     node = NodeProcess(PYRAMID_SCENE, parameters, log, "/busy")
     client = RosClient("/busy")
     try:
@@ -372,12 +450,12 @@ def search_ticks(client: RosClient, count: int) -> list[dict[str, str]]:
     return ticks
 
 
-def test_every_tick_stays_within_its_deadline_plus_the_documented_slack(busy: Running) -> None:
-    ticks = search_ticks(busy.client, 20)
+def test_every_tick_stops_at_its_deadline_and_the_next_resumes(busy: Running) -> None:
+    """What the search decided, not how long it took (the overrun figures: BENCHMARKS.md, "Deadline slack")."""
+    ticks = search_ticks(busy.client, 8)
     assert all("stopped at the deadline" in t["search"] for t in ticks)  # the problem is too large to finish
     assert sum(t["search"].startswith("resumed") for t in ticks) == len(ticks)  # unchanged inputs: resumed
-    times = [float(t["search time [s]"]) for t in ticks]
-    assert max(times) <= BUSY_DEADLINE + DEADLINE_SLACK, times
+    assert all(t["deadline [s]"] == str(BUSY_DEADLINE) for t in ticks)
     assert int(ticks[-1]["nodes visited"]) > int(ticks[0]["nodes visited"])
 
 
@@ -390,8 +468,7 @@ def test_deadline_changed_at_run_time_takes_effect_and_invalid_values_are_refuse
     search = search_status(changed)
     # The deadline changes neither which nodes are visited nor their outcomes: the search goes on.
     assert search is not None and values(search)["search"].startswith("resumed")
-    times = [float(t["search time [s]"]) for t in search_ticks(client, 5)]
-    assert max(times) <= 0.04 + DEADLINE_SLACK, times
+    assert all("stopped at the deadline" in t["search"] for t in search_ticks(client, 3))
 
     successful, reason = client.set_parameter("deadline", 0.3)  # the tick period is 0.25 s
     assert not successful
@@ -409,35 +486,19 @@ def test_deadline_changed_at_run_time_takes_effect_and_invalid_values_are_refuse
     assert busy.node.alive
 
 
-def test_sigint_ends_a_searching_node_within_two_seconds_cleanly(tmp_path: Path) -> None:
-    parameters = {"rate_hz": BUSY_RATE_HZ, "deadline": 0.2, "probability_threshold": 0.0}
-    node = NodeProcess(PYRAMID_SCENE, parameters, tmp_path / "node.log", "/sigint")
-    client = RosClient("/sigint")
-    try:
-        client.next_diagnostics(lambda d: True, timeout=30.0)
-        start_searching(client)
-        started = time.monotonic()
-        node.process.send_signal(signal.SIGINT)
-        code = node.process.wait(timeout=10)
-        elapsed = time.monotonic() - started
-    finally:
-        client.close()
-        node.stop()  # also when the test failed before the SIGINT: no orphaned node
-    output = node.output()
-    assert code == 0, output
-    assert elapsed <= 2.0
-    assert "Traceback" not in output
-
-
 # --- start-up: parameters files and bad start-up input ------------------------------------------
 
 
-def test_params_file_configures_the_node_through_the_cli(tmp_path: Path) -> None:
-    params_file = REPO / "config" / "params" / "node.yaml"
-    expected = yaml.safe_load(params_file.read_text())["/**/physics_mapper"]["ros__parameters"]
+def test_params_file_configures_the_node_and_unknown_keys_are_named(tmp_path: Path) -> None:
+    """The shipped parameters file, plus two misspelt keys (and one -p) that a user would want to hear about."""
+    shipped = yaml.safe_load((REPO / "config" / "params" / "node.yaml").read_text())
+    expected = shipped["/**/physics_mapper"]["ros__parameters"]
+    shipped["/**/physics_mapper"]["ros__parameters"] = {**expected, "deadlne": 0.1, "rate": 5.0}
+    params_file = tmp_path / "params.yaml"
+    params_file.write_text(yaml.safe_dump(shipped))
     log = (tmp_path / "node.log").open("w")
     command = [str(PHYSICS_MAPPER), "node", "--ros-args", "--params-file", str(params_file)]
-    command += ["-r", "__ns:=/params"]
+    command += ["-r", "__ns:=/params", "-p", "settle_tme:=1.0"]
     process = subprocess.Popen(command, stdout=log, stderr=subprocess.STDOUT, text=True, cwd=tmp_path)
     client = RosClient("/params")
     try:
@@ -451,7 +512,9 @@ def test_params_file_configures_the_node_through_the_cli(tmp_path: Path) -> None
     assert search is not None
     assert float(values(search)["deadline [s]"]) == expected["deadline"]
     assert [object_status(diagnostics, n).name.split("/")[-1] for n in OBJECTS] == list(OBJECTS)
-    assert code == 0, (tmp_path / "node.log").read_text()
+    output = (tmp_path / "node.log").read_text()
+    assert code == 0, output
+    assert "unknown parameters ignored (from --params-file or -p): deadlne, rate, settle_tme;" in output
 
 
 @pytest.mark.parametrize(

@@ -1,8 +1,9 @@
-"""``physics-mapper node``: the ROS 2 node, for machines without ``ros2 run``."""
+"""``physics-mapper node``: the ROS 2 node, for machines without ``ros2 run``; and ``ros2 run``'s ``node`` script."""
 
 from __future__ import annotations
 
 import argparse
+import signal
 import sys
 
 HELP = "run the ROS 2 node (what `ros2 run physics_mapper node` runs); ROS arguments follow --ros-args"
@@ -19,7 +20,25 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
 
 
+def hold_stop_signals() -> None:
+    """Keep SIGINT and SIGTERM pending until the node handles them (``physics_mapper.ros.spinning.SignalStop``).
+
+    Called first thing, before the node's imports: a KeyboardInterrupt raised in the middle of
+    an import can be lost, or make CPython exit by SIGINT after all (see
+    ``physics_mapper.ros.spinning``); a held signal is acted on once the node handles signals.
+    """
+    signal.pthread_sigmask(signal.SIG_BLOCK, (signal.SIGINT, signal.SIGTERM))
+
+
 def run(args: argparse.Namespace) -> int:
     from physics_mapper.ros.node import main
 
     return main([sys.argv[0], "--ros-args", *args.ros_args])
+
+
+def main() -> int:
+    """``ros2 run physics_mapper node`` (setup.py's ``node`` script): the node with its arguments as given."""
+    hold_stop_signals()
+    from physics_mapper.ros.node import main as run_node
+
+    return run_node(sys.argv)

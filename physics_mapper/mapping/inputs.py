@@ -18,16 +18,28 @@ Rules:
   hypotheses in use; the next usable one does. Single bad poses (NaN/Inf, not a unit quaternion,
   outside the scene's workspace) are dropped with their weights.
 - Hypotheses received more than ``max_age`` seconds ago are stale and not used.
+- Messages the middleware reports lost are counted per object and kind, and named in the
+  object's status while the last loss is more recent than ``max_age``.
+
+Cost: a PoseArray is kept as received, one (M, 7) array (:data:`PoseBlock`); its poses are
+checked and converted when it is adopted, heaviest first, until ``max_hypotheses`` usable ones
+are found, so adopting an array of 10,000 poses costs what adopting its 100 heaviest does.
+The tracker is thread-safe: subscriptions may add messages while a tick takes a snapshot.
 """
 
 from __future__ import annotations
 
+import threading
 from collections import deque
 from collections.abc import Sequence
 from dataclasses import dataclass
 from enum import IntEnum
+from typing import Literal
 
-from physics_mapper.core.geometry import Pose, make_pose
+import numpy as np
+from numpy.typing import NDArray
+
+from physics_mapper.core.geometry import make_pose
 from physics_mapper.core.hypotheses import Hypothesis, RankedHypotheses, weights_problem
 from physics_mapper.core.limits import MAX_QUOTED_TEXT, clipped
 from physics_mapper.core.scene import Workspace
@@ -38,6 +50,13 @@ WEIGHTS_GRACE = 0.5
 HISTORY_LENGTH = 16
 
 RawPose = tuple[Sequence[float], Sequence[float]]
+#: Poses as received, one row each: position x, y, z (m), orientation quaternion x, y, z, w; unchecked.
+PoseBlock = NDArray[np.float64]
+#: Columns of a :data:`PoseBlock`.
+POSE_COLUMNS = 7
+#: An object's two input topics: its PoseArrays and its weights.
+MessageKind = Literal["poses", "weights"]
+MESSAGE_KINDS: tuple[MessageKind, ...] = ("poses", "weights")
 
 
 class Level(IntEnum):
@@ -66,18 +85,21 @@ class InputSettings:
 class ReceivedPoses:
     """One PoseArray as received (compared by identity: each message is its own event).
 
-    ``count`` is the number of poses in the message (weights must have this length);
-    ``poses`` holds the usable ones as ``(index in the message, pose)``; ``dropped`` says
-    what was wrong with the others; ``refusal`` is set when the whole message is unusable.
-    ``stamp_ns``: header stamp, nanoseconds; ``received``: node clock, seconds.
+    ``poses`` holds every pose of the message, unchecked (:func:`rank` checks those it keeps,
+    against ``workspace``, the scene's); ``count`` is their number (weights must have this
+    length); ``refusal`` is set when the whole message is unusable. ``stamp_ns``: header stamp,
+    nanoseconds; ``received``: node clock, seconds.
     """
 
     stamp_ns: int
     received: float
-    count: int
-    poses: tuple[tuple[int, Pose], ...]
-    dropped: tuple[str, ...] = ()
+    poses: PoseBlock
+    workspace: Workspace
     refusal: str | None = None
+
+    @property
+    def count(self) -> int:
+        return len(self.poses)
 
 
 @dataclass(frozen=True, eq=False)
@@ -85,12 +107,26 @@ class ReceivedWeights:
     """One weights message as received; ``refusal`` says why its values are unusable."""
 
     received: float
-    values: tuple[float, ...]
+    values: NDArray[np.float64]
     refusal: str | None = None
 
 
+def pose_block(raw_poses: Sequence[RawPose] | PoseBlock) -> PoseBlock:
+    """Poses as ``(position, orientation)`` pairs, or already an (M, 7) array, as one (M, 7) float array.
+
+    A pair whose parts are not 3 and 4 numbers long gives a row of NaN, which :func:`rank` drops.
+    """
+    if isinstance(raw_poses, np.ndarray):
+        return np.asarray(raw_poses, dtype=np.float64).reshape(-1, POSE_COLUMNS)
+    block = np.full((len(raw_poses), POSE_COLUMNS), np.nan)
+    for row, (position, orientation) in zip(block, raw_poses, strict=True):
+        if len(position) == 3 and len(orientation) == 4:
+            row[:] = (*position, *orientation)
+    return block
+
+
 def check_poses(
-    raw_poses: Sequence[RawPose],
+    raw_poses: Sequence[RawPose] | PoseBlock,
     *,
     frame_id: str,
     expected_frame: str,
@@ -98,40 +134,27 @@ def check_poses(
     stamp_ns: int,
     received: float,
 ) -> ReceivedPoses:
-    """Validate a PoseArray's contents: frame, emptiness, and each pose (finite, unit quaternion, in ``workspace``).
+    """A PoseArray's contents as received, refused as a whole for another frame or no pose at all.
 
-    A frame_id quoted in the refusal is clipped to :data:`~physics_mapper.core.limits.MAX_QUOTED_TEXT` characters.
+    The poses themselves (finite, unit quaternion, inside ``workspace``) are checked when they
+    are adopted (:func:`rank`). A frame_id quoted in the refusal is clipped to
+    :data:`~physics_mapper.core.limits.MAX_QUOTED_TEXT` characters.
     """
-    count = len(raw_poses)
+    poses = pose_block(raw_poses)
     if frame_id != expected_frame:
         refusal = f"frame_id {clipped(frame_id, MAX_QUOTED_TEXT)!r} is not the scene frame {expected_frame!r}"
-        return ReceivedPoses(stamp_ns, received, count, (), refusal=refusal)
-    if count == 0:
-        return ReceivedPoses(stamp_ns, received, 0, (), refusal="empty PoseArray")
-    usable: list[tuple[int, Pose]] = []
-    dropped: list[str] = []
-    for index, (position, orientation) in enumerate(raw_poses):
-        try:
-            pose = make_pose(tuple(position), tuple(orientation))
-        except ValueError as error:
-            dropped.append(f"poses[{index}]: {error}")
-            continue
-        outside = workspace.problem(pose.position)
-        if outside is None:
-            usable.append((index, pose))
-        else:
-            dropped.append(f"poses[{index}]: {outside}")
-    if not usable:
-        refusal = f"no usable pose ({dropped[0]}{' ...' if len(dropped) > 1 else ''})"
-        return ReceivedPoses(stamp_ns, received, count, (), tuple(dropped), refusal)
-    return ReceivedPoses(stamp_ns, received, count, tuple(usable), tuple(dropped))
+        return ReceivedPoses(stamp_ns, received, poses, workspace, refusal)
+    if len(poses) == 0:
+        return ReceivedPoses(stamp_ns, received, poses, workspace, "empty PoseArray")
+    return ReceivedPoses(stamp_ns, received, poses, workspace)
 
 
-def check_weights(values: Sequence[float], *, received: float) -> ReceivedWeights:
+def check_weights(values: Sequence[float] | NDArray[np.float64], *, received: float) -> ReceivedWeights:
     """Validate a weights message on its own (its length is checked when it is paired)."""
-    values = tuple(float(v) for v in values)
-    refusal = "empty weights array" if not values else weights_problem(values, len(values))
-    return ReceivedWeights(received, values, refusal)
+    array = np.array(values, dtype=np.float64)
+    array.flags.writeable = False
+    refusal = "empty weights array" if len(array) == 0 else weights_problem(array, len(array))
+    return ReceivedWeights(received, array, refusal)
 
 
 @dataclass(frozen=True)
@@ -180,22 +203,54 @@ class InputSnapshot:
         return max(stamps) if stamps else None
 
 
+def _heaviest_first(poses: ReceivedPoses, weights: ReceivedWeights | None) -> NDArray[np.intp]:
+    """Indices of the poses by decreasing weight; equal weights (and uniform ones) keep the published order."""
+    if weights is None:
+        return np.arange(poses.count)
+    return np.argsort(-weights.values, kind="stable")
+
+
 def rank(poses: ReceivedPoses, weights: ReceivedWeights | None, max_hypotheses: int) -> InUse | str:
-    """Combine usable poses with their weights (None: uniform) into ranked hypotheses, or say why not."""
+    """The ``max_hypotheses`` heaviest usable poses with their weights (None: uniform), ranked, or why not.
+
+    Poses are checked and converted heaviest first until enough usable ones are found: the cost
+    grows with ``max_hypotheses``, not with the size of the message. An unusable pose (non-finite,
+    zero or non-unit quaternion, outside the workspace) is dropped with its weight, and named.
+    """
     if weights is not None and weights.refusal is not None:
         return f"its weights message is unusable: {weights.refusal}"
-    hypotheses = [Hypothesis(pose, 1.0 if weights is None else weights.values[i]) for i, pose in poses.poses]
+    kept: list[Hypothesis] = []
+    dropped: list[str] = []
+    examined = 0
+    for index in _heaviest_first(poses, weights):
+        if len(kept) == max_hypotheses:
+            break
+        examined += 1
+        row = poses.poses[index]
+        try:
+            pose = make_pose(tuple(row[:3].tolist()), tuple(row[3:].tolist()))
+        except ValueError as error:
+            dropped.append(f"poses[{index}]: {error}")
+            continue
+        outside = poses.workspace.problem(pose.position)
+        if outside is not None:
+            dropped.append(f"poses[{index}]: {outside}")
+            continue
+        kept.append(Hypothesis(pose, 1.0 if weights is None else float(weights.values[index])))
+    if not kept:
+        return f"no usable pose ({dropped[0]}{' ...' if len(dropped) > 1 else ''})"
     try:
-        ranked = RankedHypotheses.from_weighted(hypotheses, keep_at_most=max_hypotheses)
+        ranked = RankedHypotheses.from_weighted(kept)
     except ValueError as error:
         return f"weights of its usable poses: {error}"
     notes = []
     if weights is None:
         notes.append("no weights message: uniform weights, ranked in published order")
-    if poses.dropped:
-        notes.append(f"dropped {len(poses.dropped)} of {poses.count} poses: {'; '.join(poses.dropped[:3])}")
-    if len(hypotheses) > len(ranked):
-        notes.append(f"kept the {len(ranked)} heaviest of {len(hypotheses)} hypotheses (max_hypotheses_per_object)")
+    if dropped:
+        of = f"{poses.count}" if examined == poses.count else f"the {examined} heaviest of {poses.count}"
+        notes.append(f"dropped {len(dropped)} of {of} poses: {'; '.join(dropped[:3])}")
+    if examined < poses.count:
+        notes.append(f"kept the {len(ranked)} heaviest of {poses.count} hypotheses (max_hypotheses_per_object)")
     return InUse(ranked, poses, weights, tuple(notes))
 
 
@@ -210,7 +265,15 @@ class ObjectInputs:
         self._in_use: InUse | None = None
         self._tried: tuple[ReceivedPoses, ReceivedWeights | None, int, bool] | None = None
         self._refusals: dict[str, tuple[float, str]] = {}  # kind -> (when, why) of the newest refusal
-        self._counts = {"poses received": 0, "poses refused": 0, "weights received": 0, "weights refused": 0}
+        self._counts = {
+            "poses received": 0,
+            "poses refused": 0,
+            "weights received": 0,
+            "weights refused": 0,
+            "poses lost": 0,
+            "weights lost": 0,
+        }
+        self._last_lost: float | None = None  # when the middleware last reported a lost message
 
     def add_poses(self, poses: ReceivedPoses) -> None:
         self._poses.append(poses)
@@ -225,6 +288,18 @@ class ObjectInputs:
         self._counts["weights received"] += 1
         if weights.refusal is not None:
             self._refuse("weights", weights.received, weights.refusal)
+
+    def add_lost(self, kind: MessageKind, count: int, now: float) -> None:
+        """Count ``count`` messages the middleware reports lost on the object's ``kind`` topic, at ``now``."""
+        self._counts[f"{kind} lost"] += count
+        self._last_lost = now
+
+    def _lost_note(self, now: float, settings: InputSettings) -> str | None:
+        """Names recent losses: newer hypotheses than those in use may have been lost."""
+        if self._last_lost is None or now - self._last_lost > settings.max_age:
+            return None
+        lost = ", ".join(f"{self._counts[f'{kind} lost']} {kind}" for kind in MESSAGE_KINDS)
+        return f"messages lost in the middleware ({lost} in total, the last {now - self._last_lost:.1f} s ago)"
 
     def _refuse(self, kind: str, when: float, why: str) -> None:
         self._refusals[kind] = (when, f"{kind} refused: {why}")
@@ -286,6 +361,7 @@ class ObjectInputs:
             return ObjectStatus(self.name, Level.ERROR, why, None, None, tuple(details))
         age = now - in_use.poses.received
         details += [("hypotheses in use", str(len(in_use.hypotheses))), ("age [s]", f"{age:.2f}")]
+        details.append(("stamp [ns]", str(in_use.poses.stamp_ns)))
         details.append(("weights", "uniform" if in_use.weights is None else "paired"))
         if age > settings.max_age:
             message = f"stale: newest usable hypotheses are {age:.1f} s old (max_age {settings.max_age:g} s)"
@@ -297,22 +373,33 @@ class ObjectInputs:
             recent = [why for when, why in refusals if when > in_use.poses.received]
             if recent:
                 notes.insert(0, f"{'; '.join(recent)}; older hypotheses stay in use")
+        lost = self._lost_note(now, settings)
+        if lost is not None:
+            notes.append(lost)
         level = Level.WARN if notes else Level.OK
         message = "; ".join(notes) if notes else f"{len(in_use.hypotheses)} hypotheses, weighted"
         return ObjectStatus(self.name, level, message, in_use.hypotheses, in_use.poses.stamp_ns, tuple(details))
 
 
 class InputTracker:
-    """Inputs of every scene object, in scene order."""
+    """Inputs of every scene object, in scene order; safe to feed from other threads while a tick reads it."""
 
     def __init__(self, names: Sequence[str]) -> None:
         self.objects = {name: ObjectInputs(name) for name in names}
+        self._lock = threading.Lock()
 
     def add_poses(self, name: str, poses: ReceivedPoses) -> None:
-        self.objects[name].add_poses(poses)
+        with self._lock:
+            self.objects[name].add_poses(poses)
 
     def add_weights(self, name: str, weights: ReceivedWeights) -> None:
-        self.objects[name].add_weights(weights)
+        with self._lock:
+            self.objects[name].add_weights(weights)
+
+    def add_lost(self, name: str, kind: MessageKind, count: int, now: float) -> None:
+        with self._lock:
+            self.objects[name].add_lost(kind, count, now)
 
     def snapshot(self, now: float, settings: InputSettings) -> InputSnapshot:
-        return InputSnapshot(tuple(inputs.status(now, settings) for inputs in self.objects.values()))
+        with self._lock:
+            return InputSnapshot(tuple(inputs.status(now, settings) for inputs in self.objects.values()))

@@ -1,13 +1,47 @@
-"""The node's name and every topic name, in one place (ROS-free, so the bags share them).
+"""The node's name, every topic name and the QoS of each, in one place (ROS-free, so the bags share them).
 
 Inputs are relative to the node's namespace; outputs starting with ``~/`` are private to the
 node. Bags record absolute names (as ``ros2 bag record`` does): :func:`recorded`, and the
 ``RECORDED_*`` and ``recorded_*`` names below, for a node in the root namespace.
+
+QoS (:class:`TopicQos`; ``physics_mapper.ros.qos`` makes rclpy profiles of them, the bags record
+them as rosbag2's offered QoS): inputs are best effort, volatile, depth 10 by default, which
+matches both reliable publishers (``ros2 topic pub``, most pose estimators) and best-effort ones
+(sensor-data QoS), or reliable with the node's ``input_reliability`` parameter; the map topics
+are reliable and transient local, depth 1 (latched), so RViz or a recorder started later still
+gets the last map; ``/diagnostics`` uses the default QoS (reliable, volatile, depth 10), like
+diagnostic_updater.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass, replace
+from typing import Literal
+
 NODE_NAME = "physics_mapper"
+
+InputReliability = Literal["best_effort", "reliable"]
+INPUT_RELIABILITIES: tuple[InputReliability, ...] = ("best_effort", "reliable")
+
+
+@dataclass(frozen=True)
+class TopicQos:
+    """A topic's QoS: reliable or best effort, transient local (latched) or volatile, keep-last ``depth``."""
+
+    reliable: bool
+    transient_local: bool
+    depth: int
+
+
+MAP_TOPIC_QOS = TopicQos(reliable=True, transient_local=True, depth=1)
+DIAGNOSTICS_TOPIC_QOS = TopicQos(reliable=True, transient_local=False, depth=10)
+_BEST_EFFORT_INPUT_QOS = TopicQos(reliable=False, transient_local=False, depth=10)
+
+
+def input_topic_qos(reliability: InputReliability = "best_effort") -> TopicQos:
+    """QoS of the hypothesis subscriptions for the node's ``input_reliability`` parameter."""
+    return replace(_BEST_EFFORT_INPUT_QOS, reliable=reliability == "reliable")
+
 
 # Outputs, relative to the node (``~``) or absolute.
 CONFIGURATION_TOPIC = "~/configuration"
@@ -26,6 +60,16 @@ def poses_topic(object_name: str) -> str:
 def weights_topic(object_name: str) -> str:
     """The object's weights input topic, relative to the node's namespace."""
     return f"hypotheses/{object_name}/weights"
+
+
+def object_pose_topic(object_name: str) -> str:
+    """The object's chosen pose (``geometry_msgs/PoseStamped``), private to the node."""
+    return f"~/objects/{object_name}/pose"
+
+
+def object_settled_pose_topic(object_name: str) -> str:
+    """The object's settled pose (``geometry_msgs/PoseStamped``), private to the node."""
+    return f"~/objects/{object_name}/settled_pose"
 
 
 def output_topic(topic: str, namespace: str = "/") -> str:

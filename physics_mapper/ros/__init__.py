@@ -20,9 +20,11 @@ from physics_mapper.ros.hypothesis_publisher import (
     HypothesisPublisher,
 )
 from physics_mapper.ros.node import (
+    DEFAULT_DIAGNOSTICS_PERIOD,
     PARAMETERS,
     ParameterSpec,
     PhysicsMapperNode,
+    deadline_first,
     main,
     resolve_scene_path,
 )
@@ -30,26 +32,38 @@ from physics_mapper.ros.qos import (
     DIAGNOSTICS_QOS,
     INPUT_QOS,
     MAP_QOS,
+    input_qos,
+    qos_profile,
 )
 from physics_mapper.ros.spinning import (
+    STOP_POLL,
+    STOP_SIGNALS,
+    SignalStop,
     shutdown_ros,
     spin_for,
 )
 
 __all__ = [
+    "DEFAULT_DIAGNOSTICS_PERIOD",
     "DIAGNOSTICS_QOS",
     "INPUT_QOS",
     "MAP_QOS",
     "PARAMETERS",
+    "STOP_POLL",
+    "STOP_SIGNALS",
     "HypothesisPublisher",
     "ParameterSpec",
     "PhysicsMapperNode",
     "Playback",
     "ReplayError",
+    "SignalStop",
+    "deadline_first",
+    "input_qos",
     "main",
     "message_class",
     "node_command",
     "play_and_record",
+    "qos_profile",
     "resolve_scene_path",
     "shutdown_ros",
     "spin_for",

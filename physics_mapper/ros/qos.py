@@ -1,22 +1,36 @@
-"""The node's QoS profiles and rclpy helpers (topic names are in :mod:`physics_mapper.mapping.topics`).
+"""The node's QoS profiles as rclpy ``QoSProfile`` objects, made from :mod:`physics_mapper.mapping.topics`' table.
 
 Light to import (no physics): the node, the publisher, the demo and the tests share it.
-
-QoS: inputs are best effort, volatile, depth 10, which matches both reliable publishers
-(``ros2 topic pub``, most pose estimators) and best-effort ones (sensor-data QoS); the map
-topics are reliable and transient local, depth 1 (latched), so RViz or a recorder started
-later still gets the last map; ``/diagnostics`` uses the default QoS, like diagnostic_updater.
 """
 
 from __future__ import annotations
 
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-# QoSProfile.__init__ is unannotated in rclpy 7.
-INPUT_QOS = QoSProfile(  # type: ignore[no-untyped-call]
-    depth=10, reliability=ReliabilityPolicy.BEST_EFFORT, durability=DurabilityPolicy.VOLATILE
+from physics_mapper.mapping.topics import (
+    DIAGNOSTICS_TOPIC_QOS,
+    MAP_TOPIC_QOS,
+    InputReliability,
+    TopicQos,
+    input_topic_qos,
 )
-MAP_QOS = QoSProfile(  # type: ignore[no-untyped-call]
-    depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL
-)
-DIAGNOSTICS_QOS = QoSProfile(depth=10)  # type: ignore[no-untyped-call]
+
+
+def qos_profile(qos: TopicQos) -> QoSProfile:
+    """The rclpy profile of a topic's QoS (keep last ``depth``)."""
+    return QoSProfile(  # type: ignore[no-untyped-call]  # QoSProfile.__init__ is unannotated in rclpy 7
+        history=HistoryPolicy.KEEP_LAST,
+        depth=qos.depth,
+        reliability=ReliabilityPolicy.RELIABLE if qos.reliable else ReliabilityPolicy.BEST_EFFORT,
+        durability=DurabilityPolicy.TRANSIENT_LOCAL if qos.transient_local else DurabilityPolicy.VOLATILE,
+    )
+
+
+def input_qos(reliability: InputReliability = "best_effort") -> QoSProfile:
+    """The hypothesis subscriptions' profile for the node's ``input_reliability`` parameter."""
+    return qos_profile(input_topic_qos(reliability))
+
+
+INPUT_QOS = input_qos()
+MAP_QOS = qos_profile(MAP_TOPIC_QOS)
+DIAGNOSTICS_QOS = qos_profile(DIAGNOSTICS_TOPIC_QOS)

@@ -1,12 +1,37 @@
-"""rclpy context and spinning helpers shared by the node, the publisher and the bag player."""
+"""rclpy context and spinning helpers shared by the node, the publisher and the bag player, and clean stops on signals.
+
+Stopping on SIGINT and SIGTERM (:class:`SignalStop`): rclpy's own handlers shut the context down
+from a signal, under whatever the process is doing; every rclpy call after that (a publish in
+the middle of a tick, the executor's next wait) raises, and the error escapes with a traceback and
+exit code 1. With :class:`SignalStop` rclpy installs no handler; a signal only asks the spin loop
+to stop, and the process shuts rclpy down itself, in order. Where stopping at once is safe (a
+search), :meth:`SignalStop.interruptible` lets the first signal interrupt the work with
+KeyboardInterrupt instead. Later signals are ignored: the stop is already under way.
+
+Before the handlers exist, the entry point holds both signals pending
+(``physics_mapper.commands.node.hold_stop_signals``) rather than let Python raise KeyboardInterrupt
+in the middle of an import: such an interrupt can be lost, or leave CPython exiting by SIGINT after
+all (observed: exit -2 with the interrupt caught; CPython marks the process as interrupted when the
+interrupt lands in code a C extension runs through ``PyRun_String``, even if Python catches it).
+:meth:`SignalStop.install` releases them, so a signal sent during start-up is acted on, not lost.
+"""
 
 from __future__ import annotations
 
+import signal
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+from types import FrameType
 
 import rclpy
 from rclpy.node import Node
 from rclpy.utilities import ok
+
+#: The signals that stop the process cleanly.
+STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+#: Seconds an idle spin waits before it looks for a stop request again (the latency of a stop when idle).
+STOP_POLL = 0.1
 
 
 def shutdown_ros() -> None:
@@ -20,3 +45,41 @@ def spin_for(node: Node, seconds: float) -> None:
     end = time.monotonic() + seconds
     while ok() and time.monotonic() < end:
         rclpy.spin_once(node, timeout_sec=0.05)
+
+
+class SignalStop:
+    """SIGINT and SIGTERM, from :meth:`install` on, ask the process to stop (:attr:`requested`).
+
+    Outside :meth:`interruptible` sections a signal only sets :attr:`requested`, so that what the
+    process is doing (publishing, spinning, shutting down) completes; inside one, the first
+    signal also raises KeyboardInterrupt there. Pass ``signal_handler_options=SignalHandlerOptions.NO``
+    to ``rclpy.init`` so that rclpy does not replace these handlers with its own.
+    """
+
+    def __init__(self) -> None:
+        self.requested = False
+        self._interruptible = 0
+
+    def install(self) -> None:
+        """Handle both signals from now on; one held pending by the entry point is delivered now."""
+        for number in STOP_SIGNALS:
+            signal.signal(number, self._handle)
+        signal.pthread_sigmask(signal.SIG_UNBLOCK, STOP_SIGNALS)
+
+    def _handle(self, number: int, frame: FrameType | None) -> None:
+        if self.requested:
+            return
+        self.requested = True
+        if self._interruptible:
+            raise KeyboardInterrupt
+
+    @contextmanager
+    def interruptible(self) -> Iterator[None]:
+        """A section that the first signal interrupts with KeyboardInterrupt (at once, also if it came before)."""
+        if self.requested:
+            raise KeyboardInterrupt
+        self._interruptible += 1
+        try:
+            yield
+        finally:
+            self._interruptible -= 1

@@ -1,0 +1,170 @@
+"""SIGINT and SIGTERM stop the node cleanly at any moment (issue 12, point 1): exit code 0, nothing but its log.
+
+One test, many runs at seeded random moments: during start-up (from the moment the process runs
+our code, read from /proc: the entry point holds both signals from its first line until it
+handles them), idle, in the middle of searches and under a 200 Hz input flood; a signal landing
+while a tick publishes comes by chance in the last two. Runs go seven at a time, which also
+loads the machine. Asserted: the exit code and the output, never how long the stop took (that
+figure is in BENCHMARKS.md, "Stopping on a signal").
+"""
+
+from __future__ import annotations
+
+import random
+import re
+import signal
+import threading
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from conftest import PROBLEMS, SCENES
+from diagnostic_msgs.msg import DiagnosticStatus
+from geometry_msgs.msg import PoseArray
+from rclpy.publisher import Publisher
+from ros_helpers import NodeProcess, RosClient, search_status, values
+from std_msgs.msg import Float64MultiArray
+from test_node import busy_problem, publish_problem
+
+from msg_adapters.hypotheses import hypotheses_msgs
+from physics_mapper.core.scene_files import load_problem
+from physics_mapper.mapping.topics import poses_topic, weights_topic
+
+#: (phase, signal) of every run; each phase with both signals.
+RUNS = [
+    (phase, number)
+    for phase, count in (("start-up", 2), ("idle", 1), ("searching", 2), ("flood", 2))
+    for number in (signal.SIGINT, signal.SIGTERM)
+    for _ in range(count)
+]
+AT_ONCE = 7
+#: The longest random wait (seconds) before the signal, per phase: start-up takes about a second.
+LONGEST_WAIT = {"start-up": 1.5, "idle": 0.5, "searching": 0.5, "flood": 0.5}
+NODE_PARAMETERS = {"rate_hz": 4.0, "deadline": 0.2, "probability_threshold": 0.0, "diagnostics_period": 0.1}
+FLOOD_HZ = 200
+#: Lines a cleanly stopping node may print: its own log lines at level INFO.
+LOG_LINE = re.compile(r"\[INFO\] \[[0-9.]+\] \[[\w.]*physics_mapper\]: ")
+SIGTERM_MASK = 1 << (signal.SIGTERM - 1)
+
+
+def handles_sigterm(pid: int) -> bool:
+    """Whether the process runs our code: it holds SIGTERM pending or handles it (SigBlk, SigCgt in /proc)."""
+    try:
+        status = Path(f"/proc/{pid}/status").read_text()
+    except FileNotFoundError:
+        return False
+    masks = [line.split()[1] for line in status.splitlines() if line.startswith(("SigBlk:", "SigCgt:"))]
+    return any(int(mask, 16) & SIGTERM_MASK for mask in masks)
+
+
+@dataclass
+class Run:
+    """One node started, brought to its phase, and signalled after a random wait."""
+
+    index: int
+    phase: str
+    number: signal.Signals
+    wait: float
+    log: Path
+    node: NodeProcess | None = None
+    client: RosClient | None = None
+    flood: threading.Thread | None = None
+    flooding: threading.Event = field(default_factory=threading.Event)
+    signal_at: float | None = None
+
+    @property
+    def namespace(self) -> str:
+        return f"/signals{self.index}"
+
+    def start(self) -> None:
+        self.node = NodeProcess(SCENES / "pyramid.yaml", NODE_PARAMETERS, self.log, self.namespace)
+        if self.phase != "start-up":
+            self.client = RosClient(self.namespace)
+
+    def advance(self) -> None:
+        """Bring the run one step towards its phase; once there, signal it when its wait is over."""
+        assert self.node is not None
+        if self.signal_at is None and self._in_phase():
+            self.signal_at = time.monotonic() + self.wait
+        if self.signal_at is not None and time.monotonic() >= self.signal_at and self.node.alive:
+            self.node.process.send_signal(self.number)
+            self.signal_at = float("inf")
+
+    def _in_phase(self) -> bool:
+        assert self.node is not None
+        if self.phase == "start-up":
+            return handles_sigterm(self.node.process.pid)
+        assert self.client is not None
+        self.client.executor.spin_once(timeout_sec=0.01)
+        if not self.client.diagnostics:
+            return False
+        if self.phase == "idle":
+            return True
+        search = values(search_status(self.client.diagnostics[-1]) or DiagnosticStatus())
+        if search.get("nodes visited", "0") != "0":
+            return True
+        if self.phase == "searching" and len(self.client.diagnostics) % 5 == 1:
+            publish_problem(self.client, busy_problem(), stamp_ns=10**9)
+        if self.phase == "flood" and self.flood is None:
+            self.flooding.set()
+            self.flood = threading.Thread(target=self._flood, args=(self._flood_round(),), daemon=True)
+            self.flood.start()
+        return False
+
+    def _flood_round(self) -> list[tuple[Publisher, Any]]:
+        """Publishers and messages of one round: every object's hypotheses and weights (six messages)."""
+        assert self.client is not None
+        node, problem = self.client.node, load_problem(PROBLEMS / "pyramid.yaml")
+        round_ = []
+        for name, hypotheses in zip(problem.scene.object_names, problem.hypotheses, strict=True):
+            poses, weights = hypotheses_msgs(hypotheses, frame_id=problem.scene.frame_id, stamp_ns=time.time_ns())
+            round_.append((node.create_publisher(PoseArray, poses_topic(name), 10), poses))
+            round_.append((node.create_publisher(Float64MultiArray, weights_topic(name), 10), weights))
+        return round_
+
+    def _flood(self, round_: list[tuple[Publisher, Any]]) -> None:
+        """Publish the round at FLOOD_HZ until the run finishes (publishing only: the test's loop spins)."""
+        next_round = time.monotonic()
+        while self.flooding.is_set():
+            for publisher, message in round_:
+                publisher.publish(message)
+            next_round += 1.0 / FLOOD_HZ
+            time.sleep(max(0.0, next_round - time.monotonic()))
+
+    def finish(self) -> tuple[int, str]:
+        assert self.node is not None
+        try:
+            code = self.node.process.wait(timeout=20)
+        finally:
+            self.node.stop()
+            self.flooding.clear()
+            if self.flood is not None:
+                self.flood.join()
+            if self.client is not None:
+                self.client.close()
+        return code, self.node.output()
+
+
+def test_every_signal_at_any_moment_stops_the_node_with_exit_code_0_and_no_traceback(tmp_path: Path) -> None:
+    rng = random.Random(12)
+    runs = [
+        Run(index, phase, number, rng.uniform(0.0, LONGEST_WAIT[phase]), tmp_path / f"node{index}.log")
+        for index, (phase, number) in enumerate(RUNS)
+    ]
+    failures = []
+    for batch in (runs[i : i + AT_ONCE] for i in range(0, len(runs), AT_ONCE)):
+        for run in batch:
+            run.start()
+        end = time.monotonic() + 60.0
+        while any(run.signal_at != float("inf") for run in batch):
+            assert time.monotonic() < end, [(run.phase, run.signal_at) for run in batch]
+            for run in batch:
+                run.advance()
+            time.sleep(0.005)
+        for run in batch:
+            code, output = run.finish()
+            noise = [line for line in output.splitlines() if line.strip() and not LOG_LINE.match(line)]
+            if code != 0 or noise:
+                failures.append(f"{run.phase} {run.number.name} after {run.wait:.3f} s: exit {code}\n{output}")
+    assert failures == []
