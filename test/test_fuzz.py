@@ -35,7 +35,7 @@ from physics_mapper.core.physics import PhysicsChecker
 from physics_mapper.core.scene import Box, ObjectModel, Plane, Scene, SearchParams, StaticBody, Workspace
 from physics_mapper.core.scene_files import SceneError, load_problem, problem_from_dict
 from physics_mapper.core.yaml_files import parse_yaml
-from physics_mapper.mapping.inputs import InputSettings, InputTracker, Level, ReceivedPoses
+from physics_mapper.mapping.inputs import InputSettings, InputTracker, InUse, Level, ReceivedPoses, rank
 from physics_mapper.mapping.mapper import Mapper, MapperSettings, TickReport
 
 FRAME = "world"
@@ -110,38 +110,47 @@ def bad_poses(draw: st.DrawFn) -> RawPose:
 def test_the_good_poses_of_a_message_survive_unchanged_and_every_other_is_dropped_with_a_reason(
     items: list[tuple[bool, RawPose]],
 ) -> None:
+    """Poses are checked when adopted (rank), heaviest first: uniform weights examine them in published order."""
     received = received_poses(pose_array([p for _, p in items]), expected_frame=FRAME, workspace=WORKSPACE, received=0)
     good = [i for i, (ok, _) in enumerate(items) if ok]
-    assert [i for i, _ in received.poses] == good
-    assert [d.partition(": ")[0] for d in received.dropped] == [
-        f"poses[{i}]" for i, (ok, _) in enumerate(items) if not ok
-    ]
-    assert all(one_line(d) for d in received.dropped)
-    for index, pose in received.poses:
-        position, orientation = items[index][1]
-        norm = math.hypot(*orientation)
-        assert pose.position == position
-        assert pose.orientation == pytest.approx(tuple(v / norm for v in orientation), abs=1e-12)
     if not items:
         assert received.refusal == "empty PoseArray"
-    elif not good:
-        assert received.refusal is not None and received.refusal.startswith("no usable pose (poses[")
-    else:
-        assert received.refusal is None
+        return
+    assert received.refusal is None
+    in_use = rank(received, None, max_hypotheses=len(items))
+    if not good:
+        assert isinstance(in_use, str) and in_use.startswith("no usable pose (poses[") and one_line(in_use)
+        return
+    assert isinstance(in_use, InUse)
+    assert [d.partition(": ")[0] for d in in_use.dropped] == [
+        f"poses[{i}]" for i, (ok, _) in enumerate(items) if not ok
+    ]
+    assert all(one_line(d) for d in in_use.dropped)
+    assert len(in_use.hypotheses) == len(good)
+    for hypothesis, index in zip(in_use.hypotheses.hypotheses, good, strict=True):
+        position, orientation = items[index][1]
+        norm = math.hypot(*orientation)
+        assert hypothesis.pose.position == position
+        assert hypothesis.pose.orientation == pytest.approx(tuple(v / norm for v in orientation), abs=1e-12)
 
 
 raw_poses = st.tuples(st.tuples(*[any_float] * 3), st.tuples(*[any_float] * 4))
 
 
 def check_received(received: ReceivedPoses, count: int) -> None:
-    """Structural invariants of any checked PoseArray."""
+    """Structural invariants of any PoseArray received and adopted."""
     assert received.count == count
     if received.refusal is not None:
-        assert one_line(received.refusal) and not received.poses
-    usable = {i for i, _ in received.poses}
-    dropped = [int(d[len("poses[") : d.index("]")]) for d in received.dropped]
-    assert usable.isdisjoint(dropped) and len(usable) + len(dropped) in (0, count)
-    for _, pose in received.poses:
+        assert one_line(received.refusal)
+        return
+    in_use = rank(received, None, max_hypotheses=max(count, 1))
+    if isinstance(in_use, str):
+        assert one_line(in_use) and in_use.startswith("no usable pose (")
+        return
+    dropped = [int(d[len("poses[") : d.index("]")]) for d in in_use.dropped]
+    assert len(in_use.hypotheses) + len(dropped) == count and len(set(dropped)) == len(dropped)
+    for hypothesis in in_use.hypotheses.hypotheses:
+        pose = hypothesis.pose
         assert WORKSPACE.problem(pose.position) is None
         assert all(math.isfinite(v) for v in (*pose.position, *pose.orientation))
         assert math.hypot(*pose.orientation) == pytest.approx(1.0, abs=1e-12)
@@ -165,7 +174,7 @@ def test_weights_are_kept_exactly_when_usable_and_refused_with_a_reason_otherwis
     received = received_weights(Float64MultiArray(data=values), received=0.0)
     usable = bool(values) and all(math.isfinite(v) and v >= 0.0 for v in values) and 0.0 < sum(values) < math.inf
     if usable:
-        assert received.refusal is None and received.values == tuple(values)
+        assert received.refusal is None and received.values.tolist() == values
     else:
         assert received.refusal is not None and one_line(received.refusal)
 

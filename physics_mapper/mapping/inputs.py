@@ -159,12 +159,16 @@ def check_weights(values: Sequence[float] | NDArray[np.float64], *, received: fl
 
 @dataclass(frozen=True)
 class InUse:
-    """Hypotheses an object's search uses, and where they came from."""
+    """Hypotheses an object's search uses, and where they came from.
+
+    ``dropped`` names every pose examined and dropped, ``poses[i]: why``, heaviest first.
+    """
 
     hypotheses: RankedHypotheses
     poses: ReceivedPoses
     weights: ReceivedWeights | None
     notes: tuple[str, ...]  # warnings about them: uniform weights, dropped poses, kept the heaviest
+    dropped: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -251,7 +255,7 @@ def rank(poses: ReceivedPoses, weights: ReceivedWeights | None, max_hypotheses: 
         notes.append(f"dropped {len(dropped)} of {of} poses: {'; '.join(dropped[:3])}")
     if examined < poses.count:
         notes.append(f"kept the {len(ranked)} heaviest of {poses.count} hypotheses (max_hypotheses_per_object)")
-    return InUse(ranked, poses, weights, tuple(notes))
+    return InUse(ranked, poses, weights, tuple(notes), tuple(dropped))
 
 
 class ObjectInputs:
@@ -344,7 +348,8 @@ class ObjectInputs:
         if isinstance(attempt, str):
             self._refuse("PoseArray", now, attempt)
         elif weights is None and self._weights:
-            self._in_use = InUse(attempt.hypotheses, poses, None, (self._missing_weights(poses), *attempt.notes))
+            notes = (self._missing_weights(poses), *attempt.notes)
+            self._in_use = InUse(attempt.hypotheses, poses, None, notes, attempt.dropped)
         else:
             self._in_use = attempt
         return None

@@ -211,7 +211,8 @@ class PhysicsMapperNode(Node):
             raise InputError(f"invalid parameters: {problem}")
         self._warn_about_unknown_parameters()
         self.mapper = Mapper(scene)
-        self._report: TickReport | None = None
+        self._report: TickReport | None = None  # the last tick's
+        self._fault: TickReport | None = None  # the first tick of this diagnostics period that the engine failed
         self._ticks = TickStatistics()
         self._inputs_group = MutuallyExclusiveCallbackGroup()  # type: ignore[no-untyped-call]
         reliability = cast(InputReliability, values["input_reliability"])
@@ -411,6 +412,8 @@ class PhysicsMapperNode(Node):
         with self._stop.interruptible():  # a signal stops a search at once
             report = self.mapper.tick(self._now(), settings)
         self._report = report
+        if report.engine_fault is not None and self._fault is None:
+            self._fault = report
         self._publish_map(report)
         tick_time = time.monotonic() - start
         self._ticks.record(
@@ -457,8 +460,12 @@ class PhysicsMapperNode(Node):
         self._published_objects = (stamp_ns, result)
 
     def _publish_diagnostics(self) -> None:
-        """The last tick's report (before the first tick: the inputs so far), and how the ticks kept time."""
-        report = self._report
+        """The last tick's report, and how the ticks kept time since the previous message.
+
+        A tick whose physics engine failed is reported instead, so that no failure goes unseen
+        between two messages; before the first tick, the inputs so far.
+        """
+        report, self._fault = self._fault or self._report, None
         if report is None:
             settings = self.settings(self.parameter_values())
             report = TickReport(self.mapper.inputs.snapshot(self._now(), settings.inputs), None, 0.0, False, settings)
