@@ -13,6 +13,8 @@ from __future__ import annotations
 import random
 import re
 import signal
+import subprocess
+import sys
 import threading
 import time
 from dataclasses import dataclass, field
@@ -168,3 +170,13 @@ def test_every_signal_at_any_moment_stops_the_node_with_exit_code_0_and_no_trace
             if code != 0 or noise:
                 failures.append(f"{run.phase} {run.number.name} after {run.wait:.3f} s: exit {code}\n{output}")
     assert failures == []
+
+
+def test_the_entry_points_hold_the_signals_before_any_heavy_import() -> None:
+    """numpy starts threads when imported; a thread that does not hold SIGTERM would take it and die of it."""
+    probe = (
+        "import sys, physics_mapper.cli, physics_mapper.commands.node; "
+        "print(sorted(m for m in ('numpy', 'scipy', 'rclpy', 'pybullet', 'yaml') if m in sys.modules))"
+    )
+    completed = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, timeout=60, check=True)
+    assert completed.stdout.strip() == "[]"

@@ -1,19 +1,15 @@
 """The subcommands of ``physics-mapper``; each module has ``HELP``, ``add_arguments`` and ``run``.
 
 Modules import ROS and matplotlib inside ``run``, so that ``--help`` and the ROS-free commands
-start fast and work without rclpy.
+start fast and work without rclpy. This package itself imports nothing heavy: the node's entry
+point (:func:`physics_mapper.commands.node.main`) must run its first line before numpy starts
+threads (see ``hold_stop_signals``). Shared helpers are in :mod:`physics_mapper.commands.files`.
 """
 
 from __future__ import annotations
 
 import importlib
-import sys
-from pathlib import Path
 from types import ModuleType
-
-from physics_mapper.core.errors import InputError
-from physics_mapper.core.scene import Problem
-from physics_mapper.core.scene_files import load_problem
 
 #: Subcommand names, each a module of this package, in the order ``--help`` lists them.
 COMMANDS = (
@@ -36,26 +32,4 @@ def command_module(name: str) -> ModuleType:
     return importlib.import_module(f"physics_mapper.commands.{name}")
 
 
-def load_problem_file(path: Path, command: str) -> Problem:
-    """Load a problem file for subcommand ``command``; what loading changed goes to stderr as warnings."""
-    problem = load_problem(path)
-    for note in problem.notes:
-        print(f"physics-mapper {command}: warning: {note}", file=sys.stderr)
-    return problem
-
-
-def check_output_folder(path: Path) -> None:
-    """Refuse (InputError), before any work is done, an output file whose folder does not exist."""
-    if not path.parent.is_dir():
-        raise InputError(f"cannot write {path}: folder {path.parent} does not exist")
-
-
-def write_output(path: Path, text: str) -> None:
-    """Write an output file the user named; InputError (one line) if it cannot be written."""
-    try:
-        path.write_text(text, encoding="utf-8")
-    except OSError as error:
-        raise InputError(f"cannot write {path}: {error.strerror or error}") from None
-
-
-__all__ = ["COMMANDS", "check_output_folder", "command_module", "load_problem_file", "write_output"]
+__all__ = ["COMMANDS", "command_module"]

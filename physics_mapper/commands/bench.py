@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from physics_mapper.commands import load_problem_file
+from physics_mapper.commands.files import load_problem_file
 from physics_mapper.core.errors import InputError
 from physics_mapper.core.shipped import shipped_path
 

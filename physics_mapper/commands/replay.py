@@ -13,7 +13,7 @@ from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from physics_mapper.commands import check_output_folder, write_output
+from physics_mapper.commands.files import check_output_folder, write_output
 from physics_mapper.core.errors import EXIT_FAILURE, InputError
 
 if TYPE_CHECKING:

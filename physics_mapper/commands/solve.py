@@ -7,7 +7,7 @@ import json
 from dataclasses import replace
 from pathlib import Path
 
-from physics_mapper.commands import check_output_folder, load_problem_file, write_output
+from physics_mapper.commands.files import check_output_folder, load_problem_file, write_output
 from physics_mapper.core.errors import InputError
 from physics_mapper.core.physics import PhysicsChecker
 from physics_mapper.core.report import result_dict, result_summary, trace_entry_dict, trace_tree

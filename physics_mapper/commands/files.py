@@ -1,0 +1,32 @@
+"""What the subcommands share: a problem file loaded with its warnings, and the output files users name."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+from physics_mapper.core.errors import InputError
+from physics_mapper.core.scene import Problem
+from physics_mapper.core.scene_files import load_problem
+
+
+def load_problem_file(path: Path, command: str) -> Problem:
+    """Load a problem file for subcommand ``command``; what loading changed goes to stderr as warnings."""
+    problem = load_problem(path)
+    for note in problem.notes:
+        print(f"physics-mapper {command}: warning: {note}", file=sys.stderr)
+    return problem
+
+
+def check_output_folder(path: Path) -> None:
+    """Refuse (InputError), before any work is done, an output file whose folder does not exist."""
+    if not path.parent.is_dir():
+        raise InputError(f"cannot write {path}: folder {path.parent} does not exist")
+
+
+def write_output(path: Path, text: str) -> None:
+    """Write an output file the user named; InputError (one line) if it cannot be written."""
+    try:
+        path.write_text(text, encoding="utf-8")
+    except OSError as error:
+        raise InputError(f"cannot write {path}: {error.strerror or error}") from None
