@@ -91,6 +91,7 @@ def search_values(report: TickReport) -> list[tuple[str, str]]:
         ("deadline [s]", f"{report.settings.search.deadline:g}"),
         ("configurations per second", f"{stats.configurations_per_second:.1f}"),
         ("search", _search_state(report)),
+        ("exhausted", str(result is not None and stats.exhausted).lower()),
     ]
     values += [(f"input {o.name}", f"{o.level.name}: {o.message}") for o in report.snapshot.objects]
     return values

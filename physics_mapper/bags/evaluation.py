@@ -17,7 +17,15 @@ from typing import Any
 import numpy as np
 
 from physics_mapper.bags.snapshots import BagSnapshot
-from physics_mapper.bags.storage import POSE_ARRAY, Bag, BagWriter, decoding, pose_array_cdr, pose_array_from_cdr
+from physics_mapper.bags.storage import (
+    POSE_ARRAY,
+    Bag,
+    BagWriter,
+    decoding,
+    offered_qos,
+    pose_array_cdr,
+    pose_array_from_cdr,
+)
 from physics_mapper.core.geometry import Pose, is_same_pose
 from physics_mapper.core.hypotheses import RankedHypotheses
 from physics_mapper.core.physics import PhysicsChecker
@@ -25,7 +33,7 @@ from physics_mapper.core.report import code_text
 from physics_mapper.core.scene import Scene
 from physics_mapper.core.scoring import position_errors, rank_one_poses
 from physics_mapper.core.search import BranchAndBound, Code, SearchResult
-from physics_mapper.mapping.topics import RECORDED_CONFIGURATION_TOPIC, RECORDED_SETTLED_TOPIC
+from physics_mapper.mapping.topics import MAP_TOPIC_QOS, RECORDED_CONFIGURATION_TOPIC, RECORDED_SETTLED_TOPIC
 
 #: A published pose is a hypothesis whose position is this close (metres) and whose orientation q'
 #: has 1 - |q . q'| at most :data:`SAME_ORIENTATION` (an angle of 2.8e-6 rad). Not a tolerance on the
@@ -71,7 +79,9 @@ def search_offline(
 
 
 def write_results(writer: BagWriter, results: Sequence[SnapshotResult], frame_id: str) -> None:
-    """Record offline results on the node's output topics, at each snapshot's bag time."""
+    """Record offline results on the node's output topics at each snapshot's bag time, offered latched as the node's."""
+    for topic in (RECORDED_CONFIGURATION_TOPIC, RECORDED_SETTLED_TOPIC):
+        writer.add_topic(topic, POSE_ARRAY, [offered_qos(MAP_TOPIC_QOS)])
     for result in results:
         snapshot = result.snapshot
         if result.chosen is None or result.settled is None:

@@ -32,13 +32,16 @@ class BagSnapshot:
     """The hypotheses a node would search after a burst of the bag's messages.
 
     ``time_ns``: bag time of the burst's last message; ``stamp_ns``: newest header stamp among
-    the hypotheses used (the node's output stamp); ``ground_truth``: newest ``/ground_truth`` so far.
+    the hypotheses used (the node's output stamp); ``stamps_ns``: the header stamp of each
+    object's PoseArray in use, in scene order (what the node's diagnostics show as ``stamp [ns]``);
+    ``ground_truth``: newest ``/ground_truth`` so far.
     """
 
     time_ns: int
     stamp_ns: int
     hypotheses: tuple[RankedHypotheses, ...]
     ground_truth: tuple[Pose, ...] | None
+    stamps_ns: tuple[int, ...] = ()
 
 
 def _bursts(messages: Sequence[BagMessage]) -> Iterator[list[BagMessage]]:
@@ -114,5 +117,6 @@ def bag_snapshots(bag: Bag, scene: Scene, settings: InputSettings | None = None)
         hypotheses, stamp_ns = snapshot.hypotheses, snapshot.stamp_ns
         new = not snapshots or hypotheses != snapshots[-1].hypotheses
         if hypotheses is not None and stamp_ns is not None and new:
-            snapshots.append(BagSnapshot(burst[-1].time_ns, stamp_ns, hypotheses, truth))
+            stamps = tuple(o.stamp_ns for o in snapshot.objects if o.stamp_ns is not None)
+            snapshots.append(BagSnapshot(burst[-1].time_ns, stamp_ns, hypotheses, truth, stamps))
     return snapshots

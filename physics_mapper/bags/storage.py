@@ -11,7 +11,13 @@ this module read each other's bags. Topics (absolute names, as ``ros2 bag record
 Messages are kept as raw CDR bytes (what a publisher sends); :func:`pose_array_from_cdr` and
 :func:`weights_from_cdr` turn one into core values, the only conversion from bag messages here;
 :func:`decoding` names the bag, topic and time of a message that cannot be used. Reading is in
-memory, of every topic or only of the topics a caller needs. Time stamps are integer nanoseconds.
+memory (:func:`read_bag`), of every topic or only of the topics a caller needs, or streamed
+(:func:`stream_messages`, chunk by chunk, for a live replay of a bag of any size); :func:`bag_info`
+reads a bag's topics, counts and offered QoS without its messages. Time stamps are integer nanoseconds.
+
+Offered QoS: a topic is written with the QoS profiles its publishers offered (rosbag2's
+``offered_qos_profiles``), so that ``ros2 bag play`` gives a latched topic to late subscribers
+again; :func:`offered_qos` writes one of the node's :class:`~physics_mapper.mapping.topics.TopicQos`.
 
 MCAP files written here carry CRCs of every chunk, of the data section and of the summary
 (:mod:`physics_mapper.bags.mcap_storage`), and every CRC an MCAP file carries is checked before it
@@ -28,7 +34,16 @@ from types import MappingProxyType, TracebackType
 from typing import Any, Final, Literal
 
 import numpy as np
-from rosbags.interfaces import Connection
+from rosbags.interfaces import (
+    Connection,
+    ConnectionExtRosbag2,
+    Qos,
+    QosDurability,
+    QosHistory,
+    QosLiveliness,
+    QosReliability,
+    QosTime,
+)
 from rosbags.rosbag2 import Reader, StoragePlugin, Writer, WriterError
 from rosbags.typesys import Stores, get_typestore
 
@@ -36,7 +51,13 @@ from physics_mapper.bags.mcap_storage import ChecksummedMcapStorage, verify_chec
 from physics_mapper.core.geometry import Pose, Quaternion, Vector3, make_pose
 from physics_mapper.core.hypotheses import RankedHypotheses
 from physics_mapper.mapping.stamps import time_parts, to_nanoseconds
-from physics_mapper.mapping.topics import GROUND_TRUTH_TOPIC, recorded, recorded_poses_topic, recorded_weights_topic
+from physics_mapper.mapping.topics import (
+    GROUND_TRUTH_TOPIC,
+    TopicQos,
+    recorded,
+    recorded_poses_topic,
+    recorded_weights_topic,
+)
 
 Storage = Literal["mcap", "sqlite3"]
 _PLUGINS = {"mcap": StoragePlugin.MCAP, "sqlite3": StoragePlugin.SQLITE3}
@@ -59,8 +80,27 @@ _Layout = TYPESTORE.types["std_msgs/msg/MultiArrayLayout"]
 _Float64MultiArray = TYPESTORE.types[WEIGHTS]
 
 
+#: How rosbag2 writes an infinite (the default) deadline, lifespan or liveliness lease duration.
+INFINITE = QosTime(9_223_372_036, 854_775_807)
+
+
 class BagError(ValueError):
     """A bag cannot be used: unreadable, corrupt or truncated, or missing or mistyped topics."""
+
+
+def offered_qos(qos: TopicQos) -> Qos:
+    """One of the node's topic QoS (:mod:`physics_mapper.mapping.topics`) as rosbag2 records an offered profile."""
+    return Qos(
+        history=QosHistory.KEEP_LAST,
+        depth=qos.depth,
+        reliability=QosReliability.RELIABLE if qos.reliable else QosReliability.BEST_EFFORT,
+        durability=QosDurability.TRANSIENT_LOCAL if qos.transient_local else QosDurability.VOLATILE,
+        deadline=INFINITE,
+        lifespan=INFINITE,
+        liveliness=QosLiveliness.AUTOMATIC,
+        liveliness_lease_duration=INFINITE,
+        avoid_ros_namespace_conventions=False,
+    )
 
 
 @dataclass(frozen=True)
@@ -189,13 +229,20 @@ class BagWriter:
         if self._writer.storage is not None:
             self._writer.close()
 
+    def add_topic(self, topic: str, msgtype: str, offered: Sequence[Qos] = ()) -> None:
+        """Add a topic with the QoS profiles its publishers offered (rosbag2's ``offered_qos_profiles``)."""
+        if topic in self._connections:
+            raise BagError(f"topic {topic} is already in {self.path}")
+        self._connections[topic] = self._writer.add_connection(
+            topic, msgtype, typestore=TYPESTORE, offered_qos_profiles=offered
+        )
+
     def write(self, topic: str, msgtype: str, time_ns: int, raw: bytes) -> None:
-        """Append one raw CDR message received at ``time_ns``."""
-        connection = self._connections.get(topic)
-        if connection is None:
-            connection = self._writer.add_connection(topic, msgtype, typestore=TYPESTORE)
-            self._connections[topic] = connection
-        elif connection.msgtype != msgtype:
+        """Append one raw CDR message received at ``time_ns`` (a new topic is added without offered QoS)."""
+        if topic not in self._connections:
+            self.add_topic(topic, msgtype)
+        connection = self._connections[topic]
+        if connection.msgtype != msgtype:
             raise BagError(f"topic {topic} was written as {connection.msgtype}, not {msgtype}")
         self._writer.write(connection, time_ns, raw)
 
@@ -209,9 +256,36 @@ class BagWriter:
         self.write(recorded_weights_topic(object_name), WEIGHTS, time_ns + 1, weights_cdr(weights))
 
 
+@contextmanager
+def _reading(path: Path, verify: bool = True) -> Iterator[Reader]:
+    """An open reader of the bag at ``path`` whose MCAP checksums (if ``verify``) matched; BagError otherwise.
+
+    Any error while the reader is in use becomes a one-line BagError naming the bag.
+    """
+    if not path.exists():
+        raise BagError(f"{path}: no such bag")
+    try:
+        if verify:
+            for storage_file in sorted(path.glob("*.mcap")) if path.is_dir() else [path]:
+                if storage_file.suffix == ".mcap":
+                    verify_checksums(storage_file)
+        with Reader(path) as reader:
+            yield reader
+    except BagError:
+        raise
+    except Exception as error:
+        # A damaged file surfaces as whatever layer notices it first (a ChecksumError, ReaderError,
+        # apsw's CorruptError, struct.error, OverflowError, ...); the try holds only bag-reading calls.
+        raise _unreadable(path, error) from None
+
+
 def _unreadable(path: Path, error: Exception) -> BagError:
     """The error of a bag that cannot be read, on one line (YAML errors span several)."""
     return BagError(f"{path}: cannot read bag (corrupt or truncated?): {' '.join(str(error).split())}")
+
+
+def _wanted(reader: Reader, topics: Collection[str] | None) -> list[Connection]:
+    return [c for c in reader.connections if topics is None or recorded(c.topic) in topics]
 
 
 def read_bag(path: str | Path, topics: Collection[str] | None = None) -> Bag:
@@ -221,30 +295,62 @@ def read_bag(path: str | Path, topics: Collection[str] | None = None) -> Bag:
     if the bag is missing, corrupt or truncated, or an MCAP file's bytes fail a checksum it carries.
     """
     path = Path(path)
-    if not path.exists():
-        raise BagError(f"{path}: no such bag")
-    try:
-        for storage_file in sorted(path.glob("*.mcap")) if path.is_dir() else [path]:
-            if storage_file.suffix == ".mcap":
-                verify_checksums(storage_file)
-        with Reader(path) as reader:
-            types = {recorded(c.topic): c.msgtype for c in reader.connections}
-            wanted = [c for c in reader.connections if topics is None or recorded(c.topic) in topics]
-            # rosbags reads every connection when given none; no wanted connection means no message.
-            messages = (
-                [
-                    BagMessage(recorded(connection.topic), connection.msgtype, time_ns, bytes(raw))
-                    for connection, time_ns, raw in reader.messages(connections=wanted)
-                ]
-                if wanted
-                else []
-            )
-    except Exception as error:
-        # A damaged file surfaces as whatever layer notices it first (a ChecksumError, ReaderError,
-        # apsw's CorruptError, struct.error, OverflowError, ...); the try holds only bag-reading calls.
-        raise _unreadable(path, error) from None
+    with _reading(path) as reader:
+        types = {recorded(c.topic): c.msgtype for c in reader.connections}
+        wanted = _wanted(reader, topics)
+        # rosbags reads every connection when given none; no wanted connection means no message.
+        messages = (
+            [
+                BagMessage(recorded(connection.topic), connection.msgtype, time_ns, bytes(raw))
+                for connection, time_ns, raw in reader.messages(connections=wanted)
+            ]
+            if wanted
+            else []
+        )
     messages.sort(key=lambda m: m.time_ns)
     return Bag(path, types, tuple(messages))
+
+
+def stream_messages(path: str | Path, topics: Collection[str], *, verify: bool = True) -> Iterator[BagMessage]:
+    """The messages of ``topics`` in time order, read from the bag as they are asked for.
+
+    rosbags reads an MCAP bag chunk by chunk (and SQLite row by row), so memory does not grow with
+    the bag. ``verify`` checks the MCAP checksums first (a pass over the files); pass False for a
+    bag :func:`read_bag` or :func:`bag_info` has just checked. Raises BagError as :func:`read_bag`.
+    """
+    path = Path(path)
+    with _reading(path, verify) as reader:
+        wanted = _wanted(reader, topics)
+        if not wanted:
+            return
+        for connection, time_ns, raw in reader.messages(connections=wanted):
+            yield BagMessage(recorded(connection.topic), connection.msgtype, time_ns, bytes(raw))
+
+
+@dataclass(frozen=True)
+class BagInfo:
+    """A bag without its messages: each topic's type, message count and offered QoS profiles (absolute names)."""
+
+    path: Path
+    topics: dict[str, str]
+    counts: dict[str, int]
+    offered_qos: dict[str, tuple[Qos, ...]]
+
+
+def bag_info(path: str | Path, *, verify: bool = True) -> BagInfo:
+    """Read a bag's topics, message counts and offered QoS (checksums checked if ``verify``); BagError if unusable."""
+    path = Path(path)
+    topics: dict[str, str] = {}
+    counts: dict[str, int] = {}
+    offered: dict[str, tuple[Qos, ...]] = {}
+    with _reading(path, verify) as reader:
+        for connection in reader.connections:
+            topic = recorded(connection.topic)
+            topics[topic] = connection.msgtype
+            counts[topic] = counts.get(topic, 0) + connection.msgcount
+            if isinstance(connection.ext, ConnectionExtRosbag2):
+                offered[topic] = (*offered.get(topic, ()), *connection.ext.offered_qos_profiles)
+    return BagInfo(path, topics, counts, offered)
 
 
 def message_counts(path: str | Path) -> dict[str, int]:
@@ -252,17 +358,7 @@ def message_counts(path: str | Path) -> dict[str, int]:
 
     Raises BagError if the bag is missing or its metadata or storage cannot be opened.
     """
-    path = Path(path)
-    if not path.exists():
-        raise BagError(f"{path}: no such bag")
-    try:
-        with Reader(path) as reader:
-            counts: dict[str, int] = {}
-            for connection in reader.connections:
-                counts[recorded(connection.topic)] = counts.get(recorded(connection.topic), 0) + connection.msgcount
-    except Exception as error:  # as in read_bag: whatever layer notices the damage first
-        raise _unreadable(path, error) from None
-    return counts
+    return bag_info(path, verify=False).counts
 
 
 @contextmanager

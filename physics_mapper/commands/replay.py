@@ -41,7 +41,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--start-node", action="store_true", help="start the node on --scene for the replay")
     parser.add_argument("--namespace", default="/", help="ROS namespace of the node (default: /)")
     parser.add_argument(
-        "--wait", type=float, default=15.0, metavar="SECONDS", help="wait this long for the node (default: 15)"
+        "--wait",
+        type=float,
+        default=15.0,
+        metavar="SECONDS",
+        help="wait this long for the node, and with --exhaustive for each of its searches (default: 15)",
     )
     parser.add_argument(
         "--tail",
@@ -54,7 +58,22 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--deadline", type=float, metavar="SECONDS", help="offline: override the scene's search.deadline"
     )
     parser.add_argument(
-        "--exhaustive", action="store_true", help="offline: visit every reachable node, whatever the deadline"
+        "--exhaustive",
+        action="store_true",
+        help="results independent of the machine's speed: offline, visit every reachable node whatever the deadline; "
+        "live, play on after each snapshot only once the node reports an exhausted search on it",
+    )
+    parser.add_argument(
+        "--topics",
+        nargs="+",
+        default=[],
+        metavar="TOPIC",
+        help="live: also play these topics of the bag (default: only the node's /hypotheses/<object>[/weights])",
+    )
+    parser.add_argument(
+        "--all-topics",
+        action="store_true",
+        help="live: play every topic of the bag, but /rosout, /parameter_events and /clock unless named in --topics",
     )
     parser.add_argument("--json", type=Path, metavar="FILE", help="write each snapshot's code and errors as JSON")
 
@@ -73,17 +92,19 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(f"--rate must be positive, got {args.rate}")
     if args.offline and args.start_node:
         raise InputError("--start-node is for a live replay; --offline runs no node")
-    if not args.offline and (args.deadline is not None or args.exhaustive):
-        raise InputError("--deadline and --exhaustive are for --offline; a live node has its own deadline parameter")
+    if not args.offline and args.deadline is not None:
+        raise InputError("--deadline is for --offline; a live node has its own deadline parameter")
+    if args.offline and (args.topics or args.all_topics):
+        raise InputError("--topics and --all-topics are for a live replay; --offline reads only the scene's topics")
     if args.json is not None:
         check_output_folder(args.json)
     scene = load_scene(args.scene)
     try:
-        # Offline needs only the scene's topics; live plays every topic of the bag.
-        bag = read_bag(args.bag, input_topics(scene) if args.offline else None)
+        # Only the scene's topics are read into memory; a live replay streams what it plays.
+        bag = read_bag(args.bag, input_topics(scene))
         check_hypothesis_topics(bag, scene.object_names)
         snapshots = bag_snapshots(bag, scene)
-        _progress(f"{args.bag}: {len(bag.messages)} messages, {len(snapshots)} snapshots of hypotheses")
+        _progress(f"{args.bag}: {len(bag.messages)} messages of the scene, {len(snapshots)} snapshots of hypotheses")
         if not snapshots:
             _progress(f"warning: {no_snapshot_reason(scene)}")
         results = _offline(args, scene, snapshots) if args.offline else _live(args, scene, bag, snapshots)
@@ -133,11 +154,12 @@ def _live(
     from rclpy.validate_namespace import validate_namespace
 
     from physics_mapper.bags.evaluation import recorded_results
-    from physics_mapper.bags.storage import BagWriter, read_bag
+    from physics_mapper.bags.storage import BagWriter, bag_info, read_bag
     from physics_mapper.mapping.topics import (
         RECORDED_CONFIGURATION_TOPIC,
         RECORDED_SETTLED_TOPIC,
         recorded_poses_topic,
+        recorded_weights_topic,
     )
     from physics_mapper.ros.bag_player import Playback, ReplayError, play_and_record
     from physics_mapper.ros.child_process import start_node, stop_node
@@ -147,8 +169,18 @@ def _live(
     except InvalidNamespaceException as error:
         raise InputError(f"--namespace: {' '.join(str(error).split()).rstrip(' ^')}") from None
     output = args.output or Path(f"{args.bag.resolve().name}_replay_{time.strftime('%Y_%m_%d-%H_%M_%S')}")
-    playback = Playback(rate=args.rate, wait=args.wait, tail=args.tail, namespace=args.namespace)
-    inputs = [recorded_poses_topic(name) for name in scene.object_names]
+    playback = Playback(
+        rate=args.rate,
+        wait=args.wait,
+        tail=args.tail,
+        namespace=args.namespace,
+        topics=tuple("/" + topic.lstrip("/") for topic in args.topics),
+        all_topics=args.all_topics,
+        exhaustive=args.exhaustive,
+    )
+    names = scene.object_names
+    inputs = [topic for name in names for topic in (recorded_poses_topic(name), recorded_weights_topic(name))]
+    info = bag_info(bag.path, verify=False)  # read_bag has checked it
     with ExitStack() as stack:
         writer = stack.enter_context(BagWriter(output, args.storage))
         log = stack.enter_context(tempfile.TemporaryFile(mode="w+"))
@@ -162,7 +194,7 @@ def _live(
             return process is None or process.poll() is None
 
         try:
-            counts = play_and_record(bag, inputs, writer, playback, _progress, alive)
+            counts = play_and_record(info, inputs, writer, playback, _progress, alive, snapshots, names)
         except ReplayError as error:
             print(f"physics-mapper replay: error: {error}", file=sys.stderr)
             if not alive():

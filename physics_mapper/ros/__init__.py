@@ -6,10 +6,13 @@ The only room of ``physics_mapper`` that imports rclpy or a message package (wit
 from __future__ import annotations
 
 from physics_mapper.ros.bag_player import (
+    NEVER_BY_DEFAULT,
+    RECORDER_QOS,
     Playback,
     ReplayError,
     message_class,
     play_and_record,
+    played_topics,
 )
 from physics_mapper.ros.child_process import (
     node_command,
@@ -32,8 +35,11 @@ from physics_mapper.ros.qos import (
     DIAGNOSTICS_QOS,
     INPUT_QOS,
     MAP_QOS,
+    PLAYBACK_DEPTH,
     input_qos,
+    playback_qos,
     qos_profile,
+    recorded_qos,
 )
 from physics_mapper.ros.spinning import (
     STOP_POLL,
@@ -48,7 +54,10 @@ __all__ = [
     "DIAGNOSTICS_QOS",
     "INPUT_QOS",
     "MAP_QOS",
+    "NEVER_BY_DEFAULT",
     "PARAMETERS",
+    "PLAYBACK_DEPTH",
+    "RECORDER_QOS",
     "STOP_POLL",
     "STOP_SIGNALS",
     "HypothesisPublisher",
@@ -63,7 +72,10 @@ __all__ = [
     "message_class",
     "node_command",
     "play_and_record",
+    "playback_qos",
+    "played_topics",
     "qos_profile",
+    "recorded_qos",
     "resolve_scene_path",
     "shutdown_ros",
     "spin_for",
