@@ -390,3 +390,22 @@ def test_a_refused_pose_array_and_refused_weights_are_both_reported() -> None:
     assert status.message == "PoseArray refused: empty PoseArray; weights refused: empty weights array"
     details = dict(status.details)
     assert (details["poses refused"], details["weights refused"]) == ("1", "1")
+
+
+def test_messages_the_middleware_lost_are_counted_per_kind_and_named_while_recent() -> None:
+    """The node's message-lost events (best-effort inputs drop large arrays): counted, and a warning for max_age."""
+    inputs = ObjectInputs("cube")
+    inputs.add_poses(poses([0.1], received=1.0))
+    inputs.add_weights(check_weights([1.0], received=1.0))
+    inputs.add_lost("poses", 3, now=2.0)
+    inputs.add_lost("poses", 1, now=4.0)
+    inputs.add_lost("weights", 2, now=4.0)
+    status = inputs.status(5.0, SETTINGS)
+    assert status.level == Level.WARN and status.hypotheses is not None  # what arrived stays in use
+    assert "messages lost in the middleware (4 poses, 2 weights in total, the last 1.0 s ago)" in status.message
+    details = dict(status.details)
+    assert (details["poses lost"], details["weights lost"]) == ("4", "2")
+    inputs.add_poses(poses([0.1], received=14.0))
+    inputs.add_weights(check_weights([1.0], received=14.0))
+    later = inputs.status(4.0 + SETTINGS.max_age + 0.1, SETTINGS)  # the last loss is older than max_age
+    assert later.level == Level.OK and dict(later.details)["poses lost"] == "4"  # still counted

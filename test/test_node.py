@@ -23,6 +23,7 @@ import yaml
 from conftest import PROBLEMS, REPO, SCENES
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import PoseArray, PoseStamped
+from rclpy.qos import ReliabilityPolicy
 from ros_helpers import (
     PHYSICS_MAPPER,
     SPEC_DIAGNOSTIC_KEYS,
@@ -216,6 +217,12 @@ def test_diagnostics_hold_the_spec_keys(fed_pyramid: Running) -> None:
     assert {f"input {name}" for name in OBJECTS} <= set(found)
     assert int(found["nodes visited"]) > 0
     assert found["deadline [s]"] == "0.2"
+    # How the ticks kept time since the previous diagnostics (they come at diagnostics_period).
+    tick_keys = {"ticks", "ticks since the last diagnostics", "search overruns", "late ticks"}
+    assert tick_keys | {"max search time [s]", "max tick time [s]"} <= set(found)
+    assert int(found["ticks"]) >= int(found["ticks since the last diagnostics"])
+    top = values(object_status(diagnostics, "cube_top"))
+    assert int(top["stamp [ns]"]) > 0 and top["poses lost"] == "0"
     assert [object_status(diagnostics, n).name for n in OBJECTS] == [f"physics_mapper: hypotheses/{n}" for n in OBJECTS]
 
 
@@ -498,11 +505,12 @@ def test_params_file_configures_the_node_and_unknown_keys_are_named(tmp_path: Pa
     params_file.write_text(yaml.safe_dump(shipped))
     log = (tmp_path / "node.log").open("w")
     command = [str(PHYSICS_MAPPER), "node", "--ros-args", "--params-file", str(params_file)]
-    command += ["-r", "__ns:=/params", "-p", "settle_tme:=1.0"]
+    command += ["-r", "__ns:=/params", "-p", "settle_tme:=1.0", "-p", "input_reliability:=reliable"]
     process = subprocess.Popen(command, stdout=log, stderr=subprocess.STDOUT, text=True, cwd=tmp_path)
     client = RosClient("/params")
     try:
         diagnostics = client.next_diagnostics(lambda d: True, timeout=30.0)
+        subscriptions = client.node.get_subscriptions_info_by_topic("/params/hypotheses/cube_top")
     finally:
         client.close()
         process.send_signal(signal.SIGINT)
@@ -515,6 +523,8 @@ def test_params_file_configures_the_node_and_unknown_keys_are_named(tmp_path: Pa
     output = (tmp_path / "node.log").read_text()
     assert code == 0, output
     assert "unknown parameters ignored (from --params-file or -p): deadlne, rate, settle_tme;" in output
+    # input_reliability: reliable (no loss from a reliable publisher); the test client publishes reliably.
+    assert [s.qos_profile.reliability for s in subscriptions] == [ReliabilityPolicy.RELIABLE]
 
 
 @pytest.mark.parametrize(
@@ -525,6 +535,10 @@ def test_params_file_configures_the_node_and_unknown_keys_are_named(tmp_path: Pa
         (["-p", f"scene_file:={PYRAMID_SCENE}", "-p", "deadline:=0.6"], "deadline 0.6 s must be shorter than"),
         (["-p", f"scene_file:={PYRAMID_SCENE}", "-p", "deadline:=-1.0"], "deadline"),
         (["-p", f"scene_file:={PYRAMID_SCENE}", "-p", "rate_hz:=fast"], "rate_hz"),
+        (
+            ["-p", f"scene_file:={PYRAMID_SCENE}", "-p", "input_reliability:=sometimes"],
+            "input_reliability must be one of best_effort, reliable, got 'sometimes'",
+        ),
         (["-p", "scene_file:=package://no_such_package/x.yaml"], "package 'no_such_package' is not in the ament index"),
         (["-p", "scene_file"], "Couldn't parse parameter override rule: '-p scene_file'"),
         (["--params-file", "no/such/params.yaml"], "Couldn't parse params file: '--params-file no/such/params.yaml'"),
