@@ -11,8 +11,7 @@ import statistics
 from collections.abc import Sequence
 from pathlib import Path
 
-from physics_mapper.core.geometry import Pose
-from physics_mapper.core.hypotheses import Hypothesis, RankedHypotheses
+from physics_mapper.bench.problems import floating_problem
 from physics_mapper.core.scene import Problem
 from physics_mapper.core.scene_files import load_scene
 
@@ -35,15 +34,7 @@ def isolate_ros() -> None:
 
 def busy_problem(per_object: int = 60) -> Problem:
     """The pyramid's cubes floating apart, ``per_object`` hypotheses each: every search runs to its deadline."""
-    scene = load_scene(PYRAMID_SCENE)
-    columns = {"cube_left": -0.4, "cube_right": 0.4, "cube_top": 0.0}
-    hypotheses = tuple(
-        RankedHypotheses.from_weighted(
-            [Hypothesis(Pose((columns[name], 0.0, 0.3 + 0.01 * i)), 1.0 / (i + 1)) for i in range(per_object)]
-        )
-        for name in scene.object_names
-    )
-    return Problem(scene, hypotheses)
+    return floating_problem(load_scene(PYRAMID_SCENE), per_object)
 
 
 def memory_mb(pid: int, field: str = "VmRSS") -> float:

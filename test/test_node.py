@@ -40,8 +40,8 @@ from visualization_msgs.msg import Marker
 
 from msg_adapters.hypotheses import hypotheses_msgs, pose_array_msg
 from msg_adapters.results import SHAPE_NAMESPACE
+from physics_mapper.bench.problems import floating_problem
 from physics_mapper.core.geometry import Pose
-from physics_mapper.core.hypotheses import Hypothesis, RankedHypotheses
 from physics_mapper.core.scene import Problem
 from physics_mapper.core.scene_files import load_problem, load_scene
 from physics_mapper.mapping.topics import object_pose_topic, object_settled_pose_topic
@@ -398,15 +398,7 @@ BUSY_HYPOTHESES = 60  # per object: 60^3 configurations, each simulated: never f
 
 def busy_problem() -> Problem:
     """Every hypothesis floats (no collision, always unstable), so every node is simulated."""
-    scene = load_scene(PYRAMID_SCENE)
-    columns = {"cube_left": -0.4, "cube_right": 0.4, "cube_top": 0.0}
-    hypotheses = tuple(
-        RankedHypotheses.from_weighted(
-            [Hypothesis(Pose((columns[name], 0.0, 0.3 + 0.01 * i)), 1.0 / (i + 1)) for i in range(BUSY_HYPOTHESES)]
-        )
-        for name in scene.object_names
-    )
-    return Problem(scene, hypotheses)
+    return floating_problem(load_scene(PYRAMID_SCENE), BUSY_HYPOTHESES)
 
 
 def start_searching(client: RosClient) -> None:

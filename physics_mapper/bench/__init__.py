@@ -8,10 +8,16 @@ from physics_mapper.bench.physics_costs import (
     measure,
     median_seconds,
 )
+from physics_mapper.bench.problems import (
+    COLUMN_SPACING,
+    floating_problem,
+)
 
 __all__ = [
+    "COLUMN_SPACING",
     "PhysicsCosts",
     "costs_text",
+    "floating_problem",
     "measure",
     "median_seconds",
 ]

@@ -1,0 +1,29 @@
+"""Problems made to load the search (ROS-free), for the benchmarks and the tests that need a search that never ends."""
+
+from __future__ import annotations
+
+from physics_mapper.core.geometry import Pose
+from physics_mapper.core.hypotheses import Hypothesis, RankedHypotheses
+from physics_mapper.core.scene import Problem, Scene
+
+#: Metres between two objects' columns of hypotheses: far enough apart that no two ever touch.
+COLUMN_SPACING = 0.4
+
+
+def floating_problem(scene: Scene, per_object: int) -> Problem:
+    """``per_object`` hypotheses per object, all floating 0.3 m and more above the origin, in columns apart.
+
+    No configuration collides and none is stable, so every one is simulated in full; with
+    ``probability_threshold: 0``, a search of ``per_object ** objects`` configurations (60 per
+    object: 216,000 for three) runs to every deadline. Weights fall as 1/rank.
+    """
+    hypotheses = tuple(
+        RankedHypotheses.from_weighted(
+            [
+                Hypothesis(Pose((COLUMN_SPACING * (column - 1), 0.0, 0.3 + 0.01 * i)), 1.0 / (i + 1))
+                for i in range(per_object)
+            ]
+        )
+        for column in range(len(scene.objects))
+    )
+    return Problem(scene, hypotheses)
