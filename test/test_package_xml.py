@@ -22,7 +22,8 @@ from conftest import REPO
 #: Top-level module -> the package.xml key that provides it. Keys are those of rosdistro's
 #: rosdep/python.yaml (checked at ros/rosdistro commit 8468e88, August 2026): libraries packaged by
 #: the distributions are ``python3-<name>``, pip-only ones ``python3-<name>-pip``. None: rosdistro
-#: has no key (coacd, ray), so the library is pinned in requirements.txt and installed with pip.
+#: has no key (coacd, ray), so the library is pinned in requirements.txt (or an extra's requirements-<extra>.txt)
+#: and installed with pip.
 #: ROS packages (rclpy, ament_index_python, *_msgs, *_interfaces) are their own keys.
 PROVIDERS: dict[str, str | None] = {
     "numpy": "python3-numpy",
@@ -127,10 +128,12 @@ def test_every_exec_depend_is_imported() -> None:
 
 
 def test_libraries_without_a_rosdep_key_are_pinned_in_requirements() -> None:
+    """In requirements.txt, or an optional extra's requirements-<extra>.txt (Ray)."""
     pinned = {
         match.group(1).lower()
-        for line in (REPO / "requirements.txt").read_text().splitlines()
-        if (match := re.match(r"([A-Za-z0-9_.-]+)", line.strip()))
+        for path in REPO.glob("requirements*.txt")
+        for line in path.read_text().splitlines()
+        if (match := re.match(r"([A-Za-z0-9_.-]+)==", line.strip()))
     }
     found = third_party_imports(installed_sources(), set(INSTALLED))
     unkeyed = [module for module in found if not is_ros_package(module) and PROVIDERS.get(module, "") is None]

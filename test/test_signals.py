@@ -180,3 +180,11 @@ def test_the_entry_points_hold_the_signals_before_any_heavy_import() -> None:
     )
     completed = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, timeout=60, check=True)
     assert completed.stdout.strip() == "[]"
+
+
+def test_the_cli_s_interrupted_exit_code_is_the_core_s() -> None:
+    """Kept apart so that the entry point imports no numpy before the signals are set up."""
+    from physics_mapper import cli
+    from physics_mapper.core.errors import EXIT_INTERRUPTED
+
+    assert cli.EXIT_INTERRUPTED == EXIT_INTERRUPTED
