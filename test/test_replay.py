@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 import pytest
 from conftest import REPO, SCENES
+from rclpy.qos import DurabilityPolicy, ReliabilityPolicy
 from ros_helpers import NodeProcess, run_cli
 from rosbags.interfaces import QosDurability, QosReliability
 from rosbags.rosbag2 import Reader, StoragePlugin, Writer
@@ -508,3 +509,15 @@ def test_a_damaged_bag_is_reported_by_the_stream_after_the_messages_before_it(tm
     mcap.write_bytes(mcap.read_bytes()[:-200])  # truncated: no summary, no footer
     with pytest.raises(storage.BagError, match="cannot read bag"):
         list(ReadAhead(storage.stream_messages(path, {"/camera/image_raw"})))
+
+
+def test_a_topic_is_replayed_with_the_reliability_and_durability_its_publishers_offered() -> None:
+    """As ``ros2 bag play``: recorded profiles that agree are honoured; mixed ones or none: reliable, volatile."""
+    latched = storage.offered_qos(topics.MAP_TOPIC_QOS)
+    sensor = storage.offered_qos(topics.input_topic_qos("best_effort"))
+    profile = playback_qos([sensor, sensor])
+    assert (profile.reliability, profile.durability) == (ReliabilityPolicy.BEST_EFFORT, DurabilityPolicy.VOLATILE)
+    assert playback_qos([latched]) == MAP_QOS
+    for offers in ([], [latched, sensor]):
+        profile = playback_qos(offers)
+        assert (profile.reliability, profile.durability) == (ReliabilityPolicy.RELIABLE, DurabilityPolicy.VOLATILE)
