@@ -53,10 +53,10 @@ from msg_adapters.diagnostics import diagnostics_msg
 from msg_adapters.hypotheses import received_pose_array, received_weights
 from msg_adapters.results import configuration_msgs, markers_msg, object_pose_msgs, static_markers_msg
 from physics_mapper.core.errors import EXIT_BAD_INPUT, InputError
+from physics_mapper.core.resources import ResourceError, resolve_resource
 from physics_mapper.core.scene import FALLBACKS, SEARCH_LIMITS, Fallback, SearchParams
 from physics_mapper.core.scene_files import SceneError, load_scene
 from physics_mapper.core.search import SearchResult
-from physics_mapper.core.shipped import PACKAGE, shipped_path
 from physics_mapper.mapping.inputs import InputSettings, MessageKind
 from physics_mapper.mapping.mapper import DEFAULT_RATE_HZ, Mapper, MapperSettings, TickReport, mapper_settings_problem
 from physics_mapper.mapping.stamps import NANOSECONDS_PER_SECOND
@@ -77,7 +77,6 @@ from physics_mapper.mapping.topics import (
 from physics_mapper.ros.qos import DIAGNOSTICS_QOS, MAP_QOS, input_qos
 from physics_mapper.ros.spinning import STOP_POLL, SignalStop, shutdown_ros
 
-PACKAGE_URL = "package://"
 #: Seconds between two /diagnostics messages unless ``diagnostics_period`` says otherwise (the ~1 Hz convention).
 DEFAULT_DIAGNOSTICS_PERIOD = 1.0
 
@@ -146,24 +145,17 @@ def _descriptor(spec: ParameterSpec) -> ParameterDescriptor:
 
 
 def resolve_scene_path(text: str) -> Path:
-    """A scene file path; ``package://<pkg>/<path>`` is taken inside the package's share directory.
+    """A scene file path, or a ``package://<pkg>/<path>`` URL (:mod:`physics_mapper.core.resources`).
 
     Without an ament index (pip wheels only), ``package://physics_mapper/`` is this installation's
     shipped files (:func:`~physics_mapper.core.shipped.share_directory`: the same ``config/`` tree).
     """
     if not text:
         raise InputError("parameter scene_file is required, e.g. --ros-args -p scene_file:=config/scenes/pyramid.yaml")
-    if not text.startswith(PACKAGE_URL):
-        return Path(text)
-    package, _, relative = text[len(PACKAGE_URL) :].partition("/")
-    from ament_index_python.packages import PackageNotFoundError, get_package_share_directory
-
     try:
-        return Path(get_package_share_directory(package)) / relative
-    except (PackageNotFoundError, OSError):  # OSError: no AMENT_PREFIX_PATH at all
-        if package == PACKAGE:
-            return shipped_path(relative)
-        raise InputError(f"scene_file {text}: package {package!r} is not in the ament index") from None
+        return resolve_resource(text, None)
+    except ResourceError as error:
+        raise InputError(f"scene_file {error}") from None
 
 
 def deadline_first(current_deadline: float, parameters: Sequence[Parameter]) -> list[Parameter]:
