@@ -13,6 +13,7 @@ import argparse
 import statistics
 from pathlib import Path
 
+from physics_mapper.bench.problems import COLUMN_SPACING
 from physics_mapper.core.geometry import Pose
 from physics_mapper.core.scene import SearchParams
 from physics_mapper.core.scene_files import load_scene
@@ -26,7 +27,7 @@ DEADLINES = (0.02, 0.05, 0.1, 0.2)  # seconds
 def feed_floating_cubes(mapper: Mapper, per_object: int) -> None:
     """``per_object`` hypotheses per cube, all floating apart: every configuration is simulated in full."""
     for column, name in enumerate(mapper.scene.object_names):
-        raw = [((0.4 * column, 0.0, 0.3 + 0.01 * i), Pose((0, 0, 0)).orientation) for i in range(per_object)]
+        raw = [((COLUMN_SPACING * column, 0.0, 0.3 + 0.01 * i), Pose((0, 0, 0)).orientation) for i in range(per_object)]
         scene = mapper.scene
         poses = check_poses(
             raw,
@@ -48,7 +49,7 @@ def overruns_ms(deadline: float, ticks: int, per_object: int) -> list[float]:
         samples = []
         for _ in range(ticks):
             report = mapper.tick(0.0, settings)
-            assert report.result is not None and not report.result.stats.exhausted, (
+            assert report.result is not None and not report.result.stats.finished, (
                 "problem finished: raise --hypotheses"
             )
             samples.append((report.search_time - deadline) * 1000.0)

@@ -6,7 +6,7 @@ machine and the replay speed. Per ``--rate``, the bag is replayed live into a no
 it (default parameters: 2 Hz, deadline 0.2 s), and compared with the offline ``--exhaustive``
 replay: snapshots with a configuration, codes equal to the offline ones, and the mean total
 position error of C111, the chosen and the settled poses. The last row is the live
-``--exhaustive`` replay, which waits for the node's exhausted search on every snapshot. Run:
+``--exhaustive`` replay, which waits for the node's finished search on every snapshot. Run:
 
     .venv/bin/python benchmarks/live_replay.py [--rates 1 2 4 8]
 """

@@ -18,7 +18,7 @@ from std_msgs.msg import Header
 from msg_adapters.hypotheses import stamp_from_nanoseconds
 from physics_mapper.core.limits import MAX_DIAGNOSTIC_TEXT, clipped
 from physics_mapper.core.report import code_text, refinement_text
-from physics_mapper.core.search import SearchResult, SearchStats
+from physics_mapper.core.search import GroupResult, SearchEnd, SearchResult, SearchStats
 from physics_mapper.mapping.inputs import Level, ObjectStatus
 from physics_mapper.mapping.mapper import TickReport
 from physics_mapper.mapping.tick_statistics import TickPeriod
@@ -30,17 +30,50 @@ def _number(value: float | None) -> str:
     return "" if value is None else f"{value:.6g}"
 
 
+#: How a search (or a group's) ended, for people; None: nodes are still queued.
+_ENDINGS: dict[SearchEnd | None, str] = {
+    "exhausted": "exhausted (every node visited)",
+    "bounded": "bounded (the queue emptied; nodes below the bound were not expanded)",
+    "truncated": "truncated (the queue emptied after the queue limit dropped nodes)",
+    None: "stopped at the deadline",
+}
+
+
 def _search_state(report: TickReport) -> str:
     result = report.result
     if report.engine_fault is not None:
         return "physics engine failed"
     if result is None:
         return "waiting for inputs"
-    stats = result.stats
-    state = "exhausted (every node visited)" if stats.exhausted else "stopped at the deadline"
+    state = _ENDINGS[result.stats.end]
     if report.settling_in_progress is not None:
-        state += f", settling {code_text(report.settling_in_progress)} continues next tick"
-    return f"{'resumed' if report.resumed else 'new'}, {state}"
+        group = "" if report.settling_group is None else f" of group {report.settling_group}"
+        state += f", settling {code_text(report.settling_in_progress)}{group} continues next tick"
+    kept = sum(group.kept for group in result.groups)
+    if report.resumed:
+        start = "resumed"
+    elif kept:
+        start = f"partly resumed ({kept} of {len(result.groups)} groups kept)"
+    else:
+        start = "new"
+    return f"{start}, {state}"
+
+
+def _group_key(group: GroupResult) -> str:
+    return "group" if group.id is None else f"group {group.id}"
+
+
+def _group_state(group: GroupResult, names: tuple[str, ...]) -> str:
+    """``<objects>: <best so far>, <how its search stands>, <visited>, kept|new``."""
+    if group.valid:
+        best = f"solved {code_text(group.code)} (J={group.jitter:.4g})"
+    elif group.code is not None:
+        best = f"no valid configuration, fallback {code_text(group.code)}"
+    else:
+        best = "no valid configuration"
+    progress = "searching" if group.end is None else _ENDINGS[group.end].split(" (")[0]
+    objects = ", ".join(names[i] for i in group.objects)
+    return f"{objects}: {best}, {progress}, {group.visited} visited, {'kept' if group.kept else 'new'}"
 
 
 def _search_level_and_message(report: TickReport) -> tuple[Level, str]:
@@ -58,7 +91,7 @@ def _search_level_and_message(report: TickReport) -> tuple[Level, str]:
         return Level.WARN, f"no valid configuration; fallback refine: {refined}, J={result.jitter:.4g}"
     if result.code is not None:
         return Level.WARN, f"no valid configuration; fallback settled {code_text(result.code)}"
-    ending = "" if result.stats.exhausted else " yet"
+    ending = "" if result.stats.finished else " yet"
     fallback = report.settings.search.fallback
     if fallback == "settled":
         why = "fallback: settled, but no collision-free configuration to settle"
@@ -66,7 +99,9 @@ def _search_level_and_message(report: TickReport) -> tuple[Level, str]:
         why = "fallback: refine, its map is not ready yet"
     else:
         why = "fallback: none"
-    return Level.WARN, f"no valid configuration found{ending} ({why}; nothing published)"
+    groups = result.groups
+    solved = f"; {sum(g.valid for g in groups)} of {len(groups)} groups solved" if len(groups) > 1 else ""
+    return Level.WARN, f"no valid configuration found{ending} ({why}{solved}; nothing published)"
 
 
 def search_values(report: TickReport) -> list[tuple[str, str]]:
@@ -83,6 +118,7 @@ def search_values(report: TickReport) -> list[tuple[str, str]]:
         ("nodes visited", str(stats.visited)),
         ("nodes expanded", str(stats.expanded)),
         ("nodes bounded", str(stats.bounded)),
+        ("nodes queued", str(stats.queued)),
         ("rejected by collision", str(stats.collisions)),
         ("rejected by stability", str(stats.unstable)),
         ("valid configurations", str(stats.valid)),
@@ -91,8 +127,18 @@ def search_values(report: TickReport) -> list[tuple[str, str]]:
         ("deadline [s]", f"{report.settings.search.deadline:g}"),
         ("configurations per second", f"{stats.configurations_per_second:.1f}"),
         ("search", _search_state(report)),
+        ("finished", str(result is not None and stats.finished).lower()),
         ("exhausted", str(result is not None and stats.exhausted).lower()),
     ]
+    if result is not None:
+        groups = result.groups
+        values += [
+            ("groups", str(len(groups))),
+            ("groups solved", str(sum(group.valid for group in groups))),
+            ("groups kept", str(sum(group.kept for group in groups))),
+        ]
+        names = tuple(o.name for o in report.snapshot.objects)
+        values += [(_group_key(group), _group_state(group, names)) for group in groups]
     values += [(f"input {o.name}", f"{o.level.name}: {o.message}") for o in report.snapshot.objects]
     return values
 

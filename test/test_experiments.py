@@ -84,7 +84,7 @@ def test_fig4_tree_is_visited_in_non_increasing_probability_like_the_papers(repo
         visited.add(tuple(entry["code"]))
     assert len(visited) == len(trace) == data["visited"]
     assert data["collisions"] + data["unstable"] + data["valid"] == data["visited"]
-    assert data["exhausted"] is True
+    assert data["queue_emptied"] is True
     assert all(entry["bounded"] == (entry["probability"] < data["probability_threshold"]) for entry in trace)
     valid = [entry for entry in trace if entry["outcome"] == "valid"]
     best = min(valid, key=lambda entry: entry["jitter"])
@@ -130,7 +130,7 @@ def check_comparison(part: dict[str, Any], overall_mean_cm: dict[str, float]) ->
 def check_tracking_counts(data: dict[str, Any], sigma_rotation_degrees: float) -> None:
     searches = RUNS * ITERATIONS
     assert data["runs"] == RUNS and data["particles"] == PARTICLES and data["iterations"] == ITERATIONS
-    assert data["searches"] == data["searches_exhausted"] == searches
+    assert data["searches"] == data["searches_finished"] == searches
     assert sum(data["root_outcomes"].values()) == searches
     assert math.isclose(data["sigma_rotation_rad"], math.radians(sigma_rotation_degrees))
     assert math.isclose(data["sigma_rotation_deg"], sigma_rotation_degrees)

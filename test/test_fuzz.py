@@ -277,7 +277,8 @@ def test_a_result_is_valid_only_if_both_rules_hold_inside_the_workspace(
     assert judge.settle(result.poses, TABLE.search.settle_time, TABLE.search.angular_weight).is_stable(
         TABLE.search.jitter_threshold
     )
-    assert [e.outcome for e in result.trace if e.code == result.code] == ["valid"]
+    for group in result.groups:  # each interaction group's part was visited, and valid
+        assert [e.outcome for e in result.trace if e.group == group.id and e.code == group.code] == ["valid"]
 
 
 # --- the loader: only SceneError, one line; what loads is usable -----------------------------------

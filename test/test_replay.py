@@ -3,7 +3,7 @@
 The bag holds three snapshots of two hypotheses per pyramid cube. In each, exactly one
 configuration is physically valid: a cube 2 cm into the floor, a cube pushed 2 cm into its
 neighbour, or a top cube hovering 3 cm high invalidates every other one. So the expected code of
-each snapshot is known, and the live node (``--exhaustive``: the replay waits for its exhausted
+each snapshot is known, and the live node (``--exhaustive``: the replay waits for its finished
 search on each snapshot, so the result does not depend on the machine's speed) and the offline
 search must both find it. The cubes are turned by random rotations that leave them resting on a
 face, with quaternions that a second normalisation changes in the last bits, as a round trip
@@ -393,7 +393,7 @@ def test_live_replay_records_only_the_node_s_new_outputs(handmade_bag: Path, liv
 
 
 def test_live_and_offline_choose_the_same_codes(live: tuple[Any, Path, Path], offline: tuple[Any, Path, Path]) -> None:
-    """Deterministic: the live replay waited for the node's exhausted search on each snapshot."""
+    """Deterministic: the live replay waited for the node's finished search on each snapshot."""
     assert codes(live[2]) == codes(offline[2]) == EXPECTED_CODES
 
 

@@ -200,6 +200,12 @@ BAD_FILES = {
         ("objects", 0, "name"),
         "cube" * MAX_NAME_LENGTH,
     ),
+    "unknown strategy": BadFile(
+        "search.strategy", "must be one of grouped, joint, got 'fast'", ("search", "strategy"), "fast"
+    ),
+    "fractional queue limit": BadFile(
+        "search.queue_limit", "must be a whole number, got 10.5", ("search", "queue_limit"), 10.5
+    ),
 }
 
 
@@ -419,6 +425,24 @@ def test_the_node_reports_an_unreadable_scene_file_in_one_line(tmp_path: Path, c
     assert completed.returncode == EXIT_BAD_INPUT
     lines = [line for line in completed.stderr.splitlines() if not line.startswith("pybullet build time")]
     assert lines == [f"physics_mapper node: error: {bad}: {problem}"]
+
+
+def test_the_search_strategy_bound_settling_and_limits_are_read(tmp_path: Path) -> None:
+    data = valid_problem()
+    data["search"] = {
+        "strategy": "joint",
+        "bound": "absolute",
+        "settle_exit": "full",
+        "interaction_margin": 0.05,
+        "queue_limit": 500,
+        "trace_limit": 0,
+    }
+    path = tmp_path / "problem.yaml"
+    path.write_text(yaml.safe_dump(data), encoding="utf-8")
+    params = load_problem(path).scene.search
+    assert (params.strategy, params.bound, params.settle_exit) == ("joint", "absolute", "full")
+    assert (params.interaction_margin, params.queue_limit, params.trace_limit) == (0.05, 500, 0)
+    assert isinstance(params.queue_limit, int) and isinstance(params.trace_limit, int)
 
 
 @pytest.mark.parametrize("path", sorted(SCENES.glob("*.yaml")), ids=lambda p: p.stem)

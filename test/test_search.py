@@ -47,9 +47,8 @@ def best_valid_so_far(trace: tuple[TraceEntry, ...]) -> TraceEntry | None:
 
 
 def test_fig4_order_then_only_bounded_nodes() -> None:
-    result = run_search(
-        far_apart_cubes(3), floor_hypotheses(FIG4_WEIGHTS), SearchParams(probability_threshold=FIG4_THRESHOLD)
-    )
+    params = SearchParams(probability_threshold=FIG4_THRESHOLD, bound="absolute")  # the paper's reading of T
+    result = run_search(far_apart_cubes(3), floor_hypotheses(FIG4_WEIGHTS), params)
     codes = [entry.code for entry in result.trace]
     assert tuple(codes[: len(FIG4_ORDER)]) == FIG4_ORDER
     assert all(entry.outcome == "valid" for entry in result.trace)
@@ -67,7 +66,8 @@ def test_fig4_order_then_only_bounded_nodes() -> None:
     assert not any(entry.parent in bounded_codes for entry in result.trace)
     assert result.stats.expanded == 13
     assert result.stats.bounded == len(result.trace) - 13
-    assert result.stats.exhausted and not result.stats.stopped_at_deadline
+    # The queue emptied because of the bound: not every configuration was visited.
+    assert result.stats.end == "bounded" and not result.stats.exhausted and not result.stats.stopped_at_deadline
 
 
 def test_visits_are_in_non_increasing_probability_and_never_repeat() -> None:
@@ -84,9 +84,8 @@ def test_visits_are_in_non_increasing_probability_and_never_repeat() -> None:
 def test_nodes_below_threshold_are_checked_but_not_expanded() -> None:
     threshold = 0.02
     sizes = tuple(len(weights) for weights in UNEVEN_WEIGHTS)
-    result = run_search(
-        far_apart_cubes(3), floor_hypotheses(UNEVEN_WEIGHTS), SearchParams(probability_threshold=threshold)
-    )
+    params = SearchParams(probability_threshold=threshold, bound="absolute")
+    result = run_search(far_apart_cubes(3), floor_hypotheses(UNEVEN_WEIGHTS), params)
     trace = result.trace
     assert all(entry.bounded == (entry.probability < threshold) for entry in trace)
     assert any(entry.bounded for entry in trace) and not all(entry.bounded for entry in trace)

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 from physics_mapper.core.geometry import Pose
 from physics_mapper.core.physics import PhysicsChecker
 from physics_mapper.core.scene import Problem
-from physics_mapper.core.search import BranchAndBound, SearchStats
+from physics_mapper.core.search import SearchStats, make_search
 
 
 @dataclass(frozen=True)
@@ -66,7 +66,7 @@ def measure(problem: Problem, repeats: int = 50) -> PhysicsCosts:
     searches: list[SearchStats] = []
 
     def search() -> None:
-        searches.append(BranchAndBound(checker, problem.hypotheses, params).run(None).stats)
+        searches.append(make_search(checker, problem.hypotheses, params).run(None).stats)
 
     with PhysicsChecker(scene) as checker:
         return PhysicsCosts(

@@ -61,7 +61,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--exhaustive",
         action="store_true",
         help="results independent of the machine's speed: offline, visit every reachable node whatever the deadline; "
-        "live, play on after each snapshot only once the node reports an exhausted search on it",
+        "live, play on after each snapshot only once the node reports a finished search on it",
     )
     parser.add_argument(
         "--topics",

@@ -38,14 +38,14 @@ def run(args: argparse.Namespace) -> int:
         if problem_text is not None:
             raise InputError(f"--deadline: {problem_text}")
     with PhysicsChecker(problem.scene) as checker:
-        result = solve(checker, problem.hypotheses, params)
+        result = solve(checker, problem.hypotheses, replace(params, trace_limit=None))  # the whole trace
     if args.trace is not None:
         write_output(args.trace, json.dumps([trace_entry_dict(e) for e in result.trace], indent=1) + "\n")
     if args.json:
         print(json.dumps(result_dict(result, problem.scene.object_names), indent=1))
         return 0
     if args.tree:
-        print(trace_tree(result.trace))
+        print(trace_tree(result.trace, result.groups, problem.scene.object_names))
         print()
     print(result_summary(result, params.fallback))
     return 0

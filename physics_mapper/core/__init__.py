@@ -6,6 +6,9 @@ Imports nothing from ROS and nothing from the other rooms of ``physics_mapper``.
 
 from __future__ import annotations
 
+from physics_mapper.core.collision_table import (
+    CollisionTable,
+)
 from physics_mapper.core.decomposition import (
     DECOMPOSITION_METHODS,
     ConvexPart,
@@ -43,10 +46,19 @@ from physics_mapper.core.geometry import (
     rotation_vector,
     translation_distance,
 )
+from physics_mapper.core.grouped_search import (
+    GroupedSearch,
+    GroupSearch,
+    SettleMemo,
+)
 from physics_mapper.core.hypotheses import (
     Hypothesis,
     RankedHypotheses,
     weights_problem,
+)
+from physics_mapper.core.interaction import (
+    Grouping,
+    interaction_groups,
 )
 from physics_mapper.core.limits import (
     MAX_COORDINATE,
@@ -71,14 +83,17 @@ from physics_mapper.core.meshes import (
 from physics_mapper.core.physics import (
     CLOCK_CHECK_STEPS,
     GRAVITY,
+    REST_CHECKS,
     TIME_STEP,
     Collision,
+    EarlyExit,
     PartialSettling,
     PhysicsChecker,
     PhysicsEngineError,
     Proximity,
     Settling,
     TrajectorySample,
+    deepest_collision,
     inertial_frame,
 )
 from physics_mapper.core.refine import (
@@ -93,12 +108,15 @@ from physics_mapper.core.refine import (
 from physics_mapper.core.report import (
     code_text,
     describe_entry,
+    group_dict,
     outcome_kind,
     pose_dict,
     refinement_dict,
     refinement_text,
     result_dict,
     result_summary,
+    search_ending,
+    stats_dict,
     trace_entry_dict,
     trace_tree,
 )
@@ -109,13 +127,18 @@ from physics_mapper.core.resources import (
     resource_uri,
 )
 from physics_mapper.core.scene import (
+    BOUNDS,
     DEFAULT_WORKSPACE_MARGIN,
     FALLBACKS,
     OBJECT_MESH_COLLISIONS,
     OBJECT_SHAPES,
+    SEARCH_CHOICES,
+    SEARCH_INTEGERS,
     SEARCH_LIMITS,
+    SETTLE_EXITS,
     STATIC_MESH_COLLISIONS,
     STATIC_SHAPES,
+    STRATEGIES,
     Box,
     Cylinder,
     Mesh,
@@ -145,11 +168,18 @@ from physics_mapper.core.scoring import (
     rank_one_poses,
 )
 from physics_mapper.core.search import (
+    REST_SHARE,
     BranchAndBound,
     Candidate,
+    GroupResult,
+    Search,
+    SearchEnd,
     SearchResult,
     SearchStats,
     TraceEntry,
+    continuable,
+    early_exit_rule,
+    make_search,
     solve,
 )
 from physics_mapper.core.shipped import (
@@ -165,6 +195,7 @@ from physics_mapper.core.yaml_files import (
 )
 
 __all__ = [
+    "BOUNDS",
     "CLOCK_CHECK_STEPS",
     "DECOMPOSITION_METHODS",
     "DEFAULT_WORKSPACE_MARGIN",
@@ -193,9 +224,15 @@ __all__ = [
     "OVERLAP_TOLERANCE",
     "PACKAGE",
     "QUATERNION_NORM_TOLERANCE",
+    "REST_CHECKS",
+    "REST_SHARE",
+    "SEARCH_CHOICES",
+    "SEARCH_INTEGERS",
     "SEARCH_LIMITS",
+    "SETTLE_EXITS",
     "STATIC_MESH_COLLISIONS",
     "STATIC_SHAPES",
+    "STRATEGIES",
     "TIME_STEP",
     "X_AXIS",
     "Y_AXIS",
@@ -204,12 +241,18 @@ __all__ = [
     "BranchAndBound",
     "Candidate",
     "Collision",
+    "CollisionTable",
     "ConvexPart",
     "Cylinder",
     "Decomposition",
     "DecompositionError",
     "DecompositionSettings",
+    "EarlyExit",
     "FileError",
+    "GroupResult",
+    "GroupSearch",
+    "GroupedSearch",
+    "Grouping",
     "Hypothesis",
     "InputError",
     "MassProperties",
@@ -232,9 +275,12 @@ __all__ = [
     "ResourceError",
     "Scene",
     "SceneError",
+    "Search",
+    "SearchEnd",
     "SearchParams",
     "SearchResult",
     "SearchStats",
+    "SettleMemo",
     "Settling",
     "Sphere",
     "StaticBody",
@@ -246,15 +292,21 @@ __all__ = [
     "clipped",
     "code_text",
     "compose_poses",
+    "continuable",
+    "deepest_collision",
     "default_workspace",
     "describe_entry",
+    "early_exit_rule",
+    "group_dict",
     "inertial_frame",
+    "interaction_groups",
     "inverse_pose",
     "is_same_pose",
     "load_mesh_geometry",
     "load_problem",
     "load_scene",
     "make_pose",
+    "make_search",
     "outcome_kind",
     "parse_yaml",
     "pose_dict",
@@ -280,12 +332,14 @@ __all__ = [
     "rotation_angle",
     "rotation_vector",
     "scene_from_dict",
+    "search_ending",
     "search_params_problem",
     "search_with_overrides",
     "shape_volume",
     "share_directory",
     "shipped_path",
     "solve",
+    "stats_dict",
     "trace_entry_dict",
     "trace_tree",
     "translation_distance",

@@ -11,7 +11,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 Vector3 = tuple[float, float, float]
 Quaternion = tuple[float, float, float, float]
@@ -84,12 +83,16 @@ def rotation_angle(a: Quaternion, b: Quaternion) -> float:
 def quaternion_about_axis(axis: Vector3, angle: float) -> Quaternion:
     """Unit quaternion (x, y, z, w) of a rotation by ``angle`` radians about ``axis`` (any length > 0)."""
     direction = np.asarray(axis, dtype=float)
+    from scipy.spatial.transform import Rotation  # here: scipy costs a node ~40 MB it rarely needs
+
     x, y, z, w = Rotation.from_rotvec(angle * direction / np.linalg.norm(direction)).as_quat()
     return (float(x) + 0.0, float(y) + 0.0, float(z) + 0.0, float(w) + 0.0)  # + 0.0: no -0.0 in outputs
 
 
 def rotation_vector(orientation: Quaternion) -> Vector3:
     """The rotation vector of a unit quaternion: its axis times its angle in radians, in [0, pi]."""
+    from scipy.spatial.transform import Rotation  # here: see quaternion_about_axis
+
     x, y, z = Rotation.from_quat(orientation).as_rotvec()
     return (float(x), float(y), float(z))
 

@@ -34,7 +34,6 @@ from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.spatial.transform import Rotation
 
 from physics_mapper.core.decomposition import (
     ConvexPart,
@@ -92,6 +91,8 @@ class MassProperties:
 
     def inertia_tensor(self, mass: float) -> FloatArray:
         """The 3 x 3 inertia tensor (kg m^2) about the centre of mass, mesh frame axes, for ``mass`` kg."""
+        from scipy.spatial.transform import Rotation  # here: scipy costs a node ~40 MB it rarely needs
+
         rotation = Rotation.from_quat(self.principal_axes).as_matrix()
         tensor: FloatArray = mass * rotation @ np.diag(self.principal_moments) @ rotation.T
         return tensor
@@ -319,6 +320,8 @@ def _principal(volume: float, centre: Any, inertia_per_kg: FloatArray, source: s
     moments, axes = np.linalg.eigh((inertia_per_kg + inertia_per_kg.T) / 2.0)
     if np.linalg.det(axes) < 0.0:
         axes[:, 2] = -axes[:, 2]
+    from scipy.spatial.transform import Rotation  # here: see MassProperties.inertia_tensor
+
     x, y, z, w = Rotation.from_matrix(axes).as_quat(canonical=True)
     cx, cy, cz = (float(v) for v in centre)
     l1, l2, l3 = (max(float(m), 0.0) for m in moments)

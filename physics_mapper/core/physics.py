@@ -24,12 +24,26 @@ used for another configuration first, the interrupted simulation is saved (pybul
 ``saveState``, about 0.5 ms) and restored on resume, positions, velocities and contact points,
 measured bit for bit too (BENCHMARKS.md, "Interrupted settlings"). A checker keeps one
 interrupted settling: interrupting another frees the first's saved state, and resuming the
-first then simulates it again from its start (same result, more time).
+first then simulates it again from its start (same result, more time); so does resuming after
+other objects were parked or placed (see below).
 
-The refinement (:mod:`physics_mapper.core.refine`) works on a subset of the objects: the others
-wait at their parking spots, far above and far apart, where they touch nothing and are never
-reported. :meth:`PhysicsChecker.proximities` lists the closest points of nearby bodies, and a
-settling may cap the objects' speed (``max_speed``).
+The refinement (:mod:`physics_mapper.core.refine`) and the grouped search's interaction groups
+work on a subset of the objects: the others wait at their parking spots, far above and far apart,
+where they touch nothing and are never reported, with their mass set to zero, which Bullet treats
+as fixed: they are never integrated and cost almost nothing per step. An object placed again gets
+its mass and inertia back before anything touches it. With every object placed, no mass changes
+and the world steps exactly as it always did. Bullet re-enters a body whose mass changes into its
+world, which changes the order it solves contacts in: box, sphere and cylinder settlings still end
+bit for bit where a fresh world's do (measured on the pyramid's configurations over 5 s), mesh
+settlings within a few micrometres (3.9e-6 m at most on the tabletop scene's ground truth).
+:meth:`PhysicsChecker.proximities` lists the closest points of nearby bodies, and a settling may
+cap the objects' speed (``max_speed``).
+
+Early exit (:class:`EarlyExit`): a settling may stop before ``settle_time`` once every simulated
+object has stayed at rest for :data:`REST_CHECKS` looks at it, or once one object's jitter already
+exceeds the jitter threshold. The state is looked at every :data:`CLOCK_CHECK_STEPS` steps (the
+same instants as the clock), and looking does not change the simulation, so a settling that does
+not stop early ends bit for bit where a full one does.
 """
 
 from __future__ import annotations
@@ -39,10 +53,10 @@ import math
 import os
 import sys
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, replace
 from types import ModuleType
-from typing import overload
+from typing import Literal, overload
 
 from physics_mapper.core.geometry import IDENTITY, ORIGIN, Pose, Vector3, compose_poses, inverse_pose, pose_displacement
 from physics_mapper.core.scene import Box, Cylinder, Mesh, Plane, Scene, Shape, Sphere
@@ -78,6 +92,14 @@ GRAVITY = -9.81  # m/s^2 along z
 CLOCK_CHECK_STEPS = 8
 #: Metres between the spots, far above any scene, where objects wait between configurations.
 PARKING_SPACING = 1000.0
+#: Consecutive looks (every :data:`CLOCK_CHECK_STEPS` steps, 0.1 s in all at 240 Hz) at which every
+#: simulated object must be at rest before a settling stops early.
+REST_CHECKS = 3
+#: Why a settling stopped before ``settle_time``: every object at rest, or one object's jitter
+#: already beyond the threshold (the configuration is unstable whatever follows).
+SettleStop = Literal["rest", "beyond_threshold"]
+#: The smallest axis-aligned box (low corner, high corner), metres, holding an object's positions.
+PositionRange = tuple[Vector3, Vector3]
 
 
 @dataclass(frozen=True)
@@ -89,11 +111,36 @@ class Collision:
 
 
 @dataclass(frozen=True)
+class EarlyExit:
+    """When a settling may stop before its ``settle_time``.
+
+    ``rest_rate`` (m/s): an object is at rest while its jitter rate |v| + angular_weight * |omega|
+    (linear speed in m/s, angular speed in rad/s) is at most this; once every simulated object has
+    been at rest at :data:`REST_CHECKS` consecutive looks, the settling stops (``"rest"``).
+    ``jitter_threshold`` (m + weighted rad): once an object's J_i exceeds it, the settling stops
+    (``"beyond_threshold"``); None keeps such a settling going (a complete settling).
+    """
+
+    rest_rate: float
+    jitter_threshold: float | None
+
+
+@dataclass(frozen=True)
 class Settling:
-    """Rule 2 measurement: poses after ``settle_time`` and each object's jitter J_i."""
+    """Rule 2 measurement: poses after ``settle_time`` and each object's jitter J_i.
+
+    ``stopped`` says why the settling ended before ``settle_time`` (None: it ran to the end);
+    ``steps`` of ``steps_total`` :data:`TIME_STEP` steps were simulated. ``reach``, when the
+    settling was asked to track it, is each object's :data:`PositionRange` over its start and every
+    look at the world (every :data:`CLOCK_CHECK_STEPS` steps, and the end).
+    """
 
     settled_poses: tuple[Pose, ...]
     jitters: tuple[float, ...]
+    stopped: SettleStop | None = None
+    steps: int = 0
+    steps_total: int = 0
+    reach: tuple[PositionRange, ...] | None = None
 
     @property
     def total_jitter(self) -> float:
@@ -116,8 +163,9 @@ class PartialSettling:
 
     ``steps_done`` of ``steps_total`` :data:`TIME_STEP` steps are simulated from rest at
     ``poses`` (the start, from which the jitters are measured). Compared by identity: the
-    checker that interrupted it recognises it as the settling it kept. ``objects`` and
-    ``max_speed`` are the settling's (see :meth:`PhysicsChecker.settle`).
+    checker that interrupted it recognises it as the settling it kept. ``objects``,
+    ``max_speed`` and ``early_exit`` are the settling's (see :meth:`PhysicsChecker.settle`), with
+    the looks at rest so far (``rest_checks``) and the ``reach`` so far (None: not tracked).
     """
 
     poses: tuple[Pose, ...]
@@ -126,6 +174,32 @@ class PartialSettling:
     steps_total: int
     objects: tuple[int, ...] | None = None
     max_speed: float | None = None
+    early_exit: EarlyExit | None = None
+    rest_checks: int = 0
+    reach: tuple[PositionRange, ...] | None = None
+
+    def restarted(self) -> PartialSettling:
+        """The same settling, not yet begun."""
+        start = None if self.reach is None else _start_reach(self.poses)
+        return replace(self, steps_done=0, rest_checks=0, reach=start)
+
+
+def _start_reach(poses: Sequence[Pose]) -> tuple[PositionRange, ...]:
+    return tuple((pose.position, pose.position) for pose in poses)
+
+
+def _widened(reach: tuple[PositionRange, ...], poses: Sequence[Pose]) -> tuple[PositionRange, ...]:
+    """Each range grown to hold the matching pose's position."""
+    grown = []
+    for (low, high), pose in zip(reach, poses, strict=True):
+        p = pose.position
+        grown.append(
+            (
+                (min(low[0], p[0]), min(low[1], p[1]), min(low[2], p[2])),
+                (max(high[0], p[0]), max(high[1], p[1]), max(high[2], p[2])),
+            )
+        )
+    return tuple(grown)
 
 
 @dataclass(frozen=True)
@@ -159,6 +233,27 @@ def inertial_frame(shape: Shape) -> Pose | None:
     return Pose(properties.centre_of_mass, properties.principal_axes)
 
 
+def deepest_collision(
+    depths: Mapping[tuple[int, int], float], penetration_threshold: float, name: Callable[[int], str]
+) -> Collision | None:
+    """The deepest of body pairs' overlaps (m) beyond ``penetration_threshold``, or None.
+
+    ``depths`` maps body index pairs, lower first (objects in scene order, then static bodies), to
+    their deepest overlap; ``name`` names a body index. Of pairs that overlap equally deep the
+    first in that order wins, so the answer does not depend on the order Bullet lists its contacts
+    in (which depends on what the world held before).
+    """
+    deepest: tuple[float, tuple[int, int]] | None = None
+    for pair in sorted(depths):
+        depth = depths[pair]
+        if depth > penetration_threshold and (deepest is None or depth > deepest[0]):
+            deepest = (depth, pair)
+    if deepest is None:
+        return None
+    depth, (first, second) = deepest
+    return Collision((name(first), name(second)), depth)
+
+
 class PhysicsChecker:
     """A pybullet (DIRECT) world holding a scene's static bodies and objects.
 
@@ -176,6 +271,12 @@ class PhysicsChecker:
         # used for something else (None while the world still holds that simulation).
         self._interrupted: PartialSettling | None = None
         self._interrupted_state: int | None = None
+        # Objects (scene indices) waiting massless at their parking spots: not simulated; and those
+        # that were when the kept interrupted settling stopped.
+        self._massless: set[int] = set()
+        self._interrupted_massless: set[int] = set()
+        # Objects that may be away from their parking spots (None: any object may be).
+        self._placed: tuple[int, ...] | None = None
         try:
             self._build()
         except Exception:
@@ -187,10 +288,12 @@ class PhysicsChecker:
         pybullet.setGravity(0.0, 0.0, GRAVITY, physicsClientId=client)
         pybullet.setTimeStep(TIME_STEP, physicsClientId=client)
         pybullet.setPhysicsEngineParameter(deterministicOverlappingPairs=1, physicsClientId=client)
+        statics = []
         for body in self.scene.static:
             uid = self._create(body.shape, 0.0, body.pose)
             pybullet.changeDynamics(uid, -1, lateralFriction=body.friction, physicsClientId=client)
             self._names[uid] = body.name
+            statics.append(uid)
         # Per object, where its centre of mass frame is in its pose's frame (None: at the pose).
         self._inertial_frames: list[Pose | None] = []
         for model in self.scene.objects:
@@ -208,6 +311,10 @@ class PhysicsChecker:
         self._pose_frames = [None if frame is None else inverse_pose(frame) for frame in self._inertial_frames]
         # Object uid -> scene index: which contacts count for Rule 1, and how a pair is ordered.
         self._object_index = {uid: index for index, uid in enumerate(self._bodies)}
+        # Every body's index as contact_depths names it: objects 0..N-1 in scene order, then statics.
+        self._body_index = {uid: index for index, uid in enumerate(self._bodies + statics)}
+        # Each object's mass and diagonal inertia, restored when it comes back from its parking spot.
+        self._dynamics = [pybullet.getDynamicsInfo(uid, -1, physicsClientId=client)[:3:2] for uid in self._bodies]
         self._initial_state = pybullet.saveState(physicsClientId=client)
 
     def _create(self, shape: Shape, mass: float, pose: Pose) -> int:
@@ -309,16 +416,43 @@ class PhysicsChecker:
         """These scene indices, or (None) every object's, in scene order."""
         return range(len(self._bodies)) if objects is None else objects
 
+    @property
+    def all_objects(self) -> tuple[int, ...]:
+        """Every object's scene index, in scene order."""
+        return tuple(range(len(self._bodies)))
+
+    def body_name(self, index: int) -> str:
+        """Name of a body by the index :meth:`contact_depths` uses (objects, then static bodies)."""
+        objects, statics = self.scene.objects, self.scene.static
+        return objects[index].name if index < len(objects) else statics[index - len(objects)].name
+
     def _place(self, poses: Sequence[Pose], objects: Sequence[int] | None = None) -> None:
-        """Put ``objects`` (None: all) at ``poses``, from rest; every other object stays parked."""
-        uids = self._uids(objects)
-        if len(poses) != len(uids):
-            raise ValueError(f"{len(poses)} poses for {len(uids)} objects")
+        """Put ``objects`` (None: all) at ``poses``, from rest; every other object stays parked, massless."""
+        indices = tuple(self._indices(objects))
+        if len(poses) != len(indices):
+            raise ValueError(f"{len(poses)} poses for {len(indices)} objects")
         self._save_interrupted()
         pybullet.restoreState(self._initial_state, physicsClientId=self._client)
         self._empty_contact_caches()
-        for index, pose in zip(self._indices(objects), poses, strict=True):
+        self._simulate_only(indices)
+        for index, pose in zip(indices, poses, strict=True):
             self._set_pose(index, pose)
+        self._placed = indices
+
+    def _simulate_only(self, objects: tuple[int, ...]) -> None:
+        """Give ``objects`` their masses back and every other object zero mass (no call when nothing changes)."""
+        simulated = set(objects)
+        for index, uid in enumerate(self._bodies):
+            parked = index not in simulated
+            if parked == (index in self._massless):
+                continue
+            if parked:
+                pybullet.changeDynamics(uid, -1, mass=0.0, physicsClientId=self._client)
+                self._massless.add(index)
+            else:
+                mass, inertia = self._dynamics[index]
+                pybullet.changeDynamics(uid, -1, mass=mass, localInertiaDiagonal=inertia, physicsClientId=self._client)
+                self._massless.discard(index)
 
     def _set_pose(self, index: int, pose: Pose) -> None:
         """Put object ``index``'s own frame at ``pose`` (pybullet places its inertial frame, see :meth:`_create`)."""
@@ -337,18 +471,21 @@ class PhysicsChecker:
         frame = self._pose_frames[index]
         return pose if frame is None else compose_poses(pose, frame)
 
-    def _empty_contact_caches(self) -> None:
+    def _empty_contact_caches(self, placed: Iterable[int] | None = None) -> None:
         """Drop every contact point, so that no simulation inherits another's.
 
         restoreState restores the contact points (and warm-start impulses) it saved and empties
         the other touching pairs', unless it saved none (Bullet skips empty manifolds, and the
         initial state has none): then it keeps every contact point the world holds. Parking the
-        objects far apart and running collision detection empties them.
+        objects far apart and running collision detection empties them. ``placed``: only these
+        objects are away from their parking spots (default: any may be).
         """
-        for index, uid in enumerate(self._bodies):
+        for index in self.all_objects if placed is None else placed:
             parking = (PARKING_SPACING * (index + 1), PARKING_SPACING, PARKING_SPACING)
+            uid = self._bodies[index]
             pybullet.resetBasePositionAndOrientation(uid, parking, IDENTITY, physicsClientId=self._client)
         pybullet.performCollisionDetection(physicsClientId=self._client)
+        self._placed = ()
 
     def _save_interrupted(self) -> None:
         """Save the interrupted simulation the world holds, before the world is used for something else."""
@@ -371,21 +508,42 @@ class PhysicsChecker:
         """
         self._place(poses)
         pybullet.performCollisionDetection(physicsClientId=self._client)
-        deepest: Collision | None = None
-        for contact in pybullet.getContactPoints(physicsClientId=self._client):
-            body_a, body_b, distance = contact[1], contact[2], contact[8]
-            if body_a not in self._object_index and body_b not in self._object_index:
-                continue
-            depth = -float(distance)
-            if depth > penetration_threshold and (deepest is None or depth > deepest.depth):
-                deepest = Collision(self._pair(body_a, body_b), depth)
-        return deepest
+        return deepest_collision(self._depths(), penetration_threshold, self.body_name)
 
-    def _pair(self, body_a: int, body_b: int) -> tuple[str, str]:
-        """Names of a colliding pair, objects before statics, objects in scene order."""
-        order = self._object_index
-        first, second = sorted((body_a, body_b), key=lambda uid: order.get(uid, len(order) + uid))
-        return self._names[first], self._names[second]
+    def contact_depths(self, objects: Sequence[int], poses: Sequence[Pose]) -> dict[tuple[int, int], float]:
+        """Rule 1 evidence with only ``objects`` (scene indices) placed at ``poses``, the others parked.
+
+        Returns, for every pair of bodies with a contact point that involves one of ``objects``,
+        the pair's deepest overlap in metres (a depth <= 0 is a gap within Bullet's contact
+        threshold). A pair is named by body indices, lower first: objects 0..N-1 in scene order,
+        then static bodies N, N+1, ... (:meth:`body_name`). Each pair's depth is the one
+        :meth:`find_collision` sees with every object placed, bit for bit: every pair's contacts
+        start from an empty cache and depend on the two bodies' poses alone.
+        """
+        if len(poses) != len(objects):
+            raise ValueError(f"{len(poses)} poses for {len(objects)} objects")
+        self._save_interrupted()
+        self._empty_contact_caches(self._placed)
+        self._simulate_only(tuple(objects))  # Bullet skips pairs of two fixed bodies
+        for index, pose in zip(objects, poses, strict=True):
+            self._set_pose(index, pose)
+        self._placed = tuple(objects)
+        pybullet.performCollisionDetection(physicsClientId=self._client)
+        return self._depths()
+
+    def _depths(self) -> dict[tuple[int, int], float]:
+        """Every body pair's deepest overlap (m) among the world's contact points, pairs involving an object."""
+        depths: dict[tuple[int, int], float] = {}
+        bodies = self._body_index
+        for contact in pybullet.getContactPoints(physicsClientId=self._client):
+            body_a, body_b = bodies[contact[1]], bodies[contact[2]]
+            pair = (body_a, body_b) if body_a < body_b else (body_b, body_a)
+            if pair[0] >= len(self._bodies):
+                continue  # two static bodies
+            depth = -float(contact[8])
+            if pair not in depths or depth > depths[pair]:
+                depths[pair] = depth
+        return depths
 
     def proximities(
         self, poses: Sequence[Pose], margin: float, objects: Sequence[int] | None = None
@@ -427,6 +585,7 @@ class PhysicsChecker:
         self._save_interrupted()
         client, uid = self._client, self._bodies[index]
         self._set_pose(index, pose)
+        self._placed = None if self._placed is None else (*self._placed, index)
         low, high = pybullet.getAABB(uid, physicsClientId=client)
         deepest = 0.0
         for other, _link in pybullet.getOverlappingObjects(low, high, physicsClientId=client) or ():
@@ -444,6 +603,8 @@ class PhysicsChecker:
         *,
         objects: Sequence[int] | None = None,
         max_speed: float | None = None,
+        early_exit: EarlyExit | None = None,
+        track_reach: bool = False,
     ) -> Settling: ...
 
     @overload
@@ -456,6 +617,8 @@ class PhysicsChecker:
         *,
         objects: Sequence[int] | None = None,
         max_speed: float | None = None,
+        early_exit: EarlyExit | None = None,
+        track_reach: bool = False,
     ) -> Settling | PartialSettling: ...
 
     def settle(
@@ -467,6 +630,8 @@ class PhysicsChecker:
         *,
         objects: Sequence[int] | None = None,
         max_speed: float | None = None,
+        early_exit: EarlyExit | None = None,
+        track_reach: bool = False,
     ) -> Settling | PartialSettling:
         """Rule 2: simulate ``settle_time`` seconds from rest at ``poses``; measure each J_i.
 
@@ -477,12 +642,22 @@ class PhysicsChecker:
 
         ``objects`` (scene indices) settles only those objects, ``poses`` being theirs; the others
         stay parked. ``max_speed`` (m/s) caps each object's linear speed after every step (within a
-        step, gravity adds at most g * TIME_STEP = 0.04 m/s to it).
+        step, gravity adds at most g * TIME_STEP = 0.04 m/s to it). ``early_exit`` may end the
+        settling before ``settle_time`` (:class:`EarlyExit`); ``track_reach`` records where each
+        object went (:attr:`Settling.reach`).
         """
         self._place(poses, objects)
-        steps_total = round(settle_time / TIME_STEP)
-        chosen = None if objects is None else tuple(objects)
-        return self._simulate(PartialSettling(tuple(poses), angular_weight, 0, steps_total, chosen, max_speed), stop_at)
+        plan = PartialSettling(
+            poses=tuple(poses),
+            angular_weight=angular_weight,
+            steps_done=0,
+            steps_total=round(settle_time / TIME_STEP),
+            objects=None if objects is None else tuple(objects),
+            max_speed=max_speed,
+            early_exit=early_exit,
+            reach=_start_reach(poses) if track_reach else None,
+        )
+        return self._simulate(plan, stop_at)
 
     @overload
     def resume_settling(self, partial: PartialSettling) -> Settling: ...
@@ -497,21 +672,31 @@ class PhysicsChecker:
         other configurations were checked in between (see the module docstring). Each call
         simulates at least :data:`CLOCK_CHECK_STEPS` steps, so repeated calls finish. A partial
         this checker no longer keeps (it interrupted another settling since, or the partial is
-        another checker's) is simulated again from its start.
+        another checker's, or objects were parked or placed since) is simulated again from its start.
         """
         if partial is not self._interrupted:
             self._place(partial.poses, partial.objects)
-            return self._simulate(replace(partial, steps_done=0), stop_at)
+            return self._simulate(partial.restarted(), stop_at)
+        if self._interrupted_state is not None and self._massless != self._interrupted_massless:
+            # Objects were parked or placed since (their masses changed): Bullet re-entered them into
+            # its world, so the saved contact points would not come back as they were. Start over.
+            self._forget_interrupted()
+            self._place(partial.poses, partial.objects)
+            return self._simulate(partial.restarted(), stop_at)
         if self._interrupted_state is not None:
             self._empty_contact_caches()
             pybullet.restoreState(self._interrupted_state, physicsClientId=self._client)
+            self._placed = tuple(self._indices(partial.objects))
         self._forget_interrupted()
         return self._simulate(partial, stop_at)
 
     def _simulate(self, plan: PartialSettling, stop_at: float | None) -> Settling | PartialSettling:
-        """Step the world from ``plan.steps_done`` to ``plan.steps_total`` or until ``stop_at`` (:meth:`settle`)."""
+        """Step the world from ``plan.steps_done`` to ``plan.steps_total``, or until it may stop early
+        or ``stop_at`` passes (:meth:`settle`)."""
         steps_done, steps_total = plan.steps_done, plan.steps_total
         uids = self._uids(plan.objects)
+        watched = plan.early_exit is not None or plan.reach is not None
+        rest_checks, reach = plan.rest_checks, plan.reach
         while steps_done < steps_total:
             batch_end = min(steps_done + CLOCK_CHECK_STEPS, steps_total)
             for _ in range(steps_done, batch_end):
@@ -519,13 +704,39 @@ class PhysicsChecker:
                 if plan.max_speed is not None:
                     self._cap_speeds(uids, plan.max_speed)
             steps_done = batch_end
+            if watched and steps_done < steps_total:
+                poses = self._poses(plan.objects)
+                reach = None if reach is None else _widened(reach, poses)
+                if plan.early_exit is not None:
+                    jitters = self._jitters(plan.poses, poses, plan.angular_weight)
+                    threshold = plan.early_exit.jitter_threshold
+                    if threshold is not None and max(jitters) > threshold:
+                        return Settling(poses, jitters, "beyond_threshold", steps_done, steps_total, reach)
+                    at_rest = self._at_rest(uids, plan.angular_weight, plan.early_exit.rest_rate)
+                    rest_checks = rest_checks + 1 if at_rest else 0
+                    if rest_checks >= REST_CHECKS:
+                        return Settling(poses, jitters, "rest", steps_done, steps_total, reach)
             if stop_at is not None and steps_done < steps_total and time.monotonic() >= stop_at:
                 self._forget_interrupted()
-                self._interrupted = replace(plan, steps_done=steps_done)
+                self._interrupted = replace(plan, steps_done=steps_done, rest_checks=rest_checks, reach=reach)
+                self._interrupted_massless = set(self._massless)
                 return self._interrupted
         settled = self._poses(plan.objects)
-        jitters = tuple(pose_displacement(a, b, plan.angular_weight) for a, b in zip(plan.poses, settled, strict=True))
-        return Settling(settled, jitters)
+        reach = None if reach is None else _widened(reach, settled)
+        jitters = self._jitters(plan.poses, settled, plan.angular_weight)
+        return Settling(settled, jitters, None, steps_done, steps_total, reach)
+
+    @staticmethod
+    def _jitters(start: Sequence[Pose], now: Sequence[Pose], angular_weight: float) -> tuple[float, ...]:
+        return tuple(pose_displacement(a, b, angular_weight) for a, b in zip(start, now, strict=True))
+
+    def _at_rest(self, uids: Sequence[int], angular_weight: float, rest_rate: float) -> bool:
+        """Whether every body has a jitter rate |v| + angular_weight * |omega| <= ``rest_rate``."""
+        for uid in uids:
+            linear, angular = pybullet.getBaseVelocity(uid, physicsClientId=self._client)
+            if math.hypot(*linear) + angular_weight * math.hypot(*angular) > rest_rate:
+                return False
+        return True
 
     def _cap_speeds(self, uids: Sequence[int], max_speed: float) -> None:
         """Scale down every linear velocity faster than ``max_speed`` m/s to that speed (same direction)."""

@@ -56,7 +56,6 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.optimize import nnls
 
 from physics_mapper.core.geometry import Pose, Vector3, pose_displacement
 from physics_mapper.core.hypotheses import RankedHypotheses
@@ -136,6 +135,12 @@ def _stuck_in_statics(proximities: Sequence[Proximity]) -> list[int]:
     return sorted({p.first for p in proximities if p.second is None and -p.distance > OVERLAP_TOLERANCE})
 
 
+def load_solver() -> None:
+    """Import the solver (scipy) now: about 0.2 s and 40 MB the first time, which is why it is not
+    imported with this module; a search that may refine calls this before its deadline starts."""
+    import scipy.optimize  # noqa: F401
+
+
 def _least_distance(constraints: FloatArray, bounds: FloatArray) -> FloatArray | None:
     """The z of least norm with ``constraints @ z >= bounds``, or None when there is none.
 
@@ -143,6 +148,8 @@ def _least_distance(constraints: FloatArray, bounds: FloatArray) -> FloatArray |
     the non-negative least squares solution u of E u ~ f has residual r = E u - f; the
     constraints are infeasible iff r = 0, and otherwise z = -r[:n] / r[n].
     """
+    from scipy.optimize import nnls  # here, not at the top: see load_solver
+
     rows, columns = constraints.shape
     matrix = np.vstack([constraints.T, bounds[None, :]])
     target = np.zeros(columns + 1)

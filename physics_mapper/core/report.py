@@ -8,7 +8,7 @@ from typing import Any
 from physics_mapper.core.geometry import Pose
 from physics_mapper.core.refine import OVERLAP_TOLERANCE, RefinedMap
 from physics_mapper.core.scene import Fallback
-from physics_mapper.core.search import Code, SearchResult, TraceEntry
+from physics_mapper.core.search import Code, GroupResult, SearchResult, SearchStats, TraceEntry
 
 
 def code_text(code: Code | None) -> str:
@@ -54,10 +54,31 @@ def refinement_dict(refined: RefinedMap, names: tuple[str, ...]) -> dict[str, An
     }
 
 
+def stats_dict(stats: SearchStats) -> dict[str, Any]:
+    """A search's counters, how it ended (``end``; ``exhausted`` when every configuration was
+    visited) and its speed."""
+    data = asdict(stats)
+    data["exhausted"] = stats.exhausted
+    data["configurations_per_second"] = stats.configurations_per_second
+    return data
+
+
+def group_dict(group: GroupResult, names: tuple[str, ...]) -> dict[str, Any]:
+    """One interaction group of a result: its objects by name and its part of the answer."""
+    return {
+        "id": group.id,
+        "objects": [names[i] for i in group.objects],
+        "valid": group.valid,
+        "code": None if group.code is None else list(group.code),
+        "probability": group.probability,
+        "jitter": group.jitter,
+        "visited": group.visited,
+        "end": group.end,
+    }
+
+
 def result_dict(result: SearchResult, names: tuple[str, ...]) -> dict[str, Any]:
     """Machine-readable result (SPEC section 5): poses keyed by object name."""
-    stats = asdict(result.stats)
-    stats["configurations_per_second"] = result.stats.configurations_per_second
     return {
         "valid": result.valid,
         "code": None if result.code is None else list(result.code),
@@ -71,7 +92,8 @@ def result_dict(result: SearchResult, names: tuple[str, ...]) -> dict[str, Any]:
         "object_jitters": None
         if result.object_jitters is None
         else dict(zip(names, result.object_jitters, strict=True)),
-        "stats": stats,
+        "stats": stats_dict(result.stats),
+        "groups": [group_dict(group, names) for group in result.groups],
         "trace": [trace_entry_dict(entry) for entry in result.trace],
     }
 
@@ -93,27 +115,47 @@ def describe_entry(entry: TraceEntry) -> str:
         evidence = f"{entry.depth * 100:.1f} cm"
     else:
         evidence = f"J={entry.jitter:.4f}"
+        if entry.settle_stop is not None:
+            evidence += f" (settling stopped {_STOPS[entry.settle_stop]} at {entry.settled_time:.3f} s)"
     return f"{outcome_kind(entry)} {evidence}" + (" [bounded]" if entry.bounded else "")
 
 
-def trace_tree(trace: tuple[TraceEntry, ...]) -> str:
-    """The search tree: each node under the node that queued it, in visiting order."""
-    children: dict[Code | None, list[tuple[int, TraceEntry]]] = {}
+_STOPS = {"rest": "at rest", "beyond_threshold": "beyond the jitter threshold"}
+
+
+def search_ending(stats: SearchStats) -> str:
+    """How a search's last run ended, for people."""
+    if stats.end is None:
+        return "stopped at the deadline"
+    return {
+        "exhausted": "exhausted: all nodes visited",
+        "bounded": "bounded: the queue emptied; nodes below the bound were not expanded",
+        "truncated": f"truncated: the queue emptied after the queue limit dropped {stats.dropped} nodes",
+    }[stats.end]
+
+
+def trace_tree(trace: tuple[TraceEntry, ...], groups: tuple[GroupResult, ...] = (), names: tuple[str, ...] = ()) -> str:
+    """The search tree: each node under the node that queued it, in visiting order (one tree per group,
+    headed by its objects when ``groups`` and the scene's object ``names`` are given)."""
+    objects = {group.id: ", ".join(names[i] for i in group.objects) for group in groups} if names else {}
+    children: dict[tuple[int | None, Code | None], list[tuple[int, TraceEntry]]] = {}
     for index, entry in enumerate(trace, start=1):
-        children.setdefault(entry.parent, []).append((index, entry))
+        children.setdefault((entry.group, entry.parent), []).append((index, entry))
     lines: list[str] = []
 
-    def walk(parent: Code | None, prefix: str) -> None:
-        kids = children.get(parent, [])
+    def walk(group: int | None, parent: Code | None, prefix: str) -> None:
+        kids = children.get((group, parent), [])
         for position, (index, entry) in enumerate(kids):
             last = position == len(kids) - 1
-            branch = "" if parent is None else ("└─ " if last else "├─ ")
+            root = "" if group is None else f"group {group}{f' ({objects[group]})' if group in objects else ''}: "
+            branch = root if parent is None else ("└─ " if last else "├─ ")
             lines.append(
                 f"{prefix}{branch}{code_text(entry.code)}  #{index}  p={entry.probability:.4g}  {describe_entry(entry)}"
             )
-            walk(entry.code, prefix + ("" if parent is None else ("   " if last else "│  ")))
+            walk(group, entry.code, prefix + ("" if parent is None else ("   " if last else "│  ")))
 
-    walk(None, "")
+    for group in dict.fromkeys(entry.group for entry in trace if entry.parent is None):
+        walk(group, None, "")
     return "\n".join(lines)
 
 
@@ -142,11 +184,12 @@ def result_summary(result: SearchResult, fallback: Fallback) -> str:
         )
     else:
         head = f"no valid configuration; fallback settled {code_text(result.code)}  p={result.probability:.4g}"
-    ending = "stopped at the deadline" if stats.stopped_at_deadline else "all nodes visited"
+    solved = sum(group.valid for group in result.groups)
+    groups = f"{len(result.groups)} interaction groups, {solved} solved; " if len(result.groups) > 1 else ""
     return (
         f"{head}\n"
-        f"visited {stats.visited} (expanded {stats.expanded}, bounded {stats.bounded}); "
+        f"{groups}visited {stats.visited} (expanded {stats.expanded}, bounded {stats.bounded}); "
         f"rejected: {stats.collisions} collision, {stats.unstable} unstable; valid {stats.valid}\n"
         f"search time {stats.search_time * 1000:.1f} ms "
-        f"({stats.configurations_per_second:.0f} configurations/s), {ending}"
+        f"({stats.configurations_per_second:.0f} configurations/s), {search_ending(stats)}"
     )

@@ -21,6 +21,15 @@ from physics_mapper.core.meshes import MeshCollision, MeshGeometry
 
 Fallback = Literal["none", "settled", "refine"]
 FALLBACKS: tuple[Fallback, ...] = ("none", "settled", "refine")
+#: ``grouped``: Algorithm 1 per interaction group (issue 8); ``joint``: the paper's single search.
+Strategy = Literal["grouped", "joint"]
+STRATEGIES: tuple[Strategy, ...] = ("grouped", "joint")
+#: How T bounds a node: ``relative`` p(C) / p(root) < T, per group; ``absolute`` p(C) < T (the paper's).
+Bound = Literal["relative", "absolute"]
+BOUNDS: tuple[Bound, ...] = ("relative", "absolute")
+#: ``early``: a settling may stop at rest or once an object's jitter is beyond the threshold; ``full``: never.
+SettleExit = Literal["early", "full"]
+SETTLE_EXITS: tuple[SettleExit, ...] = ("early", "full")
 
 
 @dataclass(frozen=True)
@@ -190,6 +199,12 @@ class SearchParams:
         ``refine_max_speed * TIME_STEP`` metres per iteration, and its settling caps linear speeds.
     refine_mean_radius: ``fallback: refine`` starts each object at the weighted mean position of its
         hypotheses within this many metres of its most likely one (0: at the most likely one).
+    strategy: one search over all objects (``joint``) or one per interaction group (``grouped``).
+    bound: whether T bounds p(C) itself (``absolute``) or p(C) / p(root) of the group (``relative``).
+    settle_exit: whether a settling may stop early (``early``) or always runs settle_time (``full``).
+    interaction_margin: metres added around every object's bounding ball when grouping objects.
+    queue_limit: nodes the search's queues hold at most (each group an equal share).
+    trace_limit: trace entries kept at most (None: all); later visits are counted, not recorded.
     """
 
     probability_threshold: float = 0.0002
@@ -201,6 +216,12 @@ class SearchParams:
     fallback: Fallback = "none"
     refine_max_speed: float = 1.0
     refine_mean_radius: float = 0.1
+    strategy: Strategy = "grouped"
+    bound: Bound = "relative"
+    settle_exit: SettleExit = "early"
+    interaction_margin: float = 0.02
+    queue_limit: int = 20_000
+    trace_limit: int | None = 5_000
 
 
 @dataclass(frozen=True)
@@ -270,6 +291,18 @@ SEARCH_LIMITS: dict[str, tuple[float, float]] = {
     "deadline": (0.0, 3600.0),  # wall-clock seconds, and positive
     "refine_max_speed": (0.001, 100.0),  # metres per second
     "refine_mean_radius": (0.0, 10.0),  # metres
+    "interaction_margin": (0.0, 1.0),  # metres
+    "queue_limit": (1, 100_000_000),  # nodes
+    "trace_limit": (0, 100_000_000),  # trace entries
+}
+#: The search parameters that are whole numbers.
+SEARCH_INTEGERS = ("queue_limit", "trace_limit")
+#: The allowed values of each search parameter that is a word.
+SEARCH_CHOICES: dict[str, tuple[str, ...]] = {
+    "fallback": FALLBACKS,
+    "strategy": STRATEGIES,
+    "bound": BOUNDS,
+    "settle_exit": SETTLE_EXITS,
 }
 
 
@@ -279,8 +312,15 @@ def search_params_problem(params: SearchParams) -> str | None:
         return f"deadline must be positive, got {params.deadline:g}"
     for name, (low, high) in SEARCH_LIMITS.items():
         value = getattr(params, name)
+        if value is None and name == "trace_limit":
+            continue  # no limit: every visit recorded
         if not low <= value <= high:
             return f"{name} must be in [{low:g}, {high:g}], got {value:g}"
-    if params.fallback not in FALLBACKS:
-        return f"fallback must be one of {', '.join(FALLBACKS)}, got {params.fallback!r}"
+    for name in SEARCH_INTEGERS:
+        value = getattr(params, name)
+        if value is not None and value != int(value):
+            return f"{name} must be a whole number, got {value:g}"
+    for name, choices in SEARCH_CHOICES.items():
+        if getattr(params, name) not in choices:
+            return f"{name} must be one of {', '.join(choices)}, got {getattr(params, name)!r}"
     return None

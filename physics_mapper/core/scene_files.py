@@ -33,9 +33,10 @@ from physics_mapper.core.limits import (
 from physics_mapper.core.meshes import MeshCollision, MeshError, MeshGeometry, MeshRequest, load_mesh_geometry
 from physics_mapper.core.resources import ResourceError, resolve_resource, resource_uri
 from physics_mapper.core.scene import (
-    FALLBACKS,
     OBJECT_MESH_COLLISIONS,
     OBJECT_SHAPES,
+    SEARCH_CHOICES,
+    SEARCH_INTEGERS,
     STATIC_MESH_COLLISIONS,
     STATIC_SHAPES,
     Box,
@@ -326,12 +327,17 @@ def _read_search(reader: _Reader, value: Any, key: str) -> SearchParams:
     for name in names:
         if name not in data:
             continue
-        if name == "fallback":
-            if data[name] not in FALLBACKS:
-                raise reader.fail(f"{key}.fallback", f"must be one of {', '.join(FALLBACKS)}, got {_show(data[name])}")
+        if name in SEARCH_CHOICES:
+            if data[name] not in SEARCH_CHOICES[name]:
+                choices = ", ".join(SEARCH_CHOICES[name])
+                raise reader.fail(f"{key}.{name}", f"must be one of {choices}, got {_show(data[name])}")
             values[name] = data[name]
         else:
             values[name] = reader.number(data[name], f"{key}.{name}", minimum=0.0)
+            if name in SEARCH_INTEGERS:
+                if not values[name].is_integer():
+                    raise reader.fail(f"{key}.{name}", f"must be a whole number, got {values[name]:g}")
+                values[name] = int(values[name])
     params = replace(SearchParams(), **values)
     problem = search_params_problem(params)
     if problem is not None:

@@ -40,7 +40,7 @@ from physics_mapper.core.hypotheses import RankedHypotheses
 from physics_mapper.core.physics import PhysicsChecker
 from physics_mapper.core.scene import Scene, SearchParams
 from physics_mapper.core.scoring import rank_one_poses
-from physics_mapper.core.search import BranchAndBound, SearchResult
+from physics_mapper.core.search import SearchResult, make_search
 from physics_mapper.experiments.common import (
     COLOR_WITH_PHYSICS,
     COLOR_WITHOUT_PHYSICS,
@@ -87,7 +87,7 @@ def timed_search(
     checker: PhysicsChecker, hypotheses: Sequence[RankedHypotheses], params: SearchParams, budget: float
 ) -> TimedSearch:
     """Search for ``budget`` seconds (or until the queue empties), looking at the answer every :data:`SLICE` s."""
-    search = BranchAndBound(checker, hypotheses, params)
+    search = make_search(checker, hypotheses, params)
     start = time.monotonic()
     first_map = first_valid = None
     while True:
@@ -97,7 +97,7 @@ def timed_search(
             first_map = elapsed
         if first_valid is None and result.valid:
             first_valid = elapsed
-        if result.stats.exhausted or elapsed >= budget:
+        if search.done or elapsed >= budget:
             return TimedSearch(result, first_map, first_valid, elapsed)
 
 
@@ -115,7 +115,7 @@ class SceneOutcome:
     valid: NDArray[np.bool_]
     fallback_used: NDArray[np.bool_]
     answered: NDArray[np.bool_]
-    exhausted: NDArray[np.bool_]
+    finished: NDArray[np.bool_]
     first_map: NDArray[np.float64]  # seconds, NaN where no map
     first_valid: NDArray[np.float64]  # seconds, NaN where no valid configuration
     visited: NDArray[np.int64]
@@ -123,17 +123,19 @@ class SceneOutcome:
 
 def _scored(timed: TimedSearch, hypotheses: Sequence[RankedHypotheses], truth: Sequence[Pose]) -> dict[str, Any]:
     result = timed.result
+    roots = [entry for entry in result.trace if entry.parent is None]
     rank_one = rank_one_poses(hypotheses)
     chosen = rank_one if result.poses is None else result.poses
     settled = rank_one if result.settled_poses is None else result.settled_poses
     return {
         "errors": [position_errors_cm(estimate, truth) for estimate in (rank_one, chosen, settled)],
-        "root_valid": bool(result.trace) and result.trace[0].outcome == "valid",  # unchecked if the budget ran out
-        "root_bounded": bool(result.trace) and result.trace[0].bounded,
+        # C11..1: every group's root (unchecked if the budget ran out first).
+        "root_valid": len(roots) == len(result.groups) and all(entry.outcome == "valid" for entry in roots),
+        "root_bounded": any(entry.bounded for entry in roots),
         "valid": result.valid,
         "fallback_used": result.fallback_used,
         "answered": result.code is not None,
-        "exhausted": result.stats.exhausted,
+        "finished": result.stats.finished,
         "first_map": math.nan if timed.first_map is None else timed.first_map,
         "first_valid": math.nan if timed.first_valid is None else timed.first_valid,
         "visited": result.stats.visited,
@@ -173,7 +175,7 @@ def run_scene(scene_file: str, options: ExperimentOptions, settings: TrackerSett
         valid=stacked("valid"),
         fallback_used=stacked("fallback_used"),
         answered=stacked("answered"),
-        exhausted=stacked("exhausted"),
+        finished=stacked("finished"),
         first_map=stacked("first_map").astype(np.float64),
         first_valid=stacked("first_valid").astype(np.float64),
         visited=stacked("visited").astype(np.int64),
@@ -217,7 +219,7 @@ def scene_summary(outcome: SceneOutcome) -> dict[str, Any]:
         "valid": int(outcome.valid.sum()),
         "fallback_used": int(outcome.fallback_used.sum()),
         "no_map": int((~outcome.answered).sum()),
-        "exhausted": int(outcome.exhausted.sum()),
+        "finished": int(outcome.finished.sum()),
         "visited_mean": float(outcome.visited.mean()),
         "first_map_s": _seconds(outcome.first_map),
         "first_valid_s": _seconds(outcome.first_valid),
@@ -337,7 +339,7 @@ Rules: overlap at most {100 * part["penetration_threshold_m"]:g} cm, jitter at m
 
 - Valid map in {part["valid"]} of {searches} searches (C11..1 itself valid in {part["root_valid"]}); the fallback
   (settled poses of the most likely collision-free configuration) in {part["fallback_used"]}; no map in
-  {part["no_map"]}. {part["exhausted"]} searches emptied their queue within the budget, visiting
+  {part["no_map"]}. {part["finished"]} searches emptied their queue within the budget, visiting
   {part["visited_mean"]:.1f} configurations on average; in {part["root_bounded"]} the root C11..1 itself was
   bounded (p(C) below `probability_threshold`), so that nothing beyond it was searched.
 - Time to the first map: {_seconds_text(part["first_map_s"])}; to the first valid map:

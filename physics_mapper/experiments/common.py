@@ -100,8 +100,8 @@ def position_errors_cm(estimate: Sequence[Pose], truth: Sequence[Pose]) -> tuple
 def exhaustive_search(
     checker: PhysicsChecker, hypotheses: Sequence[RankedHypotheses], params: SearchParams
 ) -> SearchResult:
-    """Run the branch and bound with :data:`EXHAUSTIVE_DEADLINE` seconds, enough to empty its queue."""
-    return solve(checker, hypotheses, replace(params, deadline=EXHAUSTIVE_DEADLINE))
+    """Run the search with :data:`EXHAUSTIVE_DEADLINE` seconds, enough to empty its queue; the whole trace."""
+    return solve(checker, hypotheses, replace(params, deadline=EXHAUSTIVE_DEADLINE, trace_limit=None))
 
 
 def new_figure(width_inches: float, height_inches: float) -> Figure:

@@ -210,7 +210,7 @@ def run(options: ExperimentOptions) -> ExperimentOutput:
         "weight_concentration": WEIGHT_CONCENTRATION,
         "probability_threshold": PROBABILITY_THRESHOLD,
         "search_deadline_s": EXHAUSTIVE_DEADLINE,
-        "exhausted": stats.exhausted,
+        "queue_emptied": stats.finished,
         "visited": stats.visited,
         "expanded": stats.expanded,
         "bounded": stats.bounded,
@@ -249,7 +249,7 @@ Dirichlet({WEIGHT_CONCENTRATION:g}) draw. T = {PROBABILITY_THRESHOLD}. Seed {sum
 from the requested {summary["seed_requested"]} whose tree shows what the paper's does: C111 rejected, nodes rejected
 by each rule, a first valid solution replaced by a later one of less jitter ({summary["seeds_tried"]} seeds tried).
 The search ran with a {EXHAUSTIVE_DEADLINE:g} s deadline, which is exhaustive
-here: queue emptied = {summary["exhausted"]}.
+here: queue emptied = {summary["queue_emptied"]}.
 
 ## Result
 - Root {code_text(root.code)} (p = {root.probability:.4g}): {describe_entry(root)}.

@@ -215,7 +215,7 @@ def physics_summary(outcome: TrackingOutcome) -> dict[str, Any]:
         },
         **compare_errors(without_total, with_total),
         "searches": outcome.searches,
-        "searches_exhausted": int(outcome.exhausted.sum()),
+        "searches_finished": int(outcome.finished.sum()),
         "root_valid_searches": int(outcome.root_valid.sum()),
         "collision_free_searches": int(outcome.collision_free.sum()),
         "valid_searches": int(valid.sum()),
@@ -385,7 +385,7 @@ the top {summary["top_m"]} particles of each cube are its weighted hypotheses.
 {summary["runs"]} runs (seed {summary["seed"]}). Ground truth: the scene's pyramid, settled under gravity.
 The scene's rules: overlap at most {100 * summary["penetration_threshold_m"]:g} cm, jitter at most
 {100 * summary["jitter_threshold_m"]:g} cm per cube. Each search ran with a {summary["search_deadline_s"]:g} s
-deadline, exhaustive here: {summary["searches_exhausted"]} of {searches} searches emptied their queue.
+deadline, exhaustive here: {summary["searches_finished"]} of {searches} searches emptied their queue.
 
 Error of cube i: e_i = 100 |p_i - p_i_true| cm (centre position; orientation is not scored). Mean per-object
 error: the mean of e_i over the cubes; total configuration error: their sum. Without physics: C111. With physics:

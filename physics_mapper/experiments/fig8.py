@@ -236,7 +236,7 @@ def run(options: ExperimentOptions) -> ExperimentOutput:
         "groove_length_m": groove_length(scene),
         "search_deadline_s": EXHAUSTIVE_DEADLINE,
         "searches": outcome.searches,
-        "searches_exhausted": int(outcome.exhausted.sum()),
+        "searches_finished": int(outcome.finished.sum()),
         "error_definition": "e = 100 |p - p_true| cm; cross-section e_xz = 100 sqrt(dx^2 + dz^2) cm",
         "per_iteration_cm": {
             "without_physics": without.mean(axis=0).tolist(),
@@ -308,7 +308,7 @@ measurement noise sigma = {100 * summary["sigma_position_m"]:g} cm per position 
 {summary["sigma_rotation_deg"]:g}° ({summary["sigma_rotation_rad"]:.4f} rad) per rotation axis; after each iteration
 its top {summary["top_m"]} particles are the hypotheses. {summary["runs"]} runs (seed {summary["seed"]}).
 Ground truth: the bottom of the groove, settled under gravity. Each search ran with a
-{summary["search_deadline_s"]:g} s deadline, exhaustive here ({summary["searches_exhausted"]} of {searches} emptied
+{summary["search_deadline_s"]:g} s deadline, exhaustive here ({summary["searches_finished"]} of {searches} emptied
 their queue), and {summary["settle_time_s"]:g} s of settling.
 
 Errors (cm): e = 100 |p - p_true|, and its part in the groove's cross-section, e_xz = 100 sqrt(dx^2 + dz^2).

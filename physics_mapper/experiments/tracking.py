@@ -57,7 +57,7 @@ class TrackingOutcome:
     failed Rule 1 (``root_collision``), whether any configuration passed Rule 1
     (``collision_free``), whether one was valid (``valid``), whether the fallback was used
     (``fallback_used``), whether C11..1 had to stand in for the physics estimate
-    (``no_estimate``) and whether the search emptied its queue (``exhausted``).
+    (``no_estimate``) and whether the search emptied its queue (``finished``).
     ``root_outcomes`` counts why C11..1 was rejected (e.g. ``collision cube_left-floor``).
     """
 
@@ -74,7 +74,7 @@ class TrackingOutcome:
     valid: NDArray[np.bool_]
     fallback_used: NDArray[np.bool_]
     no_estimate: NDArray[np.bool_]
-    exhausted: NDArray[np.bool_]
+    finished: NDArray[np.bool_]
     root_outcomes: dict[str, int]
 
     @property
@@ -91,7 +91,7 @@ class _Scored:
     without_errors: tuple[float, ...]
     with_errors: tuple[float, ...]
     hypothesis_positions: list[list[Vector3]]
-    #: root_valid, root_collision, collision_free, valid, fallback_used, no_estimate, exhausted
+    #: root_valid, root_collision, collision_free, valid, fallback_used, no_estimate, finished
     #: (TrackingOutcome's order).
     flags: tuple[bool, bool, bool, bool, bool, bool, bool]
     root_outcome: str
@@ -132,7 +132,7 @@ def _score(
             result.valid,
             result.fallback_used,
             estimate is None,
-            stats.exhausted,
+            stats.finished,
         ),
         root_outcome=outcome_kind(result.trace[0]),
     )
@@ -186,7 +186,7 @@ def _outcome(truth: tuple[Pose, ...], settings: TrackerSettings, scored: list[li
         valid=flags[:, :, 3],
         fallback_used=flags[:, :, 4],
         no_estimate=flags[:, :, 5],
-        exhausted=flags[:, :, 6],
+        finished=flags[:, :, 6],
         root_outcomes=dict(Counter(item.root_outcome for run in scored for item in run).most_common()),
     )
 

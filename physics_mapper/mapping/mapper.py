@@ -8,12 +8,14 @@ comes from the returned :class:`TickReport`.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
+from physics_mapper.core.grouped_search import GroupedSearch
 from physics_mapper.core.hypotheses import RankedHypotheses
 from physics_mapper.core.physics import PhysicsChecker, PhysicsEngineError
+from physics_mapper.core.refine import load_solver
 from physics_mapper.core.scene import Scene, SearchParams, search_params_problem
-from physics_mapper.core.search import BranchAndBound, Code, SearchResult
+from physics_mapper.core.search import BranchAndBound, Code, SearchResult, make_search
 from physics_mapper.mapping.inputs import InputSettings, InputSnapshot, InputTracker
 
 #: Seconds a tick's search may run past its deadline: the search looks at the clock every
@@ -61,11 +63,12 @@ class TickReport:
 
     ``result`` is None while some object has no usable hypotheses. ``search_time`` is the
     wall-clock seconds this tick spent in the search (at most ``deadline`` plus a small slack).
-    ``resumed`` says the tick continued the previous search (same inputs and settings).
-    ``settling_in_progress`` is the configuration whose settling the deadline cut short (a
-    settling longer than one tick's search): the next tick continues it. ``engine_fault`` says
-    how the physics engine failed this tick (``result`` is None then); the next tick searches
-    again in a rebuilt world.
+    ``resumed`` says the tick continued the previous search (same inputs and settings); with the
+    grouped strategy, ``result.groups`` say which groups were kept when some were restarted.
+    ``settling_in_progress`` is the configuration (of group ``settling_group``'s objects, for a
+    grouped search) whose settling the deadline cut short (a settling longer than one tick's
+    search): the next tick continues it. ``engine_fault`` says how the physics engine failed this
+    tick (``result`` is None then); the next tick searches again in a rebuilt world.
     """
 
     snapshot: InputSnapshot
@@ -75,15 +78,7 @@ class TickReport:
     settings: MapperSettings
     settling_in_progress: Code | None = None
     engine_fault: str | None = None
-
-
-def _continuable(running: SearchParams, wanted: SearchParams) -> bool:
-    """Whether a search under ``running`` may go on under ``wanted``.
-
-    The deadline and the fallback change neither which nodes are visited nor their outcomes,
-    so changing them keeps the search's progress; any other parameter starts a new search.
-    """
-    return replace(running, deadline=wanted.deadline, fallback=wanted.fallback) == wanted
+    settling_group: int | None = None
 
 
 class Mapper:
@@ -97,7 +92,7 @@ class Mapper:
         self.scene = scene
         self.inputs = InputTracker(scene.object_names)
         self._checker: PhysicsChecker | None = PhysicsChecker(scene)
-        self._search: BranchAndBound | None = None
+        self._search: BranchAndBound | GroupedSearch | None = None
 
     @property
     def checker(self) -> PhysicsChecker:
@@ -131,15 +126,19 @@ class Mapper:
     def _search_tick(
         self, snapshot: InputSnapshot, hypotheses: tuple[RankedHypotheses, ...], settings: MapperSettings
     ) -> TickReport:
-        """Resume the search in progress if inputs and settings allow, else start a new one; run it to the deadline."""
-        search = self._search
-        resumed = (
-            search is not None and search.hypotheses == hypotheses and _continuable(search.params, settings.search)
-        )
-        if search is None or not resumed:
-            search = self._search = BranchAndBound(self.checker, hypotheses, settings.search)
-        search.params = settings.search
+        """Resume the search in progress if inputs and settings allow (a grouped search: every group
+        whose objects' hypotheses did not change), else start a new one; run it to the deadline.
+
+        Grouping and carrying over the previous search's groups count as search time.
+        """
+        if settings.search.fallback == "refine":
+            load_solver()  # the first time: 0.2 s outside the deadline (not imported before, for memory)
         started = time.monotonic()
-        result = search.run(settings.search.deadline)
+        previous = self._search
+        search = self._search = make_search(self.checker, hypotheses, settings.search, previous)
+        result = search.run(max(0.0, settings.search.deadline - (time.monotonic() - started)))
         elapsed = time.monotonic() - started
-        return TickReport(snapshot, result, elapsed, resumed, settings, search.settling_in_progress)
+        group = search.settling_group if isinstance(search, GroupedSearch) else None
+        return TickReport(
+            snapshot, result, elapsed, search is previous, settings, search.settling_in_progress, settling_group=group
+        )

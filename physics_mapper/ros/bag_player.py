@@ -14,7 +14,7 @@
 - **Raw bytes**: messages are published as the CDR bytes stored in the bag, and recorded as
   received, stamped with the receive time, scaled in time by a rate.
 - **Exhaustive** (lockstep): after each snapshot of hypotheses (:mod:`physics_mapper.bags.snapshots`)
-  the replay waits until the node's diagnostics report an exhausted search on exactly that
+  the replay waits until the node's diagnostics report a finished search on exactly that
   snapshot's PoseArrays (their stamps), so live results do not depend on the machine's speed.
 
 Topic names are those of :mod:`physics_mapper.bags.evaluation`; for a node in a namespace, the
@@ -83,7 +83,7 @@ class Playback:
     in ``exhaustive`` replays for each search; tail: seconds to keep recording after the last
     message; namespace: the node's ROS namespace; topics: topics played besides those the node
     consumes; all_topics: play every topic (but :data:`NEVER_BY_DEFAULT` unless in ``topics``);
-    exhaustive: after each snapshot, wait for the node's exhausted search on it.
+    exhaustive: after each snapshot, wait for the node's finished search on it.
     """
 
     rate: float = 1.0
@@ -169,7 +169,7 @@ class _Recorder:
 
 
 class _Searches:
-    """The node's searches as its diagnostics report them: exhausted or not, on which PoseArrays (stamps)."""
+    """The node's searches as its diagnostics report them: finished or not, on which PoseArrays (stamps)."""
 
     def __init__(self, node_name: str, object_names: Sequence[str]) -> None:
         self._node_name = node_name
@@ -188,8 +188,8 @@ class _Searches:
             status = statuses.get(f"{NODE_NAME}: hypotheses/{name}")
             values = {kv.key: kv.value for kv in status.values} if status is not None else {}
             stamps.append(int(values.get("stamp [ns]", "-1")))
-        exhausted = {kv.key: kv.value for kv in search.values}.get("exhausted") == "true"
-        self.latest = (exhausted, tuple(stamps))
+        finished = {kv.key: kv.value for kv in search.values}.get("finished") == "true"
+        self.latest = (finished, tuple(stamps))
         self.latest_message = search.message
 
 
@@ -247,7 +247,7 @@ def play_and_record(
     ``consumed`` are the node's input topics (absolute): played, and each must have a subscriber
     before playing starts. ``alive()`` false (a node we started has exited) stops the replay with
     ReplayError. With ``playback.exhaustive``, the replay waits after each of ``snapshots`` for the
-    node's exhausted search on it (``object_names``: the scene's objects, in order). Returns the
+    node's finished search on it (``object_names``: the scene's objects, in order). Returns the
     messages recorded per topic.
     """
     rclpy.init(args=[])
@@ -316,13 +316,13 @@ class _Player:
         return time.monotonic() - began
 
     def _wait_for_search(self, snapshot: BagSnapshot) -> None:
-        """Spin until the node reports an exhausted search on exactly ``snapshot``'s PoseArrays."""
+        """Spin until the node reports a finished search on exactly ``snapshot``'s PoseArrays."""
         self.searches.latest = None  # only diagnostics that arrive from now on count
         end = time.monotonic() + self.playback.wait
         while self.searches.latest != (True, snapshot.stamps_ns):
             if time.monotonic() >= end or not self.alive():
                 raise ReplayError(
-                    f"the node reported no exhausted search on the hypotheses stamped {snapshot.stamp_ns} ns "
+                    f"the node reported no finished search on the hypotheses stamped {snapshot.stamp_ns} ns "
                     f"within {self.playback.wait:g} s (its last diagnostics: {self.searches.latest_message})"
                 )
             self.executor.spin_once(timeout_sec=0.05)

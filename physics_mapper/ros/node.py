@@ -54,7 +54,18 @@ from msg_adapters.hypotheses import received_pose_array, received_weights
 from msg_adapters.results import configuration_msgs, markers_msg, object_pose_msgs, static_markers_msg
 from physics_mapper.core.errors import EXIT_BAD_INPUT, InputError
 from physics_mapper.core.resources import ResourceError, resolve_resource
-from physics_mapper.core.scene import FALLBACKS, SEARCH_LIMITS, Fallback, SearchParams
+from physics_mapper.core.scene import (
+    BOUNDS,
+    FALLBACKS,
+    SEARCH_LIMITS,
+    SETTLE_EXITS,
+    STRATEGIES,
+    Bound,
+    Fallback,
+    SearchParams,
+    SettleExit,
+    Strategy,
+)
 from physics_mapper.core.scene_files import SceneError, load_scene
 from physics_mapper.core.search import SearchResult
 from physics_mapper.mapping.inputs import InputSettings, MessageKind
@@ -111,6 +122,12 @@ PARAMETERS = (
     ParameterSpec("fallback", f"when no configuration is valid: {', '.join(FALLBACKS)}", None),
     ParameterSpec("refine_max_speed", "fallback refine: fastest an object moves while refined, m/s"),
     ParameterSpec("refine_mean_radius", "fallback refine: start at the weighted mean of hypotheses this near, m"),
+    ParameterSpec("strategy", f"{' or '.join(STRATEGIES)}: one search per interaction group, or the paper's one"),
+    ParameterSpec("bound", f"{' or '.join(BOUNDS)}: T bounds p(C) / p(group root), or p(C) itself"),
+    ParameterSpec("settle_exit", f"{' or '.join(SETTLE_EXITS)}: settlings may stop at rest or once unstable"),
+    ParameterSpec("interaction_margin", "metres around each object's bounding ball when grouping objects"),
+    ParameterSpec("queue_limit", "nodes the search's queues hold at most (each group an equal share)"),
+    ParameterSpec("trace_limit", "trace entries the search keeps at most"),
     ParameterSpec("max_hypotheses_per_object", "hypotheses kept per object (the heaviest)", 100, (1, 100000)),
     ParameterSpec("max_age", "seconds after which received hypotheses are stale", 10.0, (0.01, 86400.0)),
     ParameterSpec("require_weights", "refuse PoseArrays without a weights message instead of uniform weights", False),
@@ -131,13 +148,13 @@ PARAMETERS = (
 )
 
 
-def _descriptor(spec: ParameterSpec) -> ParameterDescriptor:
+def _descriptor(spec: ParameterSpec, default: object) -> ParameterDescriptor:
     descriptor = ParameterDescriptor(description=spec.description, read_only=spec.read_only)
     limits = SEARCH_LIMITS.get(spec.name, spec.limits)
     if limits is None:
         return descriptor
     low, high = limits
-    if isinstance(spec.default, int) and not isinstance(spec.default, bool):
+    if isinstance(default, int) and not isinstance(default, bool):
         descriptor.integer_range = [IntegerRange(from_value=int(low), to_value=int(high), step=1)]
     else:
         descriptor.floating_point_range = [FloatingPointRange(from_value=low, to_value=high, step=0.0)]
@@ -196,7 +213,7 @@ class PhysicsMapperNode(Node):
         scene = load_scene(scene_path)
         for spec in PARAMETERS:
             default = getattr(scene.search, spec.name) if spec.default is None else spec.default
-            self.declare_parameter(spec.name, default, _descriptor(spec))
+            self.declare_parameter(spec.name, default, _descriptor(spec, default))
         values = self.parameter_values()
         problem = self._problem(values)
         if problem is not None:
@@ -258,6 +275,12 @@ class PhysicsMapperNode(Node):
             fallback=cast(Fallback, str(values["fallback"])),
             refine_max_speed=float(values["refine_max_speed"]),
             refine_mean_radius=float(values["refine_mean_radius"]),
+            strategy=cast(Strategy, str(values["strategy"])),
+            bound=cast(Bound, str(values["bound"])),
+            settle_exit=cast(SettleExit, str(values["settle_exit"])),
+            interaction_margin=float(values["interaction_margin"]),
+            queue_limit=int(values["queue_limit"]),
+            trace_limit=int(values["trace_limit"]),
         )
         inputs = InputSettings(
             max_age=float(values["max_age"]),

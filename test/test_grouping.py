@@ -1,0 +1,132 @@
+"""Interaction groups (issue 8): which objects share a group, and the escape guard that merges groups.
+
+The rule (``physics_mapper.core.interaction``): an object's volume is the union of cubes of
+half-edge r + margin around its hypotheses' positions; objects whose volumes meet share a group.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+from core_builders import CUBE_SIZE, ON_FLOOR, cube, floor_scene, ranked, unrotated
+
+from physics_mapper.core.geometry import Pose, quaternion_about_axis
+from physics_mapper.core.grouped_search import GroupedSearch
+from physics_mapper.core.hypotheses import RankedHypotheses
+from physics_mapper.core.interaction import interaction_groups, object_radius
+from physics_mapper.core.physics import PhysicsChecker
+from physics_mapper.core.scene import Box, ObjectModel, Scene, SearchParams, Sphere, StaticBody
+from physics_mapper.core.search import BranchAndBound, make_search
+
+MARGIN = SearchParams().interaction_margin
+#: Half-edge of a test cube's volume cubes: its bounding radius plus the margin.
+CUBE_REACH = object_radius(Box((CUBE_SIZE,) * 3)) + MARGIN
+
+
+def one(pose: Pose) -> RankedHypotheses:
+    return ranked([pose], [1.0])
+
+
+def test_separate_piles_are_separate_groups_and_a_pile_is_one() -> None:
+    scene = floor_scene(*(cube(f"cube_{i}") for i in range(5)))
+    pile = [unrotated(0.0, 0.0, ON_FLOOR), unrotated(0.0, 0.0, 3 * ON_FLOOR)]  # a stacked pair
+    apart = 2 * CUBE_REACH + 0.01  # volumes 1 cm apart
+    hypotheses = [
+        one(pile[0]),
+        one(pile[1]),
+        one(unrotated(apart, 0.0, ON_FLOOR)),
+        one(unrotated(2 * apart, 0.0, ON_FLOOR)),
+        one(unrotated(0.0, apart, ON_FLOOR)),
+    ]
+    grouping = interaction_groups(scene, hypotheses, MARGIN)
+    assert grouping.groups == ((0, 1), (2,), (3,), (4,))
+
+
+def test_objects_whose_hypotheses_could_touch_share_a_group() -> None:
+    scene = floor_scene(*(cube(f"cube_{i}") for i in range(3)))
+    apart = 2 * CUBE_REACH + 0.01
+    # cube_1 is most likely far from cube_0, but its second hypothesis is close to it; cube_2 is far
+    # from both, but cube_1's second hypothesis reaches halfway: cube_0 - cube_1 - cube_2 chain up.
+    hypotheses = [
+        one(unrotated(0.0, 0.0, ON_FLOOR)),
+        ranked([unrotated(2 * apart, 0.0, ON_FLOOR), unrotated(apart - 0.02, 0.0, ON_FLOOR)], [0.9, 0.1]),
+        one(unrotated(3 * apart - 0.02, 0.0, ON_FLOOR)),
+    ]
+    assert interaction_groups(scene, hypotheses, MARGIN).groups == ((0, 1, 2),)
+    # Without the close hypothesis, three groups; a wider margin joins them again.
+    far = [hypotheses[0], one(unrotated(2 * apart, 0.0, ON_FLOOR)), one(unrotated(4 * apart, 0.0, ON_FLOOR))]
+    assert interaction_groups(scene, far, MARGIN).groups == ((0,), (1,), (2,))
+    assert interaction_groups(scene, far, MARGIN + apart).groups == ((0, 1, 2),)
+
+
+def test_linked_objects_stay_together_whatever_their_volumes() -> None:
+    scene = floor_scene(*(cube(f"cube_{i}") for i in range(3)))
+    hypotheses = [one(unrotated(i * 1.0, 0.0, ON_FLOOR)) for i in range(3)]
+    assert interaction_groups(scene, hypotheses, MARGIN, linked=[{0, 2}]).groups == ((0, 2), (1,))
+
+
+# --- the escape guard: a ball rolls down a slope into a cube resting further down --------------
+
+SLOPE_ANGLE = math.radians(20.0)
+SLOPE_CENTRE = (0.0, 0.0, 0.2)
+SLOPE_THICKNESS = 0.02
+BALL_RADIUS = 0.04
+SLOPE_ORIENTATION = quaternion_about_axis((0.0, 1.0, 0.0), SLOPE_ANGLE)  # descends towards +x
+
+
+def on_slope(along: float, height: float, orientation: tuple[float, float, float, float] | None = None) -> Pose:
+    """A pose ``along`` metres down the slope from its centre, centre ``height`` above its surface."""
+    down = (math.cos(SLOPE_ANGLE), 0.0, -math.sin(SLOPE_ANGLE))
+    normal = (math.sin(SLOPE_ANGLE), 0.0, math.cos(SLOPE_ANGLE))
+    lift = SLOPE_THICKNESS / 2.0 + height
+    position = tuple(c + along * d + lift * n for c, d, n in zip(SLOPE_CENTRE, down, normal, strict=True))
+    return Pose((position[0], position[1], position[2]), orientation or (0.0, 0.0, 0.0, 1.0))
+
+
+def slope_scene() -> Scene:
+    slope = StaticBody("slope", Box((0.8, 0.3, SLOPE_THICKNESS)), Pose(SLOPE_CENTRE, SLOPE_ORIENTATION))
+    ball = ObjectModel("ball", Sphere(BALL_RADIUS), mass=0.1)
+    # The full settling lets the ball roll the whole 0.5 s (an early exit stops it after a centimetre).
+    params = SearchParams(settle_exit="full", probability_threshold=0.0)
+    return replace(floor_scene(ball, cube("cube")), static=(*floor_scene().static, slope), search=params)
+
+
+def slope_hypotheses() -> tuple[RankedHypotheses, RankedHypotheses]:
+    ball = ranked([on_slope(-0.25, BALL_RADIUS), on_slope(-0.27, BALL_RADIUS)], [0.7, 0.3])
+    block = one(on_slope(0.08, CUBE_SIZE / 2.0, SLOPE_ORIENTATION))  # resting: the slope is not steep enough
+    return ball, block
+
+
+def test_a_ball_rolling_into_another_pile_merges_the_groups_and_the_search_starts_again() -> None:
+    scene, hypotheses = slope_scene(), slope_hypotheses()
+    assert interaction_groups(scene, hypotheses, MARGIN).groups == ((0,), (1,))
+    with PhysicsChecker(scene) as checker:
+        search = make_search(checker, hypotheses, scene.search)
+        assert isinstance(search, GroupedSearch)
+        grouped = search.run(None)
+        joint = BranchAndBound(checker, hypotheses, scene.search).run(None)
+        params = scene.search
+        alone = checker.settle([hypotheses[1].pose(1)], params.settle_time, params.angular_weight, objects=(1,))
+        hit = checker.settle([h.pose(1) for h in hypotheses], params.settle_time, params.angular_weight)
+    assert grouped.stats.merges == 1
+    assert [group.objects for group in grouped.groups] == [(0, 1)]
+    assert search.links == [frozenset({0, 1})]
+    # The merged group is searched from its root, both objects simulated together: as the joint search.
+    assert [(e.code, e.outcome, e.moved) for e in grouped.trace] == [(e.code, e.outcome, e.moved) for e in joint.trace]
+    assert all(e.group is None for e in grouped.trace)  # the merged group holds every object
+    assert (grouped.valid, grouped.code) == (joint.valid, joint.code) == (False, None)
+    # The cube rests where it is alone, and the ball knocks it off its place.
+    assert alone.jitters[0] < 0.0001 and hit.jitters[1] > 0.003
+
+
+def test_merged_objects_stay_merged_while_their_hypotheses_do_not_change() -> None:
+    scene, hypotheses = slope_scene(), slope_hypotheses()
+    with PhysicsChecker(scene) as checker:
+        first = make_search(checker, hypotheses, scene.search)
+        first.run(None)
+        again = make_search(checker, hypotheses, replace(scene.search, probability_threshold=0.5), first)
+        assert isinstance(again, GroupedSearch) and again.grouping.groups == ((0, 1),)
+        moved_ball = (ranked([on_slope(-0.26, BALL_RADIUS)], [1.0]), hypotheses[1])
+        fresh = make_search(checker, moved_ball, scene.search, again)
+        assert isinstance(fresh, GroupedSearch) and fresh.grouping.groups == ((0,), (1,))
