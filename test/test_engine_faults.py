@@ -11,7 +11,7 @@ from conftest import PROBLEMS
 from diagnostic_msgs.msg import DiagnosticStatus
 
 from msg_adapters.diagnostics import diagnostics_msg
-from physics_mapper.core.physics import pybullet
+from physics_mapper.core.bullet import pybullet
 from physics_mapper.core.scene import SearchParams
 from physics_mapper.core.scene_files import load_problem
 from physics_mapper.mapping.inputs import InputSettings, check_poses, check_weights

@@ -25,7 +25,8 @@ from physics_mapper.core.physics import Collision, PartialSettling, PhysicsCheck
 from physics_mapper.core.report import result_dict, trace_tree
 from physics_mapper.core.scene import Scene, SearchParams
 from physics_mapper.core.scene_files import load_problem
-from physics_mapper.core.search import REST_SHARE, BranchAndBound, Code, SearchResult, TraceEntry, make_search
+from physics_mapper.core.search import REST_SHARE, BranchAndBound, Code, SearchResult, TraceEntry
+from physics_mapper.core.strategy import make_search
 from physics_mapper.mapping.inputs import InputSettings
 from physics_mapper.mapping.mapper import Mapper, MapperSettings, TickReport
 

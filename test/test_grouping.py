@@ -17,7 +17,8 @@ from physics_mapper.core.hypotheses import RankedHypotheses
 from physics_mapper.core.interaction import interaction_groups, object_radius
 from physics_mapper.core.physics import PhysicsChecker
 from physics_mapper.core.scene import Box, ObjectModel, Scene, SearchParams, Sphere, StaticBody
-from physics_mapper.core.search import BranchAndBound, make_search
+from physics_mapper.core.search import BranchAndBound
+from physics_mapper.core.strategy import make_search
 
 MARGIN = SearchParams().interaction_margin
 #: Half-edge of a test cube's volume cubes: its bounding radius plus the margin.

@@ -48,7 +48,7 @@ from physics_mapper.core.physics import PhysicsChecker
 from physics_mapper.core.resources import resolve_resource, resource_uri
 from physics_mapper.core.scene import Box, Cylinder, Mesh, Plane, Scene, SearchParams, Sphere, bounding_radius
 from physics_mapper.core.scene_files import SceneError, load_scene
-from physics_mapper.core.search import solve
+from physics_mapper.core.strategy import solve
 
 PARAMS = SearchParams()
 BOX_SIZE = (0.2, 0.1, 0.05)

@@ -32,7 +32,8 @@ from physics_mapper.core.physics import PhysicsChecker
 from physics_mapper.core.report import code_text
 from physics_mapper.core.scene import Scene
 from physics_mapper.core.scoring import position_errors, rank_one_poses
-from physics_mapper.core.search import Code, SearchResult, make_search
+from physics_mapper.core.search import Code, SearchResult
+from physics_mapper.core.strategy import make_search
 from physics_mapper.mapping.topics import MAP_TOPIC_QOS, RECORDED_CONFIGURATION_TOPIC, RECORDED_SETTLED_TOPIC
 
 #: A published pose is a hypothesis whose position is this close (metres) and whose orientation q'

@@ -16,7 +16,8 @@ from dataclasses import dataclass
 from physics_mapper.core.geometry import Pose
 from physics_mapper.core.physics import PhysicsChecker
 from physics_mapper.core.scene import Problem
-from physics_mapper.core.search import SearchStats, make_search
+from physics_mapper.core.search import SearchStats
+from physics_mapper.core.strategy import make_search
 
 
 @dataclass(frozen=True)

@@ -31,7 +31,8 @@ from physics_mapper.core.geometry import pose_displacement
 from physics_mapper.core.interaction import interaction_groups
 from physics_mapper.core.physics import PhysicsChecker
 from physics_mapper.core.scene import SearchParams
-from physics_mapper.core.search import REST_SHARE, Code, SearchResult, make_search
+from physics_mapper.core.search import REST_SHARE, Code, SearchResult
+from physics_mapper.core.strategy import make_search
 
 Strategy = Literal["joint", "grouped"]
 STRATEGIES: tuple[Strategy, ...] = ("joint", "grouped")

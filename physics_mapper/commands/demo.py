@@ -17,11 +17,14 @@ from physics_mapper.commands import replay
 from physics_mapper.core.errors import EXIT_FAILURE
 
 if TYPE_CHECKING:
-    from diagnostic_msgs.msg import DiagnosticArray
+    from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
     from geometry_msgs.msg import PoseArray
 
 HELP = "start the node, replay the shipped pyramid bag into it, print the error with and without physics and the map"
 SEARCH_STATUS = "physics_mapper: search"
+#: The started node's fully qualified name, its statuses' ``hardware_id``: other nodes on the same
+#: ROS domain publish on /diagnostics too, and only this node's statuses are the demo's.
+DEMO_NODE = "/physics_mapper"
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -46,10 +49,14 @@ def _print_map(configuration: PoseArray, diagnostics: DiagnosticArray | None, na
         )
     if diagnostics is None:
         return
-    search = next(status for status in diagnostics.status if status.name == SEARCH_STATUS)
+    search = next(status for status in diagnostics.status if _is_demo_search(status))
     print(f"diagnostics: {search.message}")
     for value in search.values:
         print(f"  {value.key}: {value.value}")
+
+
+def _is_demo_search(status: DiagnosticStatus) -> bool:
+    return bool(status.name == SEARCH_STATUS and status.hardware_id == DEMO_NODE)
 
 
 def _last_map(recorded: Path) -> tuple[PoseArray | None, DiagnosticArray | None]:
@@ -70,7 +77,7 @@ def _last_map(recorded: Path) -> tuple[PoseArray | None, DiagnosticArray | None]
     diagnostics = None
     for message in bag.on(DIAGNOSTICS_TOPIC):
         array = deserialize_message(message.raw, DiagnosticArray)
-        if message.time_ns <= last.time_ns and any(s.name == SEARCH_STATUS for s in array.status):
+        if message.time_ns <= last.time_ns and any(_is_demo_search(s) for s in array.status):
             diagnostics = array
     return configuration, diagnostics
 

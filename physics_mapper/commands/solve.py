@@ -12,7 +12,7 @@ from physics_mapper.core.errors import InputError
 from physics_mapper.core.physics import PhysicsChecker
 from physics_mapper.core.report import result_dict, result_summary, trace_entry_dict, trace_tree
 from physics_mapper.core.scene import search_params_problem
-from physics_mapper.core.search import solve
+from physics_mapper.core.strategy import solve
 
 HELP = "search a problem file (scene + hypotheses) for the best physically valid configuration"
 

@@ -179,13 +179,15 @@ from physics_mapper.core.search import (
     TraceEntry,
     continuable,
     early_exit_rule,
-    make_search,
-    solve,
 )
 from physics_mapper.core.shipped import (
     PACKAGE,
     share_directory,
     shipped_path,
+)
+from physics_mapper.core.strategy import (
+    make_search,
+    solve,
 )
 from physics_mapper.core.yaml_files import (
     FLOAT_SPELLING,

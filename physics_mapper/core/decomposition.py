@@ -43,8 +43,7 @@ import os
 import sys
 import tempfile
 import time
-from collections.abc import Callable, Iterator, Sequence
-from contextlib import contextmanager
+from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass
 from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
@@ -206,28 +205,14 @@ def _coacd(vertices: FloatArray, faces: IntArray, settings: DecompositionSetting
 
 
 def _vhacd(vertices: FloatArray, faces: IntArray) -> tuple[ConvexPart, ...]:
-    from physics_mapper.core.physics import pybullet  # imported without pybullet's banner
+    from physics_mapper.core.bullet import pybullet, silenced_descriptor  # pybullet loads on first use
 
     with tempfile.TemporaryDirectory(prefix="physics_mapper_vhacd_") as folder:
         source, output, log = (Path(folder) / name for name in ("mesh.obj", "parts.obj", "log.txt"))
         write_parts(source, (ConvexPart(vertices, faces),), "input of V-HACD")
-        with _quiet_stdout():  # V-HACD prints its parameters and progress on stdout
+        with silenced_descriptor(1):  # V-HACD prints its parameters and progress on stdout
             pybullet.vhacd(str(source), str(output), str(log), resolution=VHACD_RESOLUTION)
         return read_parts(output)
-
-
-@contextmanager
-def _quiet_stdout() -> Iterator[None]:
-    """Send file descriptor 1 (a C library's printf) to /dev/null for the duration."""
-    sys.stdout.flush()
-    saved, devnull = os.dup(1), os.open(os.devnull, os.O_WRONLY)
-    try:
-        os.dup2(devnull, 1)
-        yield
-    finally:
-        os.dup2(saved, 1)
-        os.close(saved)
-        os.close(devnull)
 
 
 def write_parts(path: Path, parts: Sequence[ConvexPart], title: str) -> None:

@@ -181,7 +181,7 @@ class GroupSearch(BranchAndBound):
 class GroupedSearch:
     """Algorithm 1 per interaction group, anytime and resumable like :class:`BranchAndBound` (module docstring).
 
-    Build one with :func:`~physics_mapper.core.search.make_search` (``strategy: grouped``), or
+    Build one with :func:`~physics_mapper.core.strategy.make_search` (``strategy: grouped``), or
     :meth:`following` to carry over a previous search's groups.
     """
 

@@ -48,37 +48,15 @@ not stop early ends bit for bit where a full one does.
 
 from __future__ import annotations
 
-import importlib
 import math
-import os
-import sys
 import time
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, replace
-from types import ModuleType
-from typing import Literal, overload
+from typing import Literal, TypedDict, Unpack, overload
 
+from physics_mapper.core.bullet import pybullet
 from physics_mapper.core.geometry import IDENTITY, ORIGIN, Pose, Vector3, compose_poses, inverse_pose, pose_displacement
 from physics_mapper.core.scene import Box, Cylinder, Mesh, Plane, Scene, Shape, Sphere
-
-
-def _import_pybullet() -> ModuleType:
-    """pybullet, imported without the build-time banner its C extension writes to stderr (fd 2).
-
-    The banner would precede, on the same line, the one-line errors of the commands and the node.
-    """
-    sys.stderr.flush()
-    saved, devnull = os.dup(2), os.open(os.devnull, os.O_WRONLY)
-    try:
-        os.dup2(devnull, 2)
-        return importlib.import_module("pybullet")
-    finally:
-        os.dup2(saved, 2)
-        os.close(saved)
-        os.close(devnull)
-
-
-pybullet = _import_pybullet()
 
 #: What pybullet raises when a world fails, e.g. once its physics server is disconnected: the
 #: checker is unusable then, and a new one must be built (:class:`~physics_mapper.mapping.mapper.Mapper` does).
@@ -200,6 +178,16 @@ def _widened(reach: tuple[PositionRange, ...], poses: Sequence[Pose]) -> tuple[P
             )
         )
     return tuple(grown)
+
+
+class SettleOptions(TypedDict, total=False):
+    """Keyword options of :meth:`PhysicsChecker.settle` (see there): which objects settle (scene
+    indices; the others stay parked), a speed cap (m/s), an early exit, and whether to record reach."""
+
+    objects: Sequence[int] | None
+    max_speed: float | None
+    early_exit: EarlyExit | None
+    track_reach: bool
 
 
 @dataclass(frozen=True)
@@ -596,15 +584,7 @@ class PhysicsChecker:
 
     @overload
     def settle(
-        self,
-        poses: Sequence[Pose],
-        settle_time: float,
-        angular_weight: float,
-        *,
-        objects: Sequence[int] | None = None,
-        max_speed: float | None = None,
-        early_exit: EarlyExit | None = None,
-        track_reach: bool = False,
+        self, poses: Sequence[Pose], settle_time: float, angular_weight: float, **options: Unpack[SettleOptions]
     ) -> Settling: ...
 
     @overload
@@ -614,11 +594,7 @@ class PhysicsChecker:
         settle_time: float,
         angular_weight: float,
         stop_at: float | None,
-        *,
-        objects: Sequence[int] | None = None,
-        max_speed: float | None = None,
-        early_exit: EarlyExit | None = None,
-        track_reach: bool = False,
+        **options: Unpack[SettleOptions],
     ) -> Settling | PartialSettling: ...
 
     def settle(
@@ -627,11 +603,7 @@ class PhysicsChecker:
         settle_time: float,
         angular_weight: float,
         stop_at: float | None = None,
-        *,
-        objects: Sequence[int] | None = None,
-        max_speed: float | None = None,
-        early_exit: EarlyExit | None = None,
-        track_reach: bool = False,
+        **options: Unpack[SettleOptions],
     ) -> Settling | PartialSettling:
         """Rule 2: simulate ``settle_time`` seconds from rest at ``poses``; measure each J_i.
 
@@ -646,6 +618,7 @@ class PhysicsChecker:
         settling before ``settle_time`` (:class:`EarlyExit`); ``track_reach`` records where each
         object went (:attr:`Settling.reach`).
         """
+        objects = options.get("objects")
         self._place(poses, objects)
         plan = PartialSettling(
             poses=tuple(poses),
@@ -653,9 +626,9 @@ class PhysicsChecker:
             steps_done=0,
             steps_total=round(settle_time / TIME_STEP),
             objects=None if objects is None else tuple(objects),
-            max_speed=max_speed,
-            early_exit=early_exit,
-            reach=_start_reach(poses) if track_reach else None,
+            max_speed=options.get("max_speed"),
+            early_exit=options.get("early_exit"),
+            reach=_start_reach(poses) if options.get("track_reach", False) else None,
         )
         return self._simulate(plan, stop_at)
 

@@ -24,9 +24,9 @@ never queued again once visited: the set that keeps a node from being queued twi
 to hold the queued nodes.
 
 :class:`BranchAndBound` searches the objects it is given: every object of the scene (the paper's
-joint search), or one interaction group (:mod:`physics_mapper.core.grouped_search`). :func:`make_search`
-picks the search by ``params.strategy`` and :func:`solve` runs one to its deadline; every caller goes
-through them.
+joint search), or one interaction group (:mod:`physics_mapper.core.grouped_search`);
+:mod:`physics_mapper.core.strategy` picks the search by ``params.strategy``, and every caller goes
+through it.
 
 Bounded memory: the queue holds at most ``queue_limit`` nodes (beyond, the least probable are
 dropped and the search can no longer say it visited everything: it ends ``truncated``); the trace
@@ -55,12 +55,11 @@ from physics_mapper.core.physics import (
     SettleStop,
     Settling,
 )
-from physics_mapper.core.refine import RefinedMap, Refinement, load_solver, refinement_start
+from physics_mapper.core.refine import RefinedMap, Refinement, refinement_start
 from physics_mapper.core.scene import Fallback, SearchParams
 
 if TYPE_CHECKING:
     from physics_mapper.core.collision_table import CollisionTable
-    from physics_mapper.core.grouped_search import GroupedSearch
 
 Code = tuple[int, ...]
 Outcome = Literal["collision", "unstable", "valid"]
@@ -621,39 +620,3 @@ def continuable(running: SearchParams, wanted: SearchParams) -> bool:
     so changing them keeps the search's progress; any other parameter starts a new search.
     """
     return replace(running, deadline=wanted.deadline, fallback=wanted.fallback) == wanted
-
-
-def make_search(
-    checker: PhysicsChecker,
-    hypotheses: Sequence[RankedHypotheses],
-    params: SearchParams,
-    previous: Search | None = None,
-) -> BranchAndBound | GroupedSearch:
-    """The search ``params.strategy`` asks for, carrying over what ``previous`` found that still holds.
-
-    ``joint``: the paper's single search (:class:`BranchAndBound`); ``grouped``: one per interaction
-    group (:class:`~physics_mapper.core.grouped_search.GroupedSearch`). With the same hypotheses and
-    parameters that only change the deadline or the fallback, ``previous`` itself is returned, to be
-    resumed; a grouped search also keeps every group whose objects' hypotheses are unchanged.
-    """
-    hypotheses = tuple(hypotheses)
-    if params.fallback == "refine":
-        load_solver()  # before the deadline starts (once per process)
-    if params.strategy == "joint":
-        if (
-            type(previous) is BranchAndBound
-            and previous.checker is checker
-            and previous.hypotheses == hypotheses
-            and continuable(previous.params, params)
-        ):
-            previous.params = params
-            return previous
-        return BranchAndBound(checker, hypotheses, params)
-    from physics_mapper.core.grouped_search import GroupedSearch  # builds on this module
-
-    return GroupedSearch.following(checker, hypotheses, params, previous)
-
-
-def solve(checker: PhysicsChecker, hypotheses: Sequence[RankedHypotheses], params: SearchParams) -> SearchResult:
-    """Run a fresh search until ``params.deadline`` seconds have passed or the queue empties."""
-    return make_search(checker, hypotheses, params).run(params.deadline)

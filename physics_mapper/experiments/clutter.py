@@ -5,7 +5,7 @@ Scenes (``config/scenes``): ``tabletop.yaml`` (ten household-like objects on a t
 object a mesh. As in Fig. 6, each object is tracked by its own particle filter around the scene's
 settled ground truth (noise sigma :data:`SIGMA_POSITION` per position axis and
 :data:`SIGMA_ROTATION` per rotation axis, top 5 particles as hypotheses), and after each of its
-iterations the hypotheses are searched with the scene's rules (:func:`~physics_mapper.core.search.solve`'s
+iterations the hypotheses are searched with the scene's rules (:func:`~physics_mapper.core.strategy.solve`'s
 search) for a budget of the scene's ``deadline`` (what the node does in one tick; ``--search-budget``
 overrides it), in slices of :data:`SLICE` seconds so that the time the answer appeared is known.
 
@@ -40,7 +40,8 @@ from physics_mapper.core.hypotheses import RankedHypotheses
 from physics_mapper.core.physics import PhysicsChecker
 from physics_mapper.core.scene import Scene, SearchParams
 from physics_mapper.core.scoring import rank_one_poses
-from physics_mapper.core.search import SearchResult, make_search
+from physics_mapper.core.search import SearchResult
+from physics_mapper.core.strategy import make_search
 from physics_mapper.experiments.common import (
     COLOR_WITH_PHYSICS,
     COLOR_WITHOUT_PHYSICS,

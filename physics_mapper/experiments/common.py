@@ -28,8 +28,9 @@ from physics_mapper.core.physics import PhysicsChecker
 from physics_mapper.core.scene import Box, Cylinder, Scene, SearchParams, StaticBody
 from physics_mapper.core.scene_files import SceneError, load_scene
 from physics_mapper.core.scoring import position_errors
-from physics_mapper.core.search import SearchResult, solve
+from physics_mapper.core.search import SearchResult
 from physics_mapper.core.shipped import shipped_path
+from physics_mapper.core.strategy import solve
 
 #: Wall-clock budget, seconds, of each search. The experiments have at most 5^3 = 125
 #: configurations of ~4 ms each, so the search always empties its queue well before it;

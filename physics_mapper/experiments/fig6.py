@@ -68,6 +68,7 @@ from physics_mapper.experiments.tracking import (
     hypothesis_spread_cm,
     track_and_search,
     tracker_settings,
+    tracker_summary,
 )
 
 NAME = "fig6"
@@ -265,12 +266,7 @@ def run(options: ExperimentOptions) -> ExperimentOutput:
         "scene": f"config/scenes/{SCENE_FILE}",
         "seed": options.seed,
         "runs": int(outcome.valid.shape[0]),
-        "iterations": settings.iterations,
-        "particles": settings.particles,
-        "top_m": settings.top_m,
-        "sigma_position_m": settings.sigma_position,
-        "sigma_rotation_rad": settings.sigma_rotation,
-        "sigma_rotation_deg": math.degrees(settings.sigma_rotation),
+        **tracker_summary(settings),
         "penetration_threshold_m": scene.search.penetration_threshold,
         "jitter_threshold_m": scene.search.jitter_threshold,
         "search_deadline_s": EXHAUSTIVE_DEADLINE,

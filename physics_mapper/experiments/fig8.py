@@ -62,6 +62,7 @@ from physics_mapper.experiments.tracking import (
     hypothesis_spread_cm,
     track_and_search,
     tracker_settings,
+    tracker_summary,
 )
 
 NAME = "fig8"
@@ -225,12 +226,7 @@ def run(options: ExperimentOptions) -> ExperimentOutput:
         "scene": f"config/scenes/{SCENE_FILE}",
         "seed": options.seed,
         "runs": int(without.shape[0]),
-        "iterations": settings.iterations,
-        "particles": settings.particles,
-        "top_m": settings.top_m,
-        "sigma_position_m": settings.sigma_position,
-        "sigma_rotation_rad": settings.sigma_rotation,
-        "sigma_rotation_deg": math.degrees(settings.sigma_rotation),
+        **tracker_summary(settings),
         "penetration_threshold_m": scene.search.penetration_threshold,
         "settle_time_s": scene.search.settle_time,
         "groove_length_m": groove_length(scene),

@@ -19,6 +19,7 @@ do not depend on how many runs were asked for, and ``generate --seed S`` makes t
 
 from __future__ import annotations
 
+import math
 from collections import Counter
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
@@ -105,6 +106,18 @@ def tracker_settings(options: ExperimentOptions, sigma_position: float, sigma_ro
     """
     particles = PAPER_PARTICLES if options.particles is None else options.particles
     return replace(TrackerSettings(), particles=particles, sigma_position=sigma_position, sigma_rotation=sigma_rotation)
+
+
+def tracker_summary(settings: TrackerSettings) -> dict[str, float | int]:
+    """The filter's settings as the experiments' JSON reports state them (noise in m, rad and degrees)."""
+    return {
+        "iterations": settings.iterations,
+        "particles": settings.particles,
+        "top_m": settings.top_m,
+        "sigma_position_m": settings.sigma_position,
+        "sigma_rotation_rad": settings.sigma_rotation,
+        "sigma_rotation_deg": math.degrees(settings.sigma_rotation),
+    }
 
 
 def _score(

@@ -15,7 +15,8 @@ from physics_mapper.core.hypotheses import RankedHypotheses
 from physics_mapper.core.physics import PhysicsChecker, PhysicsEngineError
 from physics_mapper.core.refine import load_solver
 from physics_mapper.core.scene import Scene, SearchParams, search_params_problem
-from physics_mapper.core.search import BranchAndBound, Code, SearchResult, make_search
+from physics_mapper.core.search import BranchAndBound, Code, SearchResult
+from physics_mapper.core.strategy import make_search
 from physics_mapper.mapping.inputs import InputSettings, InputSnapshot, InputTracker
 
 #: Seconds a tick's search may run past its deadline: the search looks at the clock every

@@ -1,0 +1,50 @@
+"""The search ``strategy`` asks for: the paper's joint search or one per interaction group.
+
+:func:`make_search` builds (or carries over) a search; :func:`solve` runs a fresh one to its
+deadline. Every caller goes through them, so ``strategy: joint|grouped`` means the same everywhere.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+from physics_mapper.core.grouped_search import GroupedSearch
+from physics_mapper.core.hypotheses import RankedHypotheses
+from physics_mapper.core.physics import PhysicsChecker
+from physics_mapper.core.refine import load_solver
+from physics_mapper.core.scene import SearchParams
+from physics_mapper.core.search import BranchAndBound, Search, SearchResult, continuable
+
+
+def make_search(
+    checker: PhysicsChecker,
+    hypotheses: Sequence[RankedHypotheses],
+    params: SearchParams,
+    previous: Search | None = None,
+) -> BranchAndBound | GroupedSearch:
+    """The search ``params.strategy`` asks for, carrying over what ``previous`` found that still holds.
+
+    ``joint``: the paper's single search (:class:`BranchAndBound`); ``grouped``: one per interaction
+    group (:class:`~physics_mapper.core.grouped_search.GroupedSearch`). With the same hypotheses and
+    parameters that only change the deadline or the fallback, ``previous`` itself is returned, to be
+    resumed; a grouped search also keeps every group whose objects' hypotheses are unchanged.
+    """
+    hypotheses = tuple(hypotheses)
+    if params.fallback == "refine":
+        load_solver()  # before the deadline starts (once per process)
+    if params.strategy == "joint":
+        if (
+            type(previous) is BranchAndBound
+            and previous.checker is checker
+            and previous.hypotheses == hypotheses
+            and continuable(previous.params, params)
+        ):
+            previous.params = params
+            return previous
+        return BranchAndBound(checker, hypotheses, params)
+    return GroupedSearch.following(checker, hypotheses, params, previous)
+
+
+def solve(checker: PhysicsChecker, hypotheses: Sequence[RankedHypotheses], params: SearchParams) -> SearchResult:
+    """Run a fresh search until ``params.deadline`` seconds have passed or the queue empties."""
+    return make_search(checker, hypotheses, params).run(params.deadline)
