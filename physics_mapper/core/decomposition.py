@@ -11,7 +11,7 @@ Methods:
   with collision-aware concavity and tree search". ``threshold`` is its concavity threshold
   (0.01 to 1, dimensionless: relative to the mesh's size); lower gives more, finer parts. Each part
   is decimated to at most :data:`COACD_MAX_PART_VERTICES` vertices. Seeded, so a mesh always gives
-  the same parts. Slow: one to two minutes for pybullet_data's mug.
+  the same parts. Slow: about 30 s for pybullet_data's mug on one core (more on a busy machine).
 * ``vhacd``: pybullet's built-in V-HACD (its default parameters, except a voxel resolution of
   :data:`VHACD_RESOLUTION` instead of 1,000,000: ten times faster, about as many parts). Faster,
   coarser; the fallback to compare against (``BENCHMARKS.md``).
