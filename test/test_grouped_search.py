@@ -133,7 +133,7 @@ def test_early_exit_keeps_every_outcome_and_settles_the_answer_within_tolerance(
     for compared in reduced_suite:
         early, full = compared.grouped, compared.grouped_full
         assert [(e.group, e.code, e.outcome) for e in early.trace] == [(e.group, e.code, e.outcome) for e in full.trace]
-        assert early.stats.settle_steps_saved > early.stats.settle_steps  # most steps are spared
+        assert early.stats.settle_steps_saved > 0  # how many is a figure (BENCHMARKS.md, "Scale")
         assert full.stats.settle_steps_saved == 0
         assert any(e.settle_stop == "beyond_threshold" for e in early.trace)
         assert all(e.settle_stop is None for e in full.trace)

@@ -10,7 +10,14 @@ import pytest
 from core_builders import CUBE_SIZE, ON_FLOOR, cube, floor_scene, ground_truth, moved, shipped_scene, unrotated
 
 from physics_mapper.core.geometry import Pose, rotation_angle, translation_distance
-from physics_mapper.core.physics import CLOCK_CHECK_STEPS, TIME_STEP, PartialSettling, PhysicsChecker, Settling
+from physics_mapper.core.physics import (
+    CLOCK_CHECK_STEPS,
+    TIME_STEP,
+    EarlyExit,
+    PartialSettling,
+    PhysicsChecker,
+    Settling,
+)
 from physics_mapper.core.scene import Scene, SearchParams
 
 JITTER_THRESHOLD = SearchParams().jitter_threshold
@@ -56,6 +63,17 @@ def test_cube_10cm_above_the_floor_is_unstable() -> None:
         assert not settling.is_stable(JITTER_THRESHOLD)
         assert math.isclose(settling.jitters[0], 0.1, abs_tol=0.005)
         assert math.isclose(settling.settled_poses[0].position[2], ON_FLOOR, abs_tol=0.001)
+
+
+def test_an_early_exit_beyond_the_threshold_waits_until_the_object_rests_elsewhere() -> None:
+    """Beyond the threshold mid-fall is not enough (a rocking object comes back): it must rest there."""
+    early_exit = EarlyExit(rest_rate=0.001, jitter_threshold=JITTER_THRESHOLD)
+    with PhysicsChecker(floor_scene(cube("cube_a"))) as checker:
+        floating = (unrotated(0.0, 0.0, ON_FLOOR + 0.03),)  # beyond the 1 cm threshold 0.05 s into its fall
+        settling = checker.settle(floating, settle_time=0.5, angular_weight=0.1, early_exit=early_exit)
+        assert settling.stopped == "beyond_threshold" and settling.steps < settling.steps_total
+        assert math.isclose(settling.settled_poses[0].position[2], ON_FLOOR, abs_tol=0.001)
+        assert math.isclose(settling.jitters[0], 0.03, abs_tol=0.002)
 
 
 def test_correct_three_cube_pyramid_is_valid() -> None:

@@ -13,7 +13,7 @@ Three estimates are scored against the settled truth, e_i = 100 |p_i - p_i_true|
 
 * ``C11..1``: every object's most likely hypothesis (no physics);
 * ``chosen``: the hypotheses of the search's answer (the valid configuration of least jitter, or
-  the scene's ``fallback: settled`` configuration), C11..1 when there is no answer;
+  the scene's fallback: ``refine`` in the shipped scenes, C11..1 itself), C11..1 when there is no answer;
 * ``settled``: the answer's settled poses (the node's ``~/settled_configuration``), C11..1 when none.
 
 Time to answer: wall-clock seconds from the search's start until it first held a map to publish
@@ -38,7 +38,7 @@ from numpy.typing import NDArray
 from physics_mapper.core.geometry import Pose
 from physics_mapper.core.hypotheses import RankedHypotheses
 from physics_mapper.core.physics import PhysicsChecker
-from physics_mapper.core.scene import Scene, SearchParams
+from physics_mapper.core.scene import Fallback, Scene, SearchParams
 from physics_mapper.core.scoring import rank_one_poses
 from physics_mapper.core.search import SearchResult
 from physics_mapper.core.strategy import make_search
@@ -120,6 +120,14 @@ class SceneOutcome:
     first_map: NDArray[np.float64]  # seconds, NaN where no map
     first_valid: NDArray[np.float64]  # seconds, NaN where no valid configuration
     visited: NDArray[np.int64]
+
+
+#: What the map is when no configuration is valid, per ``fallback``.
+FALLBACK_MAPS: dict[Fallback, str] = {
+    "none": "none",
+    "settled": "settled poses of the most likely collision-free configuration",
+    "refine": "C11..1 with its overlaps resolved by the least motion, then settled",
+}
 
 
 def _scored(timed: TimedSearch, hypotheses: Sequence[RankedHypotheses], truth: Sequence[Pose]) -> dict[str, Any]:
@@ -208,6 +216,7 @@ def scene_summary(outcome: SceneOutcome) -> dict[str, Any]:
         "penetration_threshold_m": outcome.scene.search.penetration_threshold,
         "jitter_threshold_m": outcome.scene.search.jitter_threshold,
         "search_budget_s": outcome.budget,
+        "fallback": outcome.scene.search.fallback,
         "per_object_cm": {
             estimate: {name: float(errors[:, :, i].mean()) for i, name in enumerate(names)}
             for estimate, errors in outcome.errors.items()
@@ -339,7 +348,7 @@ Rules: overlap at most {100 * part["penetration_threshold_m"]:g} cm, jitter at m
 | total | {totals} |
 
 - Valid map in {part["valid"]} of {searches} searches (C11..1 itself valid in {part["root_valid"]}); the fallback
-  (settled poses of the most likely collision-free configuration) in {part["fallback_used"]}; no map in
+  (`{part["fallback"]}`: {FALLBACK_MAPS[part["fallback"]]}) in {part["fallback_used"]}; no map in
   {part["no_map"]}. {part["finished"]} searches emptied their queue within the budget, visiting
   {part["visited_mean"]:.1f} configurations on average; in {part["root_bounded"]} the root C11..1 itself was
   bounded (p(C) below `probability_threshold`), so that nothing beyond it was searched.
