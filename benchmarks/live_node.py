@@ -14,6 +14,7 @@ from pathlib import Path
 from physics_mapper.bench.problems import floating_problem
 from physics_mapper.core.scene import Problem
 from physics_mapper.core.scene_files import load_scene
+from physics_mapper.ros.node_memory import resident_set_size
 
 REPO = Path(__file__).resolve().parent.parent
 PYRAMID_SCENE = REPO / "config" / "scenes" / "pyramid.yaml"
@@ -38,11 +39,8 @@ def busy_problem(per_object: int = 60) -> Problem:
 
 
 def memory_mb(pid: int, field: str = "VmRSS") -> float:
-    """A process's resident memory from /proc (``VmRSS`` now, ``VmHWM`` its peak), in MiB."""
-    for line in Path(f"/proc/{pid}/status").read_text().splitlines():
-        if line.startswith(f"{field}:"):
-            return int(line.split()[1]) / 1024.0
-    raise ValueError(f"no {field} for process {pid}")
+    """A process's resident memory (``VmRSS`` now, ``VmHWM`` its peak), in MiB."""
+    return resident_set_size(pid, field) / 2**20
 
 
 def percentile(values: Sequence[float], fraction: float) -> float:

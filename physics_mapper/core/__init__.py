@@ -179,6 +179,7 @@ from physics_mapper.core.search import (
     TraceEntry,
     continuable,
     early_exit_rule,
+    resumable,
 )
 from physics_mapper.core.shipped import (
     PACKAGE,
@@ -330,6 +331,7 @@ __all__ = [
     "resource_uri",
     "result_dict",
     "result_summary",
+    "resumable",
     "rotate_vector",
     "rotation_angle",
     "rotation_vector",

@@ -102,12 +102,10 @@ class CollisionTable:
         """Rule 1 for objects ``objects`` (scene indices, ascending) at ranks ``code``: the deepest
         overlap beyond ``penetration_threshold`` metres, or None (as ``PhysicsChecker.find_collision``)."""
         near = self._near(objects, code)
-        rows = [(i, self._static_rows(i)[a - 1]) for i, a in zip(objects, code, strict=True)]
-        pairs = [(i, j, self._pair_table(i, j)[a - 1, b - 1]) for i, a, j, b in near]
+        rows, pairs = self._entries(objects, code, near)
         if any(math.isnan(row[-1]) for _, row in rows) or any(math.isnan(depth) for _, _, depth in pairs):
             self._fill(objects, code, near)
-            rows = [(i, self._static_rows(i)[a - 1]) for i, a in zip(objects, code, strict=True)]
-            pairs = [(i, j, self._pair_table(i, j)[a - 1, b - 1]) for i, a, j, b in near]
+            rows, pairs = self._entries(objects, code, near)
         object_count = len(self._radii)
         depths = {
             (i, object_count + k): float(depth)
@@ -117,6 +115,14 @@ class CollisionTable:
         }
         depths.update({(i, j): float(depth) for i, j, depth in pairs if depth != NO_CONTACT})
         return deepest_collision(depths, penetration_threshold, self.checker.body_name)
+
+    def _entries(
+        self, objects: Sequence[int], code: Sequence[int], near: list[tuple[int, int, int, int]]
+    ) -> tuple[list[tuple[int, NDArray[np.float64]]], list[tuple[int, int, float]]]:
+        """A configuration's table entries: per object its static row, per near pair its depth (NaN: unknown)."""
+        rows = [(i, self._static_rows(i)[a - 1]) for i, a in zip(objects, code, strict=True)]
+        pairs = [(i, j, float(self._pair_table(i, j)[a - 1, b - 1])) for i, a, j, b in near]
+        return rows, pairs
 
     def _fill(self, objects: Sequence[int], code: Sequence[int], near: list[tuple[int, int, int, int]]) -> None:
         """One collision pass with the configuration placed; store every entry it decides."""

@@ -55,6 +55,7 @@ from physics_mapper.core.search import (
     SearchStats,
     TraceEntry,
     continuable,
+    resumable,
 )
 
 #: Settlings a grouped search remembers (each group an equal share), a few hundred bytes each.
@@ -246,7 +247,7 @@ class GroupedSearch:
         hypotheses = tuple(hypotheses)
         if not isinstance(previous, GroupedSearch):
             return cls(checker, hypotheses, params)
-        if previous.checker is checker and previous.hypotheses == hypotheses and continuable(previous.params, params):
+        if resumable(previous, checker, hypotheses, params):
             previous.params = params
             for group in previous._groups.values():
                 group.params = params

@@ -73,10 +73,11 @@ CLOCK_CHECK_STEPS = 8
 #: Metres between the spots, far above any scene, where objects wait between configurations.
 PARKING_SPACING = 1000.0
 #: Consecutive looks (every :data:`CLOCK_CHECK_STEPS` steps, 0.1 s in all at 240 Hz) at which every
-#: simulated object must be at rest before a settling stops early.
+#: simulated object, or one object beyond the jitter threshold, must be at rest before a settling
+#: stops early.
 REST_CHECKS = 3
-#: Why a settling stopped before ``settle_time``: every object at rest, or one object's jitter
-#: already beyond the threshold (the configuration is unstable whatever follows).
+#: Why a settling stopped before ``settle_time``: every object at rest, or one object at rest with
+#: its jitter beyond the threshold (it came to rest elsewhere: the configuration is unstable).
 SettleStop = Literal["rest", "beyond_threshold"]
 #: The smallest axis-aligned box (low corner, high corner), metres, holding an object's positions.
 PositionRange = tuple[Vector3, Vector3]

@@ -596,6 +596,7 @@ class BranchAndBound:
 class Search(Protocol):
     """What every search offers (:class:`BranchAndBound` over all objects, or a grouped search)."""
 
+    checker: PhysicsChecker
     hypotheses: tuple[RankedHypotheses, ...]
     params: SearchParams
 
@@ -620,3 +621,10 @@ def continuable(running: SearchParams, wanted: SearchParams) -> bool:
     so changing them keeps the search's progress; any other parameter starts a new search.
     """
     return replace(running, deadline=wanted.deadline, fallback=wanted.fallback) == wanted
+
+
+def resumable(
+    previous: Search, checker: PhysicsChecker, hypotheses: tuple[RankedHypotheses, ...], params: SearchParams
+) -> bool:
+    """Whether ``previous`` may simply go on: the same world and hypotheses, parameters it can continue under."""
+    return previous.checker is checker and previous.hypotheses == hypotheses and continuable(previous.params, params)

@@ -13,7 +13,7 @@ from physics_mapper.core.hypotheses import RankedHypotheses
 from physics_mapper.core.physics import PhysicsChecker
 from physics_mapper.core.refine import load_solver
 from physics_mapper.core.scene import SearchParams
-from physics_mapper.core.search import BranchAndBound, Search, SearchResult, continuable
+from physics_mapper.core.search import BranchAndBound, Search, SearchResult, resumable
 
 
 def make_search(
@@ -33,12 +33,7 @@ def make_search(
     if params.fallback == "refine":
         load_solver()  # before the deadline starts (once per process)
     if params.strategy == "joint":
-        if (
-            type(previous) is BranchAndBound
-            and previous.checker is checker
-            and previous.hypotheses == hypotheses
-            and continuable(previous.params, params)
-        ):
+        if type(previous) is BranchAndBound and resumable(previous, checker, hypotheses, params):
             previous.params = params
             return previous
         return BranchAndBound(checker, hypotheses, params)

@@ -29,12 +29,12 @@ class MemorySample:
     rss: int
 
 
-def resident_set_size(pid: int) -> int:
-    """Bytes of a process's resident set (``VmRSS`` of ``/proc/<pid>/status``)."""
+def resident_set_size(pid: int, field: str = "VmRSS") -> int:
+    """Bytes of a process's resident set from ``/proc/<pid>/status``: ``VmRSS`` now, ``VmHWM`` its peak."""
     for line in Path(f"/proc/{pid}/status").read_text().splitlines():
-        if line.startswith("VmRSS:"):
+        if line.startswith(f"{field}:"):
             return int(line.split()[1]) * 1024
-    raise RuntimeError(f"no VmRSS for process {pid}")
+    raise RuntimeError(f"no {field} for process {pid}")
 
 
 def sample_node_memory(
