@@ -6,7 +6,7 @@ from setuptools import find_packages, setup
 
 PACKAGE = "physics_mapper"
 #: Folders installed under share/physics_mapper/ with their relative paths kept, so that the commands find
-#: them the same way installed or in a checkout (physics_mapper/core/shipped.py).
+#: them the same way installed or in a checkout (physics_mapper/model/shipped.py).
 SHIPPED = ("config", "test/data")
 
 

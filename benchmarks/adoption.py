@@ -25,10 +25,10 @@ from rclpy.serialization import deserialize_message, serialize_message
 from std_msgs.msg import Float64MultiArray
 
 from msg_adapters.hypotheses import pose_array_msg, raw_pose, received_pose_array, received_weights
-from physics_mapper.core.geometry import make_pose
-from physics_mapper.core.hypotheses import Hypothesis, RankedHypotheses
-from physics_mapper.core.scene import Workspace
 from physics_mapper.mapping.inputs import InUse, rank
+from physics_mapper.model.geometry import make_pose
+from physics_mapper.model.hypotheses import Hypothesis, RankedHypotheses
+from physics_mapper.model.scene import Workspace
 
 SIZES = (100, 1_000, 9_000, 30_000)
 KEPT = 100

@@ -20,7 +20,7 @@ from rosbags.rosbag2 import Reader, StoragePlugin, Writer
 
 from physics_mapper.bags.mcap_storage import verify_checksums
 from physics_mapper.bags.storage import BAG_VERSION, POSE_ARRAY, TYPESTORE, BagWriter, pose_array_cdr, read_bag
-from physics_mapper.core.geometry import Pose
+from physics_mapper.model.geometry import Pose
 
 TOPIC = "/hypotheses/cube"
 

@@ -32,13 +32,13 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from physics_mapper.batch.executors import Executor, ProcessPool, RayCluster, TaskFailure
-from physics_mapper.batch.runner import BatchRun, run_batch, survey_bags
-from physics_mapper.batch.settings import Setting
-from physics_mapper.batch.sources import SurveyedBag, find_bags, read_inputs
 from physics_mapper.cli import main as cli_main
-from physics_mapper.core.scene import Scene
-from physics_mapper.core.scene_files import load_scene
+from physics_mapper.evaluation.executors import Executor, ProcessPool, RayCluster, TaskFailure
+from physics_mapper.evaluation.runner import BatchRun, run_batch, survey_bags
+from physics_mapper.evaluation.settings import Setting
+from physics_mapper.evaluation.sources import SurveyedBag, find_bags, read_inputs
+from physics_mapper.model.scene import Scene
+from physics_mapper.model.scene_files import load_scene
 
 REPO = Path(__file__).resolve().parent.parent
 SCENE = REPO / "config" / "scenes" / "pyramid.yaml"
@@ -48,7 +48,7 @@ CLUSTER_MACHINES = (1, 4, 16, 64)
 
 def ready(progress: Callable[[], None] | None = None) -> int:
     """An empty task that imports what a real one imports: a worker's start-up, measured."""
-    import physics_mapper.batch.tasks  # noqa: F401
+    import physics_mapper.evaluation.tasks  # noqa: F401
 
     return os.getpid()
 

@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from physics_mapper.cli import main as cli_main
-from physics_mapper.core.scene_files import load_scene
+from physics_mapper.model.scene_files import load_scene
 from physics_mapper.perception.particle_filter import TrackerSettings, settle_ground_truth, track
 
 REPO = Path(__file__).resolve().parent.parent

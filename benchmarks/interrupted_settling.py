@@ -21,10 +21,10 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
-from physics_mapper.core.geometry import Pose
-from physics_mapper.core.physics import PartialSettling, PhysicsChecker, Settling
-from physics_mapper.core.scene import Problem
-from physics_mapper.core.scene_files import load_problem
+from physics_mapper.model.geometry import Pose
+from physics_mapper.model.scene import Problem
+from physics_mapper.model.scene_files import load_problem
+from physics_mapper.physics.checker import PartialSettling, PhysicsChecker, Settling
 
 PROBLEMS = Path(__file__).resolve().parent.parent / "config" / "problems"
 PAST = 0.0  # a time.monotonic() instant long past: every look at the clock interrupts

@@ -12,8 +12,8 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from physics_mapper.bench.problems import floating_problem
-from physics_mapper.core.scene import Problem
-from physics_mapper.core.scene_files import load_scene
+from physics_mapper.model.scene import Problem
+from physics_mapper.model.scene_files import load_scene
 from physics_mapper.ros.node_memory import resident_set_size
 
 REPO = Path(__file__).resolve().parent.parent

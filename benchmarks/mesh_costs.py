@@ -19,11 +19,11 @@ from pathlib import Path
 from scipy.spatial import ConvexHull
 
 from physics_mapper.bench.mesh_costs import RuleCosts, decomposition_cost, resting_costs, scene_costs
-from physics_mapper.core.decomposition import CACHE_ENVIRONMENT_VARIABLE, DecompositionSettings
-from physics_mapper.core.meshes import MeshRequest, load_mesh_geometry
-from physics_mapper.core.resources import resolve_resource
-from physics_mapper.core.scene import Mesh
-from physics_mapper.core.scene_files import load_scene
+from physics_mapper.model.decomposition import CACHE_ENVIRONMENT_VARIABLE, DecompositionSettings
+from physics_mapper.model.meshes import MeshRequest, load_mesh_geometry
+from physics_mapper.model.resources import resolve_resource
+from physics_mapper.model.scene import Mesh
+from physics_mapper.model.scene_files import load_scene
 
 SCENES = Path(__file__).resolve().parent.parent / "config" / "scenes"
 MESH_SCENES = ("tabletop", "tray_pile", "jenga_tower")

@@ -11,7 +11,7 @@ import argparse
 from pathlib import Path
 
 from physics_mapper.bench.physics_costs import costs_text, measure
-from physics_mapper.core.scene_files import load_problem
+from physics_mapper.model.scene_files import load_problem
 
 PROBLEMS = Path(__file__).resolve().parent.parent / "config" / "problems"
 

@@ -17,11 +17,11 @@ import math
 import numpy as np
 
 from physics_mapper.bench.physics_costs import median_seconds
-from physics_mapper.core.geometry import Pose
-from physics_mapper.core.hypotheses import Hypothesis, RankedHypotheses
-from physics_mapper.core.physics import PhysicsChecker
-from physics_mapper.core.refine import RefinedMap, refine_objects
-from physics_mapper.core.scene import Box, ObjectModel, Plane, Scene, SearchParams, StaticBody
+from physics_mapper.model.geometry import Pose
+from physics_mapper.model.hypotheses import Hypothesis, RankedHypotheses
+from physics_mapper.model.scene import Box, ObjectModel, Plane, Scene, SearchParams, StaticBody
+from physics_mapper.physics.checker import PhysicsChecker
+from physics_mapper.physics.refine import RefinedMap, refine_objects
 
 SIZES = (3, 10, 25, 50)
 EDGE = 0.1  # metres

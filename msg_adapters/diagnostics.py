@@ -6,7 +6,7 @@ from the node, how its ticks kept time since the previous message, then one stat
 Every status's ``hardware_id`` is the node's fully qualified name, which tells apart nodes
 of the same name in different namespaces on the shared ``/diagnostics`` topic.
 Times are in seconds, p(C) and J as in the paper. Every message and value is clipped to
-:data:`~physics_mapper.core.limits.MAX_DIAGNOSTIC_TEXT` characters, so no input can swell the
+:data:`~physics_mapper.model.limits.MAX_DIAGNOSTIC_TEXT` characters, so no input can swell the
 messages on the shared ``/diagnostics`` topic.
 """
 
@@ -16,12 +16,12 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from std_msgs.msg import Header
 
 from msg_adapters.hypotheses import stamp_from_nanoseconds
-from physics_mapper.core.limits import MAX_DIAGNOSTIC_TEXT, clipped
-from physics_mapper.core.report import code_text, refinement_text
-from physics_mapper.core.search import GroupResult, SearchEnd, SearchResult, SearchStats
 from physics_mapper.mapping.inputs import Level, ObjectStatus
 from physics_mapper.mapping.mapper import TickReport
 from physics_mapper.mapping.tick_statistics import TickPeriod
+from physics_mapper.model.limits import MAX_DIAGNOSTIC_TEXT, clipped
+from physics_mapper.search.branch_and_bound import GroupResult, SearchEnd, SearchResult, SearchStats
+from physics_mapper.search.report import code_text, refinement_text
 
 LEVELS = {Level.OK: DiagnosticStatus.OK, Level.WARN: DiagnosticStatus.WARN, Level.ERROR: DiagnosticStatus.ERROR}
 

@@ -19,11 +19,11 @@ from rclpy.serialization import deserialize_message
 from std_msgs.msg import Float64MultiArray, Header
 
 from msg_adapters.pose_array_cdr import pose_array_view
-from physics_mapper.core.geometry import Pose
-from physics_mapper.core.hypotheses import RankedHypotheses
-from physics_mapper.core.scene import Workspace
 from physics_mapper.mapping.inputs import RawPose, ReceivedPoses, ReceivedWeights, check_poses, check_weights
 from physics_mapper.mapping.stamps import time_parts, to_nanoseconds
+from physics_mapper.model.geometry import Pose
+from physics_mapper.model.hypotheses import RankedHypotheses
+from physics_mapper.model.scene import Workspace
 
 
 def nanoseconds_from_stamp(stamp: Time) -> int:

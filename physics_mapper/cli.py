@@ -1,4 +1,7 @@
-"""``physics-mapper``: one entry point, one module per subcommand (SPEC section 5); and the ``node`` script.
+"""``physics-mapper``: one entry point, one module per subcommand of :mod:`physics_mapper.commands`.
+
+Each subcommand module has ``HELP``, ``add_arguments`` and ``run``, and imports ROS and matplotlib
+inside ``run``, so that ``--help`` and the ROS-free commands start fast and work without rclpy.
 
 Exit codes: 0 success, 1 a run-time failure, 2 bad arguments or input files, 3 a report written
 without some of its bags (``evaluate``, ``sweep``); a command stopped by SIGINT or SIGTERM exits
@@ -10,17 +13,37 @@ handles them (``physics_mapper.commands.node.hold_stop_signals``). Heavy imports
 from __future__ import annotations
 
 import argparse
+import importlib
 import signal
 import sys
 from collections.abc import Sequence
+from types import ModuleType
 
-from physics_mapper.commands import COMMANDS, command_module
 from physics_mapper.commands.node import hold_stop_signals
 
+#: Subcommand names, each a module of :mod:`physics_mapper.commands`, in the order ``--help`` lists them.
+COMMANDS = (
+    "solve",
+    "generate",
+    "replay",
+    "evaluate",
+    "sweep",
+    "node",
+    "publish",
+    "demo",
+    "experiment",
+    "bench",
+    "decompose",
+)
 #: Commands that run until they are stopped: a signal is how they end, not an interruption.
 RUN_UNTIL_STOPPED = ("node", "publish")
-#: ``core.errors.EXIT_INTERRUPTED``, here without importing the core (numpy) before the signals are set up.
+#: ``model.errors.EXIT_INTERRUPTED``, here without importing the model (numpy) before the signals are set up.
 EXIT_INTERRUPTED = 130
+
+
+def command_module(name: str) -> ModuleType:
+    """The module of subcommand ``name``."""
+    return importlib.import_module(f"physics_mapper.commands.{name}")
 
 
 def _stop_on_sigterm_like_ctrl_c() -> None:
@@ -49,8 +72,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     else:
         _stop_on_sigterm_like_ctrl_c()
     try:
-        from physics_mapper.core.errors import EXIT_BAD_INPUT, InputError
-        from physics_mapper.core.scene_files import SceneError
+        from physics_mapper.model.errors import EXIT_BAD_INPUT, InputError
+        from physics_mapper.model.scene_files import SceneError
 
         args = build_parser().parse_args(arguments)
         try:

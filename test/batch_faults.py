@@ -13,9 +13,9 @@ from pathlib import Path
 from typing import Any
 
 from physics_mapper.bags.storage import Bag
-from physics_mapper.batch.sources import UnreadableBag
-from physics_mapper.batch.tasks import TaskOutput, evaluate_bag
-from physics_mapper.core.scene import Scene
+from physics_mapper.evaluation.sources import UnreadableBag
+from physics_mapper.evaluation.tasks import TaskOutput, evaluate_bag
+from physics_mapper.model.scene import Scene
 
 
 def _attempt(marker_dir: str, name: str) -> int:

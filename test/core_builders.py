@@ -15,12 +15,12 @@ from typing import Any
 
 from conftest import PROBLEMS, SCENES
 
-from physics_mapper.core.geometry import IDENTITY, Pose, make_pose
-from physics_mapper.core.hypotheses import Hypothesis, RankedHypotheses
-from physics_mapper.core.physics import PhysicsChecker
-from physics_mapper.core.scene import Box, ObjectModel, Plane, Scene, SearchParams, StaticBody
-from physics_mapper.core.scene_files import load_scene
-from physics_mapper.core.search import BranchAndBound, Code, SearchResult
+from physics_mapper.model.geometry import IDENTITY, Pose, make_pose
+from physics_mapper.model.hypotheses import Hypothesis, RankedHypotheses
+from physics_mapper.model.scene import Box, ObjectModel, Plane, Scene, SearchParams, StaticBody
+from physics_mapper.model.scene_files import load_scene
+from physics_mapper.physics.checker import PhysicsChecker
+from physics_mapper.search.branch_and_bound import BranchAndBound, Code, SearchResult
 
 #: Edge length of the test cubes.
 CUBE_SIZE = 0.1

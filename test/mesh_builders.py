@@ -13,9 +13,9 @@ import numpy as np
 import trimesh
 from scipy.spatial.transform import Rotation
 
-from physics_mapper.core.geometry import Pose
-from physics_mapper.core.scene import Scene
-from physics_mapper.core.scene_files import scene_from_dict
+from physics_mapper.model.geometry import Pose
+from physics_mapper.model.scene import Scene
+from physics_mapper.model.scene_files import scene_from_dict
 
 #: The trough of :func:`trough_mesh`: outer width (x) and length (y), height, wall and floor thickness.
 TROUGH_WIDTH, TROUGH_LENGTH, TROUGH_HEIGHT, TROUGH_WALL = 0.12, 0.12, 0.05, 0.01

@@ -40,11 +40,12 @@ from msg_adapters.results import (
     object_pose_msgs,
     static_markers_msg,
 )
-from physics_mapper.core.geometry import Pose, make_pose
-from physics_mapper.core.hypotheses import Hypothesis, RankedHypotheses
-from physics_mapper.core.limits import MAX_DIAGNOSTIC_TEXT
-from physics_mapper.core.physics import PhysicsChecker
-from physics_mapper.core.scene import (
+from physics_mapper.mapping.inputs import InputSettings, InputTracker, Level, ObjectInputs, rank
+from physics_mapper.mapping.mapper import Mapper, MapperSettings
+from physics_mapper.model.geometry import Pose, make_pose
+from physics_mapper.model.hypotheses import Hypothesis, RankedHypotheses
+from physics_mapper.model.limits import MAX_DIAGNOSTIC_TEXT
+from physics_mapper.model.scene import (
     Box,
     Cylinder,
     ObjectModel,
@@ -55,10 +56,9 @@ from physics_mapper.core.scene import (
     StaticBody,
     Workspace,
 )
-from physics_mapper.core.scene_files import load_problem, load_scene
-from physics_mapper.core.search import BranchAndBound
-from physics_mapper.mapping.inputs import InputSettings, InputTracker, Level, ObjectInputs, rank
-from physics_mapper.mapping.mapper import Mapper, MapperSettings
+from physics_mapper.model.scene_files import load_problem, load_scene
+from physics_mapper.physics.checker import PhysicsChecker
+from physics_mapper.search.branch_and_bound import BranchAndBound
 
 #: A 20 m box about the origin, as a scene's default workspace may be.
 WORKSPACE = Workspace((-10.0, -10.0, -10.0), (10.0, 10.0, 10.0))
@@ -240,7 +240,7 @@ def mixed_result() -> object:
 
 
 def test_configuration_messages_hold_chosen_and_settled_poses(mixed_result: object) -> None:
-    from physics_mapper.core.search import SearchResult
+    from physics_mapper.search.branch_and_bound import SearchResult
 
     assert isinstance(mixed_result, SearchResult) and mixed_result.valid
     messages = configuration_msgs(mixed_result, frame_id="table", stamp_ns=4_500_000_000)
@@ -254,7 +254,7 @@ def test_configuration_messages_hold_chosen_and_settled_poses(mixed_result: obje
 
 
 def test_each_object_gets_its_chosen_and_settled_pose_with_the_map_s_header(mixed_result: object) -> None:
-    from physics_mapper.core.search import SearchResult
+    from physics_mapper.search.branch_and_bound import SearchResult
 
     assert isinstance(mixed_result, SearchResult)
     assert mixed_result.poses is not None and mixed_result.settled_poses is not None
@@ -269,7 +269,7 @@ def test_each_object_gets_its_chosen_and_settled_pose_with_the_map_s_header(mixe
 
 def test_a_realistic_stamp_goes_from_input_to_outputs_exactly(mixed_result: object) -> None:
     """A PoseArray's stamp -> ReceivedPoses -> InputSnapshot -> configuration, settled and markers headers."""
-    from physics_mapper.core.search import SearchResult
+    from physics_mapper.search.branch_and_bound import SearchResult
 
     assert isinstance(mixed_result, SearchResult)
     tracker = InputTracker(["crate"])
@@ -286,7 +286,7 @@ def test_a_realistic_stamp_goes_from_input_to_outputs_exactly(mixed_result: obje
 
 
 def test_markers_show_each_objects_true_shape_and_a_label_with_its_jitter(mixed_result: object) -> None:
-    from physics_mapper.core.search import SearchResult
+    from physics_mapper.search.branch_and_bound import SearchResult
 
     assert isinstance(mixed_result, SearchResult)
     markers = markers_msg(mixed_result, MIXED, stamp_ns=4_500_000_000).markers

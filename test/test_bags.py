@@ -17,19 +17,19 @@ from conftest import REPO, SCENES
 from rosbags.rosbag2 import Reader, StoragePlugin, Writer
 from rosbags.typesys import Stores, get_typestore
 
-from physics_mapper.bags.evaluation import recorded_results
 from physics_mapper.bags.mcap_storage import verify_checksums
-from physics_mapper.bags.snapshots import bag_snapshots, input_topics
 from physics_mapper.bags.storage import BagError, BagWriter, read_bag
 from physics_mapper.cli import main
-from physics_mapper.core.errors import EXIT_BAD_INPUT
-from physics_mapper.core.geometry import make_pose
-from physics_mapper.core.hypotheses import Hypothesis, RankedHypotheses
-from physics_mapper.core.scene_files import load_scene
-from physics_mapper.core.scoring import position_errors, rank_one_poses
+from physics_mapper.evaluation.scoring import position_errors, rank_one_poses
+from physics_mapper.evaluation.snapshot_results import recorded_results
+from physics_mapper.evaluation.snapshots import bag_snapshots, input_topics
 from physics_mapper.experiments.common import ExperimentOptions
 from physics_mapper.experiments.tracking import track_and_search
 from physics_mapper.mapping.topics import RECORDED_CONFIGURATION_TOPIC
+from physics_mapper.model.errors import EXIT_BAD_INPUT
+from physics_mapper.model.geometry import make_pose
+from physics_mapper.model.hypotheses import Hypothesis, RankedHypotheses
+from physics_mapper.model.scene_files import load_scene
 from physics_mapper.perception.particle_filter import TrackerSettings
 
 TYPESTORE = get_typestore(Stores.ROS2_JAZZY)

@@ -8,7 +8,7 @@ from conftest import PROBLEMS
 from core_builders import cli
 
 from physics_mapper.bench.physics_costs import measure
-from physics_mapper.core.scene_files import load_problem
+from physics_mapper.model.scene_files import load_problem
 
 
 def test_measure_times_every_operation_and_searches_exhaustively() -> None:

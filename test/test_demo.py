@@ -8,7 +8,7 @@ import pytest
 from conftest import PACKAGE, REPO, run_installed
 from ros_helpers import run_cli
 
-from physics_mapper.core.scene_files import load_scene
+from physics_mapper.model.scene_files import load_scene
 
 
 def test_demo_replays_the_shipped_bag_into_the_node_and_prints_errors_and_the_map(

@@ -28,18 +28,24 @@ from rclpy.parameter import parameter_value_to_python
 from ros_helpers import PHYSICS_MAPPER, RosClient
 
 from physics_mapper.bags.storage import POSE_ARRAY, WEIGHTS, BagWriter, pose_array_cdr, weights_cdr
-from physics_mapper.batch.executors import ATTEMPTS, ProcessPool, RayCluster, TaskFailure
-from physics_mapper.batch.progress import Progress, duration_text
-from physics_mapper.batch.reports import CRITERIA, ReportContext, best_setting, write_evaluation
-from physics_mapper.batch.runner import run_batch, survey_bags
-from physics_mapper.batch.settings import grid_settings, node_parameters_yaml, node_rate_hz, parse_value, with_overrides
-from physics_mapper.batch.sources import find_bags
 from physics_mapper.cli import main
 from physics_mapper.commands.evaluate import exit_code, sigterm_as_interrupt
-from physics_mapper.core.errors import EXIT_BAD_INPUT, EXIT_FAILURE, EXIT_INCOMPLETE, EXIT_INTERRUPTED, InputError
-from physics_mapper.core.geometry import make_pose
-from physics_mapper.core.scene import FALLBACKS, SearchParams
-from physics_mapper.core.scene_files import SceneError, load_scene
+from physics_mapper.evaluation.executors import ATTEMPTS, ProcessPool, RayCluster, TaskFailure
+from physics_mapper.evaluation.progress import Progress, duration_text
+from physics_mapper.evaluation.reports import CRITERIA, ReportContext, best_setting, write_evaluation
+from physics_mapper.evaluation.runner import run_batch, survey_bags
+from physics_mapper.evaluation.settings import (
+    grid_settings,
+    node_parameters_yaml,
+    node_rate_hz,
+    parse_value,
+    with_overrides,
+)
+from physics_mapper.evaluation.sources import find_bags
+from physics_mapper.model.errors import EXIT_BAD_INPUT, EXIT_FAILURE, EXIT_INCOMPLETE, EXIT_INTERRUPTED, InputError
+from physics_mapper.model.geometry import make_pose
+from physics_mapper.model.scene import FALLBACKS, SearchParams
+from physics_mapper.model.scene_files import SceneError, load_scene
 
 SCENE = SCENES / "pyramid.yaml"
 

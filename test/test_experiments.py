@@ -18,9 +18,9 @@ from conftest import SCENES
 from core_builders import cli
 from matplotlib.image import imread
 
-from physics_mapper.core.geometry import make_pose
-from physics_mapper.core.physics import TIME_STEP, PhysicsChecker
-from physics_mapper.core.scene_files import load_scene
+from physics_mapper.model.geometry import make_pose
+from physics_mapper.model.scene_files import load_scene
+from physics_mapper.physics.checker import TIME_STEP, PhysicsChecker
 
 RUNS = 3
 PARTICLES = 300

@@ -17,18 +17,18 @@ from core_builders import ON_FLOOR, cube, far_apart_cubes, floor_hypotheses, flo
 
 from msg_adapters.diagnostics import search_values
 from physics_mapper.bench.scale_suite import ScaleCase, ScaleProblem, scale_problem
-from physics_mapper.core.collision_table import CollisionTable
-from physics_mapper.core.geometry import pose_displacement
-from physics_mapper.core.grouped_search import GroupedSearch
-from physics_mapper.core.hypotheses import RankedHypotheses
-from physics_mapper.core.physics import Collision, PartialSettling, PhysicsChecker
-from physics_mapper.core.report import result_dict, trace_tree
-from physics_mapper.core.scene import Scene, SearchParams
-from physics_mapper.core.scene_files import load_problem
-from physics_mapper.core.search import REST_SHARE, BranchAndBound, Code, SearchResult, TraceEntry
-from physics_mapper.core.strategy import make_search
 from physics_mapper.mapping.inputs import InputSettings
 from physics_mapper.mapping.mapper import Mapper, MapperSettings, TickReport
+from physics_mapper.model.geometry import pose_displacement
+from physics_mapper.model.hypotheses import RankedHypotheses
+from physics_mapper.model.scene import Scene, SearchParams
+from physics_mapper.model.scene_files import load_problem
+from physics_mapper.physics.checker import Collision, PartialSettling, PhysicsChecker
+from physics_mapper.physics.collision_table import CollisionTable
+from physics_mapper.search.branch_and_bound import REST_SHARE, BranchAndBound, Code, SearchResult, TraceEntry
+from physics_mapper.search.grouped import GroupedSearch
+from physics_mapper.search.report import result_dict, trace_tree
+from physics_mapper.search.strategy import make_search
 
 SHIPPED = ("stack", "pyramid", "peg_in_hole", "sphere_groove")
 REDUCED_SUITE = (

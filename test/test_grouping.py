@@ -1,6 +1,6 @@
 """Interaction groups (issue 8): which objects share a group, and the escape guard that merges groups.
 
-The rule (``physics_mapper.core.interaction``): an object's volume is the union of cubes of
+The rule (``physics_mapper.search.groups``): an object's volume is the union of cubes of
 half-edge r + margin around its hypotheses' positions; objects whose volumes meet share a group.
 """
 
@@ -11,14 +11,14 @@ from dataclasses import replace
 
 from core_builders import CUBE_SIZE, ON_FLOOR, cube, floor_scene, ranked, unrotated
 
-from physics_mapper.core.geometry import Pose, quaternion_about_axis
-from physics_mapper.core.grouped_search import GroupedSearch
-from physics_mapper.core.hypotheses import RankedHypotheses
-from physics_mapper.core.interaction import interaction_groups, object_radius
-from physics_mapper.core.physics import PhysicsChecker
-from physics_mapper.core.scene import Box, ObjectModel, Scene, SearchParams, Sphere, StaticBody
-from physics_mapper.core.search import BranchAndBound
-from physics_mapper.core.strategy import make_search
+from physics_mapper.model.geometry import Pose, quaternion_about_axis
+from physics_mapper.model.hypotheses import RankedHypotheses
+from physics_mapper.model.scene import Box, ObjectModel, Scene, SearchParams, Sphere, StaticBody, object_radius
+from physics_mapper.physics.checker import PhysicsChecker
+from physics_mapper.search.branch_and_bound import BranchAndBound
+from physics_mapper.search.grouped import GroupedSearch
+from physics_mapper.search.groups import interaction_groups
+from physics_mapper.search.strategy import make_search
 
 MARGIN = SearchParams().interaction_margin
 #: Half-edge of a test cube's volume cubes: its bounding radius plus the margin.

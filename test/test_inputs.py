@@ -9,8 +9,6 @@ from typing import Any
 import pytest
 from conftest import SCENES
 
-from physics_mapper.core.scene import SearchParams, Workspace
-from physics_mapper.core.scene_files import load_scene
 from physics_mapper.mapping.inputs import (
     WEIGHTS_GRACE,
     InputSettings,
@@ -24,6 +22,8 @@ from physics_mapper.mapping.inputs import (
     rank,
 )
 from physics_mapper.mapping.mapper import Mapper, MapperSettings, mapper_settings_problem
+from physics_mapper.model.scene import SearchParams, Workspace
+from physics_mapper.model.scene_files import load_scene
 
 #: A 20 m box about the origin, as a scene's default workspace may be.
 WORKSPACE = Workspace((-10.0, -10.0, -10.0), (10.0, 10.0, 10.0))

@@ -1,9 +1,10 @@
 """The tree is the architecture: which room may import what, checked statically and at run time.
 
 Rooms are the subpackages of ``physics_mapper`` plus ``msg_adapters``. Only ``ros/``,
-``msg_adapters/`` and ``commands/`` may import rclpy or a ROS package; ``core/`` imports no
-other room; every room imports only the rooms :data:`ALLOWED` names, so data flows one way:
-messages -> msg_adapters -> mapping -> core -> mapping -> msg_adapters -> messages.
+``msg_adapters/`` and ``commands/`` may import rclpy or a ROS package; ``model/`` imports no
+other room, ``physics/`` only the model, ``search/`` the model and the physics; every room imports
+only the rooms :data:`ALLOWED` names, so data flows one way: messages -> msg_adapters -> mapping ->
+model/physics/search -> mapping -> msg_adapters -> messages.
 """
 
 from __future__ import annotations
@@ -21,17 +22,31 @@ from conftest import PROBLEMS, REPO
 
 #: Room -> the other rooms it may import from (``cli``: the top-level modules of ``physics_mapper``).
 ALLOWED: dict[str, set[str]] = {
-    "core": set(),
-    "perception": {"core"},
-    "mapping": {"core"},
-    "bags": {"core", "mapping"},
-    "bench": {"core"},
-    "experiments": {"core", "perception"},
-    "batch": {"core", "mapping", "bags", "experiments"},
-    "msg_adapters": {"core", "mapping"},
-    "ros": {"core", "mapping", "bags", "msg_adapters"},
-    "commands": {"core", "mapping", "bags", "perception", "bench", "experiments", "batch", "msg_adapters", "ros"},
-    "cli": {"core", "commands"},
+    "model": set(),
+    "physics": {"model"},
+    "search": {"model", "physics"},
+    "perception": {"model", "physics"},
+    "mapping": {"model", "physics", "search"},
+    "bags": {"model", "mapping"},
+    "bench": {"model", "physics", "search"},
+    "evaluation": {"model", "physics", "search", "mapping", "bags"},
+    "experiments": {"model", "physics", "search", "perception", "evaluation"},
+    "msg_adapters": {"model", "search", "mapping"},
+    "ros": {"model", "search", "mapping", "bags", "evaluation", "msg_adapters"},
+    "commands": {
+        "model",
+        "physics",
+        "search",
+        "mapping",
+        "bags",
+        "perception",
+        "bench",
+        "evaluation",
+        "experiments",
+        "msg_adapters",
+        "ros",
+    },
+    "cli": {"model", "commands"},
 }
 #: Rooms that may import ROS: rclpy, message packages and the other ROS 2 Python packages.
 ROS_ROOMS = {"ros", "msg_adapters", "commands"}
@@ -95,8 +110,8 @@ def test_imports_stay_inside_the_allowed_rooms(path: Path) -> None:
 @pytest.mark.parametrize(
     "line", ["import rclpy", "from geometry_msgs.msg import Pose", "from physics_mapper.mapping import topics"]
 )
-def test_a_forbidden_import_in_the_core_is_found(line: str) -> None:
-    probe = REPO / "physics_mapper" / "core" / "_layout_probe.py"
+def test_a_forbidden_import_in_the_model_is_found(line: str) -> None:
+    probe = REPO / "physics_mapper" / "model" / "_layout_probe.py"
     probe.write_text(f"def load() -> None:\n    {line}\n")
     try:
         assert len(violations(probe)) == 1

@@ -30,8 +30,8 @@ from mesh_builders import (
 )
 from scipy.spatial.transform import Rotation
 
-from physics_mapper.core.decomposition import CACHE_ENVIRONMENT_VARIABLE, cache_directory
-from physics_mapper.core.geometry import (
+from physics_mapper.model.decomposition import CACHE_ENVIRONMENT_VARIABLE, cache_directory
+from physics_mapper.model.geometry import (
     IDENTITY,
     Pose,
     compose_poses,
@@ -42,13 +42,13 @@ from physics_mapper.core.geometry import (
     rotation_angle,
     translation_distance,
 )
-from physics_mapper.core.hypotheses import Hypothesis, RankedHypotheses
-from physics_mapper.core.meshes import MAX_MESH_VERTICES
-from physics_mapper.core.physics import PhysicsChecker
-from physics_mapper.core.resources import resolve_resource, resource_uri
-from physics_mapper.core.scene import Box, Cylinder, Mesh, Plane, Scene, SearchParams, Sphere, bounding_radius
-from physics_mapper.core.scene_files import SceneError, load_scene
-from physics_mapper.core.strategy import solve
+from physics_mapper.model.hypotheses import Hypothesis, RankedHypotheses
+from physics_mapper.model.meshes import MAX_MESH_VERTICES
+from physics_mapper.model.resources import resolve_resource, resource_uri
+from physics_mapper.model.scene import Box, Cylinder, Mesh, Plane, Scene, SearchParams, Sphere, bounding_radius
+from physics_mapper.model.scene_files import SceneError, load_scene
+from physics_mapper.physics.checker import PhysicsChecker
+from physics_mapper.search.strategy import solve
 
 PARAMS = SearchParams()
 BOX_SIZE = (0.2, 0.1, 0.05)

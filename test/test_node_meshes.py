@@ -11,8 +11,8 @@ from visualization_msgs.msg import Marker, MarkerArray
 
 from msg_adapters.hypotheses import hypotheses_msgs
 from msg_adapters.results import SHAPE_NAMESPACE, STATIC_NAMESPACE
-from physics_mapper.core.hypotheses import Hypothesis, RankedHypotheses
-from physics_mapper.core.scene_files import load_scene
+from physics_mapper.model.hypotheses import Hypothesis, RankedHypotheses
+from physics_mapper.model.scene_files import load_scene
 
 TABLETOP = SCENES / "tabletop.yaml"
 

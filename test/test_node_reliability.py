@@ -20,12 +20,12 @@ from rclpy.parameter import Parameter
 from ros_helpers import PHYSICS_MAPPER, RosClient, object_status, search_status, stamp_ns_of, values
 
 from msg_adapters.hypotheses import hypotheses_msgs, pose_array_msg
-from physics_mapper.core.bullet import pybullet
-from physics_mapper.core.geometry import Pose
-from physics_mapper.core.hypotheses import Hypothesis, RankedHypotheses
-from physics_mapper.core.limits import MAX_QUOTED_TEXT
-from physics_mapper.core.scene import Problem
-from physics_mapper.core.scene_files import load_problem
+from physics_mapper.model.bullet import pybullet
+from physics_mapper.model.geometry import Pose
+from physics_mapper.model.hypotheses import Hypothesis, RankedHypotheses
+from physics_mapper.model.limits import MAX_QUOTED_TEXT
+from physics_mapper.model.scene import Problem
+from physics_mapper.model.scene_files import load_problem
 from physics_mapper.ros.node import PhysicsMapperNode
 
 PYRAMID_SCENE = SCENES / "pyramid.yaml"

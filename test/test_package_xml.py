@@ -141,11 +141,11 @@ def test_libraries_without_a_rosdep_key_are_pinned_in_requirements() -> None:
 
 
 def test_a_missing_declaration_is_reported_with_the_key_to_add() -> None:
-    found = {"pybullet": ["physics_mapper/core/physics.py"], "trimesh_like": ["x.py"], "nav_msgs": ["y.py"]}
+    found = {"pybullet": ["physics_mapper/physics/checker.py"], "trimesh_like": ["x.py"], "nav_msgs": ["y.py"]}
     problems = missing(found, {"python3-numpy"}, "exec_depend")
     assert problems == [
         "nav_msgs (imported by y.py): add <exec_depend>nav_msgs</exec_depend> to package.xml",
-        "pybullet (imported by physics_mapper/core/physics.py): add <exec_depend>python3-pybullet-pip</exec_depend> "
+        "pybullet (imported by physics_mapper/physics/checker.py): add <exec_depend>python3-pybullet-pip</exec_depend> "
         "to package.xml",
         "trimesh_like (imported by x.py): no row in PROVIDERS of test/test_package_xml.py; add its rosdep key from "
         "rosdistro's rosdep/python.yaml (pip-only libraries end in -pip), then <exec_depend>KEY</exec_depend> to "

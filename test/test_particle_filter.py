@@ -10,16 +10,16 @@ import numpy as np
 import pytest
 from conftest import SCENES
 
-from physics_mapper.core.geometry import Pose, make_pose, rotation_angle, translation_distance
-from physics_mapper.core.physics import PhysicsChecker
-from physics_mapper.core.scene import Scene
-from physics_mapper.core.scene_files import load_scene
+from physics_mapper.model.geometry import Pose, make_pose, rotation_angle, translation_distance
+from physics_mapper.model.scene import Scene
+from physics_mapper.model.scene_files import load_scene
 from physics_mapper.perception.particle_filter import (
     TrackerSettings,
     settle_ground_truth,
     track,
     tracker_settings_problem,
 )
+from physics_mapper.physics.checker import PhysicsChecker
 
 
 def mean_error(estimate: list[Pose], truth: tuple[Pose, ...]) -> float:

@@ -9,8 +9,9 @@ import pybullet
 import pytest
 from core_builders import CUBE_SIZE, ON_FLOOR, cube, floor_scene, ground_truth, moved, shipped_scene, unrotated
 
-from physics_mapper.core.geometry import Pose, rotation_angle, translation_distance
-from physics_mapper.core.physics import (
+from physics_mapper.model.geometry import Pose, rotation_angle, translation_distance
+from physics_mapper.model.scene import Scene, SearchParams
+from physics_mapper.physics.checker import (
     CLOCK_CHECK_STEPS,
     TIME_STEP,
     EarlyExit,
@@ -18,7 +19,6 @@ from physics_mapper.core.physics import (
     PhysicsChecker,
     Settling,
 )
-from physics_mapper.core.scene import Scene, SearchParams
 
 JITTER_THRESHOLD = SearchParams().jitter_threshold
 PENETRATION_THRESHOLD = SearchParams().penetration_threshold

@@ -31,13 +31,13 @@ from ros_helpers import NodeProcess, RosClient, search_status, stamp_ns_of, valu
 
 from msg_adapters.hypotheses import hypotheses_msgs
 from msg_adapters.results import FALLBACK_COLOR, SHAPE_NAMESPACE
-from physics_mapper.core.geometry import Pose, make_pose, quaternion_about_axis, translation_distance
-from physics_mapper.core.hypotheses import RankedHypotheses
-from physics_mapper.core.physics import TIME_STEP, PhysicsChecker
-from physics_mapper.core.refine import OVERLAP_TOLERANCE, RefinedMap, Refinement, refine_objects, refinement_start
-from physics_mapper.core.scene import Fallback, Scene, SearchParams
-from physics_mapper.core.scene_files import SceneError, load_problem, scene_from_dict
-from physics_mapper.core.search import BranchAndBound, SearchResult
+from physics_mapper.model.geometry import Pose, make_pose, quaternion_about_axis, translation_distance
+from physics_mapper.model.hypotheses import RankedHypotheses
+from physics_mapper.model.scene import Fallback, Scene, SearchParams
+from physics_mapper.model.scene_files import SceneError, load_problem, scene_from_dict
+from physics_mapper.physics.checker import TIME_STEP, PhysicsChecker
+from physics_mapper.physics.refine import OVERLAP_TOLERANCE, RefinedMap, Refinement, refine_objects, refinement_start
+from physics_mapper.search.branch_and_bound import BranchAndBound, SearchResult
 
 REFINE = SearchParams(fallback="refine")
 #: A time.monotonic() instant long past: every deadline-aware call stops as soon as it may.

@@ -32,13 +32,14 @@ from rosbags.rosbag2 import Reader, StoragePlugin, Writer
 from rosbags.typesys import Stores, get_typestore
 from scipy.spatial.transform import Rotation
 
-from physics_mapper.bags import evaluation, storage
+from physics_mapper.bags import storage
 from physics_mapper.bags.read_ahead import ReadAhead
-from physics_mapper.bags.snapshots import BagSnapshot, bag_snapshots
-from physics_mapper.core.geometry import Pose, Quaternion, make_pose, rotation_angle
-from physics_mapper.core.hypotheses import Hypothesis, RankedHypotheses
-from physics_mapper.core.scene_files import load_scene
+from physics_mapper.evaluation import snapshot_results
+from physics_mapper.evaluation.snapshots import BagSnapshot, bag_snapshots
 from physics_mapper.mapping import topics
+from physics_mapper.model.geometry import Pose, Quaternion, make_pose, rotation_angle
+from physics_mapper.model.hypotheses import Hypothesis, RankedHypotheses
+from physics_mapper.model.scene_files import load_scene
 from physics_mapper.ros.bag_player import Playback, played_topics
 from physics_mapper.ros.qos import MAP_QOS, playback_qos
 
@@ -242,8 +243,8 @@ def test_code_of_recognises_published_poses_after_a_cdr_round_trip() -> None:
         chosen.append(pose)
         code.append(rank)
     published = storage.pose_array_from_cdr(storage.pose_array_cdr(0, "world", chosen)).checked_poses()
-    assert evaluation.code_of(published, hypotheses) == tuple(code)
-    assert evaluation.code_of([moved(published[0], dz=1e-8), *published[1:]], hypotheses) is None
+    assert snapshot_results.code_of(published, hypotheses) == tuple(code)
+    assert snapshot_results.code_of([moved(published[0], dz=1e-8), *published[1:]], hypotheses) is None
 
 
 def test_offline_replay_finds_the_valid_configurations(offline: tuple[Any, Path, Path]) -> None:
@@ -323,7 +324,7 @@ def test_live_replay_yields_configurations_recorded_in_the_output_bag(live: tupl
 def made_of_hypotheses(poses: list[Pose], snapshots: list[BagSnapshot]) -> bool:
     """Whether each pose is one of its object's hypotheses in one of ``snapshots``."""
     return all(
-        any(evaluation.code_of([pose], [snapshot.hypotheses[index]]) is not None for snapshot in snapshots)
+        any(snapshot_results.code_of([pose], [snapshot.hypotheses[index]]) is not None for snapshot in snapshots)
         for index, pose in enumerate(poses)
     )
 
@@ -434,7 +435,7 @@ def test_start_node_replays_the_shipped_bag(tmp_path: Path) -> None:
         # A tick while bursts arrive (4x speed: 8 per second) mixes the newest with hypotheses still in
         # use from earlier ones (an object's poses wait for their weights); recorded_outcomes counts no code.
         mixed = made_of_hypotheses(poses, snapshots[: index + 1])
-        assert evaluation.code_of(poses, snapshots[index].hypotheses) is not None or mixed, data.stamp_ns
+        assert snapshot_results.code_of(poses, snapshots[index].hypotheses) is not None or mixed, data.stamp_ns
 
 
 def test_on_the_shipped_bag_physics_lowers_the_error() -> None:
@@ -444,7 +445,7 @@ def test_on_the_shipped_bag_physics_lowers_the_error() -> None:
     """
     scene = load_scene(SCENE)
     snapshots = bag_snapshots(storage.read_bag(REPO / "test" / "data" / "pyramid"), scene)
-    mean = evaluation.mean_errors(evaluation.search_offline(snapshots, scene, None))
+    mean = snapshot_results.mean_errors(snapshot_results.search_offline(snapshots, scene, None))
     assert mean is not None
     assert sum(mean["chosen"]) < sum(mean["top"])
     assert sum(mean["settled"]) < sum(mean["chosen"])

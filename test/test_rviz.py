@@ -7,7 +7,6 @@ from typing import Any
 import yaml
 from conftest import REPO, SCENES
 
-from physics_mapper.core.scene_files import load_scene
 from physics_mapper.mapping.topics import (
     CONFIGURATION_TOPIC,
     MAP_TOPIC_QOS,
@@ -15,6 +14,7 @@ from physics_mapper.mapping.topics import (
     SETTLED_TOPIC,
     output_topic,
 )
+from physics_mapper.model.scene_files import load_scene
 
 RVIZ = REPO / "config" / "rviz" / "physics_mapper.rviz"
 #: RViz's words for the QoS of a subscription.

@@ -19,12 +19,12 @@ from conftest import PROBLEMS, REPO, SCENES
 from core_builders import cli
 
 from physics_mapper.cli import main
-from physics_mapper.core.errors import EXIT_BAD_INPUT
-from physics_mapper.core.limits import MAX_FILE_BYTES, MAX_HYPOTHESES_PER_OBJECT, MAX_NAME_LENGTH, MAX_YAML_DEPTH
-from physics_mapper.core.scene import DEFAULT_WORKSPACE_MARGIN, Box, Scene, Workspace, bounding_radius
-from physics_mapper.core.scene_files import SceneError, load_problem, load_scene
 from physics_mapper.mapping.inputs import InputSettings
 from physics_mapper.mapping.mapper import MapperSettings, mapper_settings_problem
+from physics_mapper.model.errors import EXIT_BAD_INPUT
+from physics_mapper.model.limits import MAX_FILE_BYTES, MAX_HYPOTHESES_PER_OBJECT, MAX_NAME_LENGTH, MAX_YAML_DEPTH
+from physics_mapper.model.scene import DEFAULT_WORKSPACE_MARGIN, Box, Scene, Workspace, bounding_radius
+from physics_mapper.model.scene_files import SceneError, load_problem, load_scene
 
 Key = tuple[str | int, ...]
 

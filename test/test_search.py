@@ -26,10 +26,10 @@ from core_builders import (
     unrotated,
 )
 
-from physics_mapper.core.physics import CLOCK_CHECK_STEPS, TIME_STEP, PhysicsChecker
-from physics_mapper.core.scene import SearchParams
-from physics_mapper.core.scene_files import load_problem
-from physics_mapper.core.search import BranchAndBound, Code, SearchResult, TraceEntry
+from physics_mapper.model.scene import SearchParams
+from physics_mapper.model.scene_files import load_problem
+from physics_mapper.physics.checker import CLOCK_CHECK_STEPS, TIME_STEP, PhysicsChecker
+from physics_mapper.search.branch_and_bound import BranchAndBound, Code, SearchResult, TraceEntry
 
 #: A 4 x 3 x 3 problem with distinct, unequal weights (normalised by the ranking).
 UNEVEN_WEIGHTS = ((0.5, 0.3, 0.15, 0.05), (0.6, 0.25, 0.15), (0.45, 0.35, 0.2))

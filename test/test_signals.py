@@ -30,8 +30,8 @@ from std_msgs.msg import Float64MultiArray
 from test_node import busy_problem, publish_problem
 
 from msg_adapters.hypotheses import hypotheses_msgs
-from physics_mapper.core.scene_files import load_problem
 from physics_mapper.mapping.topics import poses_topic, weights_topic
+from physics_mapper.model.scene_files import load_problem
 
 #: (phase, signal) of every run; each phase with both signals.
 RUNS = [
@@ -185,6 +185,6 @@ def test_the_entry_points_hold_the_signals_before_any_heavy_import() -> None:
 def test_the_cli_s_interrupted_exit_code_is_the_core_s() -> None:
     """Kept apart so that the entry point imports no numpy before the signals are set up."""
     from physics_mapper import cli
-    from physics_mapper.core.errors import EXIT_INTERRUPTED
+    from physics_mapper.model.errors import EXIT_INTERRUPTED
 
     assert cli.EXIT_INTERRUPTED == EXIT_INTERRUPTED

@@ -48,8 +48,6 @@ from rosbags.rosbag2 import Reader, StoragePlugin, Writer, WriterError
 from rosbags.typesys import Stores, get_typestore
 
 from physics_mapper.bags.mcap_storage import ChecksummedMcapStorage, verify_checksums
-from physics_mapper.core.geometry import Pose, Quaternion, Vector3, make_pose
-from physics_mapper.core.hypotheses import RankedHypotheses
 from physics_mapper.mapping.stamps import time_parts, to_nanoseconds
 from physics_mapper.mapping.topics import (
     GROUND_TRUTH_TOPIC,
@@ -58,6 +56,8 @@ from physics_mapper.mapping.topics import (
     recorded_poses_topic,
     recorded_weights_topic,
 )
+from physics_mapper.model.geometry import Pose, Quaternion, Vector3, make_pose
+from physics_mapper.model.hypotheses import RankedHypotheses
 
 Storage = Literal["mcap", "sqlite3"]
 _PLUGINS = {"mcap": StoragePlugin.MCAP, "sqlite3": StoragePlugin.SQLITE3}

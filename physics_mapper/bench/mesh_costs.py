@@ -19,14 +19,14 @@ import numpy as np
 from scipy.spatial import ConvexHull
 
 from physics_mapper.bench.physics_costs import median_seconds
-from physics_mapper.core.decomposition import (
+from physics_mapper.model.decomposition import (
     CACHE_ENVIRONMENT_VARIABLE,
     DecompositionSettings,
 )
-from physics_mapper.core.geometry import Pose, compose_poses
-from physics_mapper.core.meshes import MeshRequest, load_mesh_geometry
-from physics_mapper.core.physics import PhysicsChecker
-from physics_mapper.core.scene import Box, Mesh, ObjectModel, Plane, Scene, StaticBody
+from physics_mapper.model.geometry import Pose, compose_poses
+from physics_mapper.model.meshes import MeshRequest, load_mesh_geometry
+from physics_mapper.model.scene import Box, Mesh, ObjectModel, Plane, Scene, StaticBody
+from physics_mapper.physics.checker import PhysicsChecker
 
 
 @dataclass(frozen=True)

@@ -13,11 +13,11 @@ import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
-from physics_mapper.core.geometry import Pose
-from physics_mapper.core.physics import PhysicsChecker
-from physics_mapper.core.scene import Problem
-from physics_mapper.core.search import SearchStats
-from physics_mapper.core.strategy import make_search
+from physics_mapper.model.geometry import Pose
+from physics_mapper.model.scene import Problem
+from physics_mapper.physics.checker import PhysicsChecker
+from physics_mapper.search.branch_and_bound import SearchStats
+from physics_mapper.search.strategy import make_search
 
 
 @dataclass(frozen=True)

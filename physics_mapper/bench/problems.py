@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
-from physics_mapper.core.geometry import Pose
-from physics_mapper.core.hypotheses import Hypothesis, RankedHypotheses
-from physics_mapper.core.scene import Problem, Scene
+from physics_mapper.model.geometry import Pose
+from physics_mapper.model.hypotheses import Hypothesis, RankedHypotheses
+from physics_mapper.model.scene import Problem, Scene
 
 #: Metres between two objects' columns of hypotheses: for objects up to 0.2 m wide, apart so that no two
 #: ever touch, yet within the interaction margin, so that all objects are one interaction group and a

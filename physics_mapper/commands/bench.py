@@ -16,8 +16,8 @@ from pathlib import Path
 import yaml
 
 from physics_mapper.commands.files import load_problem_file
-from physics_mapper.core.errors import InputError
-from physics_mapper.core.shipped import shipped_path
+from physics_mapper.model.errors import InputError
+from physics_mapper.model.shipped import shipped_path
 
 HELP = "time the physics checks and an exhaustive search on a problem file, or (--scale) the scale benchmark"
 

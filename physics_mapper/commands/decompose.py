@@ -14,9 +14,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from physics_mapper.core.decomposition import cache_directory, stderr_progress
-    from physics_mapper.core.scene import Mesh
-    from physics_mapper.core.scene_files import load_scene
+    from physics_mapper.model.decomposition import cache_directory, stderr_progress
+    from physics_mapper.model.scene import Mesh
+    from physics_mapper.model.scene_files import load_scene
 
     print(f"decomposition cache: {cache_directory()}")
     for path in args.scenes:

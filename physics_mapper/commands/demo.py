@@ -14,7 +14,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from physics_mapper.commands import replay
-from physics_mapper.core.errors import EXIT_FAILURE
+from physics_mapper.model.errors import EXIT_FAILURE
 
 if TYPE_CHECKING:
     from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
@@ -83,8 +83,8 @@ def _last_map(recorded: Path) -> tuple[PoseArray | None, DiagnosticArray | None]
 
 
 def run(args: argparse.Namespace) -> int:
-    from physics_mapper.core.scene_files import load_scene
-    from physics_mapper.core.shipped import shipped_path
+    from physics_mapper.model.scene_files import load_scene
+    from physics_mapper.model.shipped import shipped_path
 
     scene = args.scene or shipped_path("config/scenes/pyramid.yaml")
     bag = args.bag or shipped_path("test/data/pyramid")

@@ -17,13 +17,13 @@ from pathlib import Path
 from types import FrameType
 from typing import TYPE_CHECKING
 
-from physics_mapper.core.errors import EXIT_FAILURE, EXIT_INCOMPLETE, EXIT_INTERRUPTED, InputError
+from physics_mapper.model.errors import EXIT_FAILURE, EXIT_INCOMPLETE, EXIT_INTERRUPTED, InputError
 
 if TYPE_CHECKING:
-    from physics_mapper.batch.executors import Executor
-    from physics_mapper.batch.runner import BatchRun
-    from physics_mapper.batch.settings import Setting
-    from physics_mapper.core.scene import Scene, SearchParams
+    from physics_mapper.evaluation.executors import Executor
+    from physics_mapper.evaluation.runner import BatchRun
+    from physics_mapper.evaluation.settings import Setting
+    from physics_mapper.model.scene import Scene, SearchParams
 
 HELP = "search every snapshot of many bags offline, as the node would, in parallel; one report of validity and errors"
 
@@ -80,8 +80,8 @@ def add_batch_arguments(parser: argparse.ArgumentParser, name: str) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from physics_mapper.batch.reports import ReportContext, write_evaluation
-    from physics_mapper.batch.settings import Setting
+    from physics_mapper.evaluation.reports import ReportContext, write_evaluation
+    from physics_mapper.evaluation.settings import Setting
 
     scene, params = load_scene_and_search(args)
     batch = run_batch_command(args, scene, [Setting((), params)])
@@ -95,8 +95,8 @@ def run(args: argparse.Namespace) -> int:
 
 def load_scene_and_search(args: argparse.Namespace) -> tuple[Scene, SearchParams]:
     """The scene and its search parameters with ``--set`` applied; the output folder checked."""
-    from physics_mapper.batch.settings import with_overrides
-    from physics_mapper.core.scene_files import load_scene
+    from physics_mapper.evaluation.settings import with_overrides
+    from physics_mapper.model.scene_files import load_scene
 
     scene = load_scene(args.scene)
     params = with_overrides(scene.search, args.set)
@@ -113,7 +113,7 @@ def load_scene_and_search(args: argparse.Namespace) -> tuple[Scene, SearchParams
 
 def executor_for(args: argparse.Namespace) -> Executor:
     """``--ray``, else the local pool of ``--workers`` (default: the cores), or this process for 0."""
-    from physics_mapper.batch.executors import InProcess, ProcessPool, RayCluster
+    from physics_mapper.evaluation.executors import InProcess, ProcessPool, RayCluster
 
     workers = default_workers() if args.workers is None else args.workers
     if args.ray is not None:
@@ -158,9 +158,9 @@ def run_batch_command(args: argparse.Namespace, scene: Scene, settings: Sequence
 
     None (with one error line) when the executor cannot start (no Ray cluster at the address).
     """
-    from physics_mapper.batch.executors import RayUnavailable
-    from physics_mapper.batch.runner import run_batch, survey_bags
-    from physics_mapper.batch.sources import find_bags
+    from physics_mapper.evaluation.executors import RayUnavailable
+    from physics_mapper.evaluation.runner import run_batch, survey_bags
+    from physics_mapper.evaluation.sources import find_bags
 
     name = args.command
     paths = find_bags(args.bags)
@@ -209,7 +209,7 @@ def exit_code(batch: BatchRun) -> int:
 
 def print_evaluation(data: dict[str, object]) -> None:
     """A few lines on stdout: what was evaluated, the map shares, the mean errors and the main test."""
-    from physics_mapper.batch.reports import overall_lines
+    from physics_mapper.evaluation.reports import overall_lines
 
     for line in overall_lines(data):
         print(line)

@@ -9,7 +9,7 @@ import time
 from dataclasses import replace
 from pathlib import Path
 
-from physics_mapper.core.errors import InputError
+from physics_mapper.model.errors import InputError
 
 HELP = (
     "reproduce the paper's experiments (Figs. 4, 6, 8 and the peg in a hole) and the cluttered mesh scenes "

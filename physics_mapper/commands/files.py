@@ -5,9 +5,9 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from physics_mapper.core.errors import InputError
-from physics_mapper.core.scene import Problem
-from physics_mapper.core.scene_files import load_problem
+from physics_mapper.model.errors import InputError
+from physics_mapper.model.scene import Problem
+from physics_mapper.model.scene_files import load_problem
 
 
 def load_problem_file(path: Path, command: str) -> Problem:

@@ -9,14 +9,14 @@ from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from physics_mapper.core.errors import InputError
+from physics_mapper.model.errors import InputError
 
 if TYPE_CHECKING:
     import numpy as np
 
     from physics_mapper.bags.storage import BagWriter
-    from physics_mapper.core.geometry import Pose
-    from physics_mapper.core.scene import Scene
+    from physics_mapper.model.geometry import Pose
+    from physics_mapper.model.scene import Scene
     from physics_mapper.perception.particle_filter import TrackerSettings
 
 HELP = "simulate noisy measurements and a particle filter per object; write the hypotheses to a bag"
@@ -62,7 +62,7 @@ _SETTING_OPTIONS = {
 
 def run(args: argparse.Namespace) -> int:
     from physics_mapper.bags.storage import BagError, BagWriter
-    from physics_mapper.core.scene_files import load_scene
+    from physics_mapper.model.scene_files import load_scene
     from physics_mapper.perception.particle_filter import run_generators, settle_ground_truth
 
     scene = load_scene(args.scene)
@@ -93,7 +93,7 @@ def _period_ns(period: float, objects: int) -> int:
     must start at least that many nanoseconds later. Offline replay takes messages less than
     BURST_GAP_NS apart as one burst, so a shorter gap between iterations puts several into one snapshot.
     """
-    from physics_mapper.bags.snapshots import BURST_GAP_NS
+    from physics_mapper.evaluation.snapshots import BURST_GAP_NS
     from physics_mapper.mapping.stamps import NANOSECONDS_PER_SECOND
 
     if not (math.isfinite(period) and period > 0.0):

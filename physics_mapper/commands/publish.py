@@ -6,7 +6,7 @@ import argparse
 from pathlib import Path
 
 from physics_mapper.commands.files import load_problem_file
-from physics_mapper.core.errors import InputError
+from physics_mapper.model.errors import InputError
 
 #: Seconds to keep the process alive after the last round, so that it is delivered.
 LINGER = 0.3

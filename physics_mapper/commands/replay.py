@@ -14,13 +14,13 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from physics_mapper.commands.files import check_output_folder, write_output
-from physics_mapper.core.errors import EXIT_FAILURE, InputError
+from physics_mapper.model.errors import EXIT_FAILURE, InputError
 
 if TYPE_CHECKING:
-    from physics_mapper.bags.evaluation import SnapshotResult
-    from physics_mapper.bags.snapshots import BagSnapshot
     from physics_mapper.bags.storage import Bag
-    from physics_mapper.core.scene import Scene
+    from physics_mapper.evaluation.snapshot_results import SnapshotResult
+    from physics_mapper.evaluation.snapshots import BagSnapshot
+    from physics_mapper.model.scene import Scene
 
 HELP = "play a bag's hypotheses into the running node and record its outputs, or search them offline"
 
@@ -83,10 +83,10 @@ def _progress(text: str) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from physics_mapper.bags.evaluation import evaluation_summary
-    from physics_mapper.bags.snapshots import bag_snapshots, input_topics, no_snapshot_reason
     from physics_mapper.bags.storage import BagError, check_hypothesis_topics, read_bag
-    from physics_mapper.core.scene_files import load_scene
+    from physics_mapper.evaluation.snapshot_results import evaluation_summary
+    from physics_mapper.evaluation.snapshots import bag_snapshots, input_topics, no_snapshot_reason
+    from physics_mapper.model.scene_files import load_scene
 
     if not args.rate > 0.0:
         raise InputError(f"--rate must be positive, got {args.rate}")
@@ -119,10 +119,10 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _offline(args: argparse.Namespace, scene: Scene, snapshots: Sequence[BagSnapshot]) -> list[SnapshotResult]:
-    from physics_mapper.bags.evaluation import search_offline, write_results
     from physics_mapper.bags.storage import BagWriter
-    from physics_mapper.core.report import code_text
-    from physics_mapper.core.search import SearchResult
+    from physics_mapper.evaluation.snapshot_results import search_offline, write_results
+    from physics_mapper.search.branch_and_bound import SearchResult
+    from physics_mapper.search.report import code_text
 
     if args.deadline is not None:
         if not args.deadline > 0.0:
@@ -153,8 +153,8 @@ def _live(
     from rclpy.exceptions import InvalidNamespaceException
     from rclpy.validate_namespace import validate_namespace
 
-    from physics_mapper.bags.evaluation import recorded_results
     from physics_mapper.bags.storage import BagWriter, bag_info, read_bag
+    from physics_mapper.evaluation.snapshot_results import recorded_results
     from physics_mapper.mapping.topics import (
         RECORDED_CONFIGURATION_TOPIC,
         RECORDED_SETTLED_TOPIC,
@@ -207,7 +207,7 @@ def _live(
 
 
 def _write_json(path: Path, mode: str, results: Sequence[SnapshotResult], object_names: Sequence[str]) -> None:
-    from physics_mapper.bags.evaluation import mean_errors, snapshot_result_dict
+    from physics_mapper.evaluation.snapshot_results import mean_errors, snapshot_result_dict
 
     data = {
         "mode": mode,

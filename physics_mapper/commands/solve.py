@@ -8,11 +8,11 @@ from dataclasses import replace
 from pathlib import Path
 
 from physics_mapper.commands.files import check_output_folder, load_problem_file, write_output
-from physics_mapper.core.errors import InputError
-from physics_mapper.core.physics import PhysicsChecker
-from physics_mapper.core.report import result_dict, result_summary, trace_entry_dict, trace_tree
-from physics_mapper.core.scene import search_params_problem
-from physics_mapper.core.strategy import solve
+from physics_mapper.model.errors import InputError
+from physics_mapper.model.scene import search_params_problem
+from physics_mapper.physics.checker import PhysicsChecker
+from physics_mapper.search.report import result_dict, result_summary, trace_entry_dict, trace_tree
+from physics_mapper.search.strategy import solve
 
 HELP = "search a problem file (scene + hypotheses) for the best physically valid configuration"
 

@@ -11,7 +11,7 @@ from physics_mapper.commands.evaluate import (
     load_scene_and_search,
     run_batch_command,
 )
-from physics_mapper.core.errors import EXIT_FAILURE
+from physics_mapper.model.errors import EXIT_FAILURE
 
 HELP = "evaluate bags over a grid of search settings: table, heat maps, and the best as a node parameters file"
 
@@ -35,8 +35,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from physics_mapper.batch.reports import ReportContext, write_sweep
-    from physics_mapper.batch.settings import grid_settings
+    from physics_mapper.evaluation.reports import ReportContext, write_sweep
+    from physics_mapper.evaluation.settings import grid_settings
 
     scene, params = load_scene_and_search(args)
     fixed = [assignment.partition("=")[0].strip() for assignment in args.set]

@@ -5,7 +5,7 @@ Scenes (``config/scenes``): ``tabletop.yaml`` (ten household-like objects on a t
 object a mesh. As in Fig. 6, each object is tracked by its own particle filter around the scene's
 settled ground truth (noise sigma :data:`SIGMA_POSITION` per position axis and
 :data:`SIGMA_ROTATION` per rotation axis, top 5 particles as hypotheses), and after each of its
-iterations the hypotheses are searched with the scene's rules (:func:`~physics_mapper.core.strategy.solve`'s
+iterations the hypotheses are searched with the scene's rules (:func:`~physics_mapper.search.strategy.solve`'s
 search) for a budget of the scene's ``deadline`` (what the node does in one tick; ``--search-budget``
 overrides it), in slices of :data:`SLICE` seconds so that the time the answer appeared is known.
 
@@ -35,31 +35,32 @@ from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 from numpy.typing import NDArray
 
-from physics_mapper.core.geometry import Pose
-from physics_mapper.core.hypotheses import RankedHypotheses
-from physics_mapper.core.physics import PhysicsChecker
-from physics_mapper.core.scene import Fallback, Scene, SearchParams
-from physics_mapper.core.scoring import rank_one_poses
-from physics_mapper.core.search import SearchResult
-from physics_mapper.core.strategy import make_search
-from physics_mapper.experiments.common import (
+from physics_mapper.evaluation.outputs import (
     COLOR_WITH_PHYSICS,
     COLOR_WITHOUT_PHYSICS,
+    ReportFiles,
+    new_figure,
+    write_outputs,
+)
+from physics_mapper.evaluation.scoring import rank_one_poses
+from physics_mapper.evaluation.statistics import compare_errors, tests_text
+from physics_mapper.experiments.common import (
     ErrorSeries,
     ExperimentOptions,
-    ExperimentOutput,
-    compare_errors,
     load_experiment_scene,
-    new_figure,
     plot_mean_errors,
     position_errors_cm,
     reproduce_command,
-    tests_text,
-    write_outputs,
 )
 from physics_mapper.experiments.rendering import render_scene
 from physics_mapper.experiments.tracking import tracker_settings
+from physics_mapper.model.geometry import Pose
+from physics_mapper.model.hypotheses import RankedHypotheses
+from physics_mapper.model.scene import Fallback, Scene, SearchParams
 from physics_mapper.perception.particle_filter import TrackerSettings, run_generators, settle_ground_truth, track
+from physics_mapper.physics.checker import PhysicsChecker
+from physics_mapper.search.branch_and_bound import SearchResult
+from physics_mapper.search.strategy import make_search
 
 NAME = "clutter"
 SCENE_FILES = ("tabletop.yaml", "tray_pile.yaml", "jenga_tower.yaml")
@@ -301,7 +302,7 @@ def draw(outcomes: Sequence[SceneOutcome], summaries: Sequence[dict[str, Any]], 
     return figure
 
 
-def run(options: ExperimentOptions) -> ExperimentOutput:
+def run(options: ExperimentOptions) -> ReportFiles:
     """Track, search, score, plot and summarise each scene (module docstring)."""
     settings = tracker_settings(options, SIGMA_POSITION, SIGMA_ROTATION)
     outcomes = [run_scene(scene_file, options, settings) for scene_file in SCENE_FILES]

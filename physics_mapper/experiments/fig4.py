@@ -23,22 +23,20 @@ from typing import Any
 import numpy as np
 from matplotlib.figure import Figure
 
-from physics_mapper.core.geometry import Z_AXIS, Pose, make_pose, quaternion_about_axis
-from physics_mapper.core.hypotheses import Hypothesis, RankedHypotheses
-from physics_mapper.core.physics import PhysicsChecker
-from physics_mapper.core.report import code_text, describe_entry, trace_entry_dict
-from physics_mapper.core.scene import SearchParams
-from physics_mapper.core.search import SearchResult
+from physics_mapper.evaluation.outputs import ReportFiles, new_figure, write_outputs
 from physics_mapper.experiments.common import (
     EXHAUSTIVE_DEADLINE,
     ExperimentOptions,
-    ExperimentOutput,
     exhaustive_search,
     load_experiment_scene,
-    new_figure,
     reproduce_command,
-    write_outputs,
 )
+from physics_mapper.model.geometry import Z_AXIS, Pose, make_pose, quaternion_about_axis
+from physics_mapper.model.hypotheses import Hypothesis, RankedHypotheses
+from physics_mapper.model.scene import SearchParams
+from physics_mapper.physics.checker import PhysicsChecker
+from physics_mapper.search.branch_and_bound import SearchResult
+from physics_mapper.search.report import code_text, describe_entry, trace_entry_dict
 
 NAME = "fig4"
 SCENE_FILE = "stack.yaml"
@@ -189,7 +187,7 @@ def hypotheses_data(hypotheses: Sequence[RankedHypotheses], names: Sequence[str]
     }
 
 
-def run(options: ExperimentOptions) -> ExperimentOutput:
+def run(options: ExperimentOptions) -> ReportFiles:
     """Draw the search tree of one random stack example and summarise it."""
     scene, truth = load_experiment_scene(options, SCENE_FILE)
     params = replace(scene.search, probability_threshold=PROBABILITY_THRESHOLD)

@@ -13,7 +13,7 @@ the mean per-object error (1/N) sum_i e_i and the total configuration error sum_
 * physics-chosen: the hypotheses of the best valid configuration found by the exhaustive
   search, or C111 when no configuration is valid (the physics check then has no better map
   to offer; settled poses are not used here, they are Fig. 8's estimate);
-* the refined map, ``fallback: refine`` (:mod:`physics_mapper.core.refine`): the same when a
+* the refined map, ``fallback: refine`` (:mod:`physics_mapper.physics.refine`): the same when a
   configuration is valid, otherwise C111 refined: started at each cube's hypotheses' weighted
   mean, penetrations resolved with the least motion, settled. Every search gives a map.
 
@@ -41,27 +41,24 @@ from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 from numpy.typing import NDArray
 
-from physics_mapper.core.geometry import Pose
-from physics_mapper.core.scene import SearchParams
-from physics_mapper.core.search import SearchResult
-from physics_mapper.experiments.common import (
+from physics_mapper.evaluation.outputs import (
     COLOR_REFINED,
     COLOR_WITH_PHYSICS,
     COLOR_WITHOUT_PHYSICS,
+    ReportFiles,
+    new_figure,
+    write_outputs,
+)
+from physics_mapper.evaluation.statistics import compare_errors, reduction_percent, tests_text
+from physics_mapper.experiments.common import (
     EXHAUSTIVE_DEADLINE,
     ErrorSeries,
     ExperimentOptions,
-    ExperimentOutput,
-    compare_errors,
     load_experiment_scene,
     most_likely_start,
-    new_figure,
     plot_mean_errors,
-    reduction_percent,
     reproduce_command,
     spread_text,
-    tests_text,
-    write_outputs,
 )
 from physics_mapper.experiments.tracking import (
     TrackingOutcome,
@@ -70,6 +67,9 @@ from physics_mapper.experiments.tracking import (
     tracker_settings,
     tracker_summary,
 )
+from physics_mapper.model.geometry import Pose
+from physics_mapper.model.scene import SearchParams
+from physics_mapper.search.branch_and_bound import SearchResult
 
 NAME = "fig6"
 SCENE_FILE = "pyramid.yaml"
@@ -246,7 +246,7 @@ def refine_summary(
     }
 
 
-def run(options: ExperimentOptions) -> ExperimentOutput:
+def run(options: ExperimentOptions) -> ReportFiles:
     """Track, search, score, plot and summarise (see the module docstring)."""
     scene, truth = load_experiment_scene(options, SCENE_FILE)
     settings = tracker_settings(options, SIGMA_POSITION, SIGMA_ROTATION)

@@ -10,7 +10,7 @@ ground truth (the bottom of the groove):
   pose of the valid configuration, or, when none is valid (a ball on a slope rolls), of
   ``fallback: settled`` (the collision-free hypothesis of highest weight).
   When every hypothesis overlaps the groove there is nothing to settle and C1 is kept;
-* the refined map, ``fallback: refine`` (:mod:`physics_mapper.core.refine`): the same when a
+* the refined map, ``fallback: refine`` (:mod:`physics_mapper.physics.refine`): the same when a
   hypothesis is valid, otherwise the ball started at its hypotheses' weighted mean, pushed out
   of the groove and the floor with the least motion, and settled. Every search gives a map.
   The hypotheses are refined a second time from C1 itself (``refine_mean_radius`` 0), which
@@ -34,28 +34,25 @@ from matplotlib.figure import Figure
 from matplotlib.patches import Circle
 from numpy.typing import NDArray
 
-from physics_mapper.core.geometry import Pose
-from physics_mapper.core.scene import Box, Scene, SearchParams, Sphere
-from physics_mapper.core.search import SearchResult
-from physics_mapper.experiments.common import (
+from physics_mapper.evaluation.outputs import (
     COLOR_REFINED,
     COLOR_WITH_PHYSICS,
     COLOR_WITHOUT_PHYSICS,
+    ReportFiles,
+    new_figure,
+    write_outputs,
+)
+from physics_mapper.evaluation.statistics import compare_errors, reduction_percent, tests_text
+from physics_mapper.experiments.common import (
     EXHAUSTIVE_DEADLINE,
     ErrorSeries,
     ExperimentOptions,
-    ExperimentOutput,
-    compare_errors,
     draw_static_section,
     load_experiment_scene,
     most_likely_start,
-    new_figure,
     plot_mean_errors,
-    reduction_percent,
     reproduce_command,
     spread_text,
-    tests_text,
-    write_outputs,
 )
 from physics_mapper.experiments.tracking import (
     TrackingOutcome,
@@ -64,6 +61,9 @@ from physics_mapper.experiments.tracking import (
     tracker_settings,
     tracker_summary,
 )
+from physics_mapper.model.geometry import Pose
+from physics_mapper.model.scene import Box, Scene, SearchParams, Sphere
+from physics_mapper.search.branch_and_bound import SearchResult
 
 NAME = "fig8"
 SCENE_FILE = "sphere_groove.yaml"
@@ -205,7 +205,7 @@ def refine_summary(
     }
 
 
-def run(options: ExperimentOptions) -> ExperimentOutput:
+def run(options: ExperimentOptions) -> ReportFiles:
     """Track, search, settle, score, plot and summarise (see the module docstring)."""
     scene, truth = load_experiment_scene(options, SCENE_FILE)
     # The settled estimate exists whenever some hypothesis is collision-free, whatever the scene file says.

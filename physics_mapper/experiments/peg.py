@@ -20,24 +20,22 @@ from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 from matplotlib.patches import Polygon
 
-from physics_mapper.core.geometry import IDENTITY, Y_AXIS, Pose, make_pose, quaternion_about_axis, rotation_angle
-from physics_mapper.core.hypotheses import Hypothesis, RankedHypotheses
-from physics_mapper.core.physics import PhysicsChecker, TrajectorySample
-from physics_mapper.core.report import code_text, describe_entry, trace_entry_dict
-from physics_mapper.core.scene import Box, Cylinder, Scene, StaticBody
-from physics_mapper.core.search import SearchResult, TraceEntry
+from physics_mapper.evaluation.outputs import ReportFiles, new_figure, write_outputs
 from physics_mapper.experiments.common import (
     ExperimentOptions,
-    ExperimentOutput,
     draw_static_section,
     exhaustive_search,
     load_experiment_scene,
-    new_figure,
     position_errors_cm,
     reproduce_command,
     side_outline_cm,
-    write_outputs,
 )
+from physics_mapper.model.geometry import IDENTITY, Y_AXIS, Pose, make_pose, quaternion_about_axis, rotation_angle
+from physics_mapper.model.hypotheses import Hypothesis, RankedHypotheses
+from physics_mapper.model.scene import Box, Cylinder, Scene, StaticBody
+from physics_mapper.physics.checker import PhysicsChecker, TrajectorySample
+from physics_mapper.search.branch_and_bound import SearchResult, TraceEntry
+from physics_mapper.search.report import code_text, describe_entry, trace_entry_dict
 
 NAME = "peg"
 SCENE_FILE = "peg_in_hole.yaml"
@@ -139,7 +137,7 @@ def draw(scene: Scene, result: SearchResult, samples: Sequence[TrajectorySample]
     return figure
 
 
-def run(options: ExperimentOptions) -> ExperimentOutput:
+def run(options: ExperimentOptions) -> ReportFiles:
     """Search the peg hypotheses, record the fallback's fall, plot and summarise."""
     scene, truth = load_experiment_scene(options, SCENE_FILE)
     options.progress(f"{NAME}: checking {len(HYPOTHESES)} peg hypotheses")

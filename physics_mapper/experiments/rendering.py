@@ -14,9 +14,9 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import NDArray
 
-from physics_mapper.core.bullet import pybullet
-from physics_mapper.core.geometry import Pose, compose_poses
-from physics_mapper.core.scene import Box, Cylinder, Mesh, Plane, Scene, Shape, Sphere, bounding_radius
+from physics_mapper.model.bullet import pybullet
+from physics_mapper.model.geometry import Pose, compose_poses
+from physics_mapper.model.scene import Box, Cylinder, Mesh, Plane, Scene, Shape, Sphere, bounding_radius
 
 #: Side of the square drawn for a plane, metres, and its thickness.
 PLANE_SIZE, PLANE_THICKNESS = 4.0, 0.002

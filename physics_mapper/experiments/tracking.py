@@ -28,15 +28,15 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from physics_mapper.core.geometry import Pose, Vector3
-from physics_mapper.core.hypotheses import RankedHypotheses
-from physics_mapper.core.physics import PhysicsChecker
-from physics_mapper.core.report import outcome_kind
-from physics_mapper.core.scene import Scene, SearchParams
-from physics_mapper.core.scoring import rank_one_poses
-from physics_mapper.core.search import SearchResult
+from physics_mapper.evaluation.scoring import rank_one_poses
 from physics_mapper.experiments.common import ExperimentOptions, exhaustive_search, position_errors_cm
+from physics_mapper.model.geometry import Pose, Vector3
+from physics_mapper.model.hypotheses import RankedHypotheses
+from physics_mapper.model.scene import Scene, SearchParams
 from physics_mapper.perception.particle_filter import TrackerSettings, run_generators, settle_ground_truth, track
+from physics_mapper.physics.checker import PhysicsChecker
+from physics_mapper.search.branch_and_bound import SearchResult
+from physics_mapper.search.report import outcome_kind
 
 #: The paper's sizes: 20 runs of a 1000-particle filter.
 PAPER_RUNS = 20

@@ -39,10 +39,10 @@ from typing import Literal
 import numpy as np
 from numpy.typing import NDArray
 
-from physics_mapper.core.geometry import make_pose
-from physics_mapper.core.hypotheses import Hypothesis, RankedHypotheses, weights_problem
-from physics_mapper.core.limits import MAX_QUOTED_TEXT, clipped
-from physics_mapper.core.scene import Workspace
+from physics_mapper.model.geometry import make_pose
+from physics_mapper.model.hypotheses import Hypothesis, RankedHypotheses, weights_problem
+from physics_mapper.model.limits import MAX_QUOTED_TEXT, clipped
+from physics_mapper.model.scene import Workspace
 
 #: Seconds a new PoseArray waits for its weights message before uniform weights are assumed.
 WEIGHTS_GRACE = 0.5
@@ -138,7 +138,7 @@ def check_poses(
 
     The poses themselves (finite, unit quaternion, inside ``workspace``) are checked when they
     are adopted (:func:`rank`). A frame_id quoted in the refusal is clipped to
-    :data:`~physics_mapper.core.limits.MAX_QUOTED_TEXT` characters.
+    :data:`~physics_mapper.model.limits.MAX_QUOTED_TEXT` characters.
     """
     poses = pose_block(raw_poses)
     if frame_id != expected_frame:

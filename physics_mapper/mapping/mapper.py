@@ -10,14 +10,14 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass
 
-from physics_mapper.core.grouped_search import GroupedSearch
-from physics_mapper.core.hypotheses import RankedHypotheses
-from physics_mapper.core.physics import PhysicsChecker, PhysicsEngineError
-from physics_mapper.core.refine import load_solver
-from physics_mapper.core.scene import Scene, SearchParams, search_params_problem
-from physics_mapper.core.search import BranchAndBound, Code, SearchResult
-from physics_mapper.core.strategy import make_search
 from physics_mapper.mapping.inputs import InputSettings, InputSnapshot, InputTracker
+from physics_mapper.model.hypotheses import RankedHypotheses
+from physics_mapper.model.scene import Scene, SearchParams, search_params_problem
+from physics_mapper.physics.checker import PhysicsChecker, PhysicsEngineError
+from physics_mapper.physics.refine import load_solver
+from physics_mapper.search.branch_and_bound import BranchAndBound, Code, SearchResult
+from physics_mapper.search.grouped import GroupedSearch
+from physics_mapper.search.strategy import make_search
 
 #: Seconds a tick's search may run past its deadline: the search looks at the clock every
 #: few simulation steps and then assembles its result. The overrun measured here is about a
@@ -85,7 +85,7 @@ class TickReport:
 class Mapper:
     """A scene's physics world, its inputs and the search in progress.
 
-    A world whose engine fails (:data:`~physics_mapper.core.physics.PhysicsEngineError`) is
+    A world whose engine fails (:data:`~physics_mapper.physics.checker.PhysicsEngineError`) is
     discarded with the search that used it; the next tick builds a new one and searches again.
     """
 

@@ -40,10 +40,10 @@ from filterpy.monte_carlo import systematic_resample
 from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
-from physics_mapper.core.geometry import Pose, make_pose
-from physics_mapper.core.hypotheses import Hypothesis, RankedHypotheses
-from physics_mapper.core.physics import PhysicsChecker
-from physics_mapper.core.scene import Scene
+from physics_mapper.model.geometry import Pose, make_pose
+from physics_mapper.model.hypotheses import Hypothesis, RankedHypotheses
+from physics_mapper.model.scene import Scene
+from physics_mapper.physics.checker import PhysicsChecker
 
 FloatArray = NDArray[np.float64]
 

@@ -13,11 +13,11 @@
   ``offered_qos_profiles``), so that ``ros2 bag play`` of the recording latches the map again.
 - **Raw bytes**: messages are published as the CDR bytes stored in the bag, and recorded as
   received, stamped with the receive time, scaled in time by a rate.
-- **Exhaustive** (lockstep): after each snapshot of hypotheses (:mod:`physics_mapper.bags.snapshots`)
+- **Exhaustive** (lockstep): after each snapshot of hypotheses (:mod:`physics_mapper.evaluation.snapshots`)
   the replay waits until the node's diagnostics report a finished search on exactly that
   snapshot's PoseArrays (their stamps), so live results do not depend on the machine's speed.
 
-Topic names are those of :mod:`physics_mapper.bags.evaluation`; for a node in a namespace, the
+Topic names are those of :mod:`physics_mapper.evaluation.snapshot_results`; for a node in a namespace, the
 bag's topics and the node's outputs are taken inside that namespace (``/diagnostics`` stays
 global) and recorded under their root-namespace names, so that recordings compare.
 """
@@ -39,8 +39,8 @@ from rclpy.serialization import deserialize_message
 from rclpy.subscription import Subscription
 
 from physics_mapper.bags.read_ahead import ReadAhead
-from physics_mapper.bags.snapshots import BagSnapshot
 from physics_mapper.bags.storage import DIAGNOSTIC_ARRAY, POSE_ARRAY, BagInfo, BagMessage, BagWriter, stream_messages
+from physics_mapper.evaluation.snapshots import BagSnapshot
 from physics_mapper.mapping.stamps import NANOSECONDS_PER_SECOND
 from physics_mapper.mapping.topics import (
     DIAGNOSTICS_TOPIC,

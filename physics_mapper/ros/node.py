@@ -52,22 +52,6 @@ from visualization_msgs.msg import MarkerArray
 from msg_adapters.diagnostics import diagnostics_msg
 from msg_adapters.hypotheses import received_pose_array, received_weights
 from msg_adapters.results import configuration_msgs, markers_msg, object_pose_msgs, static_markers_msg
-from physics_mapper.core.errors import EXIT_BAD_INPUT, InputError
-from physics_mapper.core.resources import ResourceError, resolve_resource
-from physics_mapper.core.scene import (
-    BOUNDS,
-    FALLBACKS,
-    SEARCH_LIMITS,
-    SETTLE_EXITS,
-    STRATEGIES,
-    Bound,
-    Fallback,
-    SearchParams,
-    SettleExit,
-    Strategy,
-)
-from physics_mapper.core.scene_files import SceneError, load_scene
-from physics_mapper.core.search import SearchResult
 from physics_mapper.mapping.inputs import InputSettings, MessageKind
 from physics_mapper.mapping.mapper import DEFAULT_RATE_HZ, Mapper, MapperSettings, TickReport, mapper_settings_problem
 from physics_mapper.mapping.stamps import NANOSECONDS_PER_SECOND
@@ -85,8 +69,24 @@ from physics_mapper.mapping.topics import (
     poses_topic,
     weights_topic,
 )
+from physics_mapper.model.errors import EXIT_BAD_INPUT, InputError
+from physics_mapper.model.resources import ResourceError, resolve_resource
+from physics_mapper.model.scene import (
+    BOUNDS,
+    FALLBACKS,
+    SEARCH_LIMITS,
+    SETTLE_EXITS,
+    STRATEGIES,
+    Bound,
+    Fallback,
+    SearchParams,
+    SettleExit,
+    Strategy,
+)
+from physics_mapper.model.scene_files import SceneError, load_scene
 from physics_mapper.ros.qos import DIAGNOSTICS_QOS, MAP_QOS, input_qos
 from physics_mapper.ros.spinning import STOP_POLL, SignalStop, shutdown_ros
+from physics_mapper.search.branch_and_bound import SearchResult
 
 #: Seconds between two /diagnostics messages unless ``diagnostics_period`` says otherwise (the ~1 Hz convention).
 DEFAULT_DIAGNOSTICS_PERIOD = 1.0
@@ -162,10 +162,10 @@ def _descriptor(spec: ParameterSpec, default: object) -> ParameterDescriptor:
 
 
 def resolve_scene_path(text: str) -> Path:
-    """A scene file path, or a ``package://<pkg>/<path>`` URL (:mod:`physics_mapper.core.resources`).
+    """A scene file path, or a ``package://<pkg>/<path>`` URL (:mod:`physics_mapper.model.resources`).
 
     Without an ament index (pip wheels only), ``package://physics_mapper/`` is this installation's
-    shipped files (:func:`~physics_mapper.core.shipped.share_directory`: the same ``config/`` tree).
+    shipped files (:func:`~physics_mapper.model.shipped.share_directory`: the same ``config/`` tree).
     """
     if not text:
         raise InputError("parameter scene_file is required, e.g. --ros-args -p scene_file:=config/scenes/pyramid.yaml")

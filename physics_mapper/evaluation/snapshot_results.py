@@ -1,0 +1,240 @@
+"""Evaluating a bag: a search per input snapshot, or a live node's recorded choices, scored (ROS-free).
+
+A :class:`SnapshotResult` pairs a snapshot (:mod:`physics_mapper.evaluation.snapshots`) with the
+configuration chosen for it, by the offline search here or by a live node (read back from its
+recorded outputs, matched by stamp: the node stamps its outputs with the newest input stamp
+used). Errors are position errors in metres against the bag's ``/ground_truth``: per object,
+and in total (the sum over objects, the paper's "total configuration error"), for C111 (every
+object's top hypothesis), the chosen hypotheses and their settled poses.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from physics_mapper.bags.storage import (
+    POSE_ARRAY,
+    Bag,
+    BagWriter,
+    decoding,
+    offered_qos,
+    pose_array_cdr,
+    pose_array_from_cdr,
+)
+from physics_mapper.evaluation.scoring import position_errors, rank_one_poses
+from physics_mapper.evaluation.snapshots import BagSnapshot
+from physics_mapper.mapping.topics import MAP_TOPIC_QOS, RECORDED_CONFIGURATION_TOPIC, RECORDED_SETTLED_TOPIC
+from physics_mapper.model.geometry import Pose, is_same_pose
+from physics_mapper.model.hypotheses import RankedHypotheses
+from physics_mapper.model.scene import Scene
+from physics_mapper.physics.checker import PhysicsChecker
+from physics_mapper.search.branch_and_bound import Code, SearchResult
+from physics_mapper.search.report import code_text
+from physics_mapper.search.strategy import make_search
+
+#: A published pose is a hypothesis whose position is this close (metres) and whose orientation q'
+#: has 1 - |q . q'| at most :data:`SAME_ORIENTATION` (an angle of 2.8e-6 rad). Not a tolerance on the
+#: angle: both quaternions went through make_pose, and after a CDR round trip and a second
+#: normalisation |q . q'| can be 1 - 2^-52, which acos turns into an angle of 4e-8 rad.
+SAME_POSITION = 1e-9
+SAME_ORIENTATION = 1e-12
+
+
+@dataclass(frozen=True)
+class SnapshotResult:
+    """A snapshot and the configuration chosen for it (``code`` None: nothing was chosen or published).
+
+    ``search`` is the offline search's whole result (validity, fallback, counts, time); None for a
+    live node's recorded choice, whose validity the recording does not hold.
+    """
+
+    snapshot: BagSnapshot
+    code: Code | None
+    chosen: tuple[Pose, ...] | None
+    settled: tuple[Pose, ...] | None
+    search: SearchResult | None = None
+
+
+def search_offline(
+    snapshots: Sequence[BagSnapshot],
+    scene: Scene,
+    budget: float | None,
+    progress: Callable[[int, SearchResult], None] | None = None,
+) -> list[SnapshotResult]:
+    """One search per snapshot with the scene's parameters, ``budget`` seconds each (None: to the end).
+
+    ``progress(index, result)`` is called after each search.
+    """
+    results = []
+    with PhysicsChecker(scene) as checker:
+        for index, snapshot in enumerate(snapshots):
+            found = make_search(checker, snapshot.hypotheses, scene.search).run(budget)
+            results.append(SnapshotResult(snapshot, found.code, found.poses, found.settled_poses, found))
+            if progress is not None:
+                progress(index, found)
+    return results
+
+
+def write_results(writer: BagWriter, results: Sequence[SnapshotResult], frame_id: str) -> None:
+    """Record offline results on the node's output topics at each snapshot's bag time, offered latched as the node's."""
+    for topic in (RECORDED_CONFIGURATION_TOPIC, RECORDED_SETTLED_TOPIC):
+        writer.add_topic(topic, POSE_ARRAY, [offered_qos(MAP_TOPIC_QOS)])
+    for result in results:
+        snapshot = result.snapshot
+        if result.chosen is None or result.settled is None:
+            continue
+        chosen = pose_array_cdr(snapshot.stamp_ns, frame_id, result.chosen)
+        writer.write(RECORDED_CONFIGURATION_TOPIC, POSE_ARRAY, snapshot.time_ns, chosen)
+        settled = pose_array_cdr(snapshot.stamp_ns, frame_id, result.settled)
+        writer.write(RECORDED_SETTLED_TOPIC, POSE_ARRAY, snapshot.time_ns, settled)
+
+
+def code_of(poses: Sequence[Pose], hypotheses: Sequence[RankedHypotheses]) -> Code | None:
+    """The code whose hypotheses are ``poses`` (None if some pose is none of its object's hypotheses)."""
+    code = []
+    for pose, ranked in zip(poses, hypotheses, strict=True):
+        rank = next(
+            (
+                r
+                for r in range(1, len(ranked) + 1)
+                if is_same_pose(pose, ranked.pose(r), SAME_POSITION, SAME_ORIENTATION)
+            ),
+            None,
+        )
+        if rank is None:
+            return None
+        code.append(rank)
+    return tuple(code)
+
+
+def _last_by_stamp(output: Bag, topic: str, count: int) -> dict[int, tuple[Pose, ...]]:
+    """The last PoseArray of ``count`` poses recorded on ``topic`` for each header stamp (ns)."""
+    latest: dict[int, tuple[Pose, ...]] = {}
+    for message in output.on(topic):
+        with decoding(output, message):
+            data = pose_array_from_cdr(message.raw)
+            if len(data.poses) == count:
+                latest[data.stamp_ns] = data.checked_poses()
+    return latest
+
+
+def recorded_results(snapshots: Sequence[BagSnapshot], output: Bag, scene: Scene) -> list[SnapshotResult]:
+    """What a live node chose for each snapshot: its last configuration stamped with the snapshot's stamp.
+
+    Stamps are compared exactly (the node carries them as integer nanoseconds). A configuration
+    that is not made of the snapshot's hypotheses (the node ticked halfway through a burst and
+    never again before the next one) counts as no configuration.
+    """
+    count = len(scene.objects)
+    chosen = _last_by_stamp(output, RECORDED_CONFIGURATION_TOPIC, count)
+    settled = _last_by_stamp(output, RECORDED_SETTLED_TOPIC, count)
+    results = []
+    for snapshot in snapshots:
+        poses = chosen.get(snapshot.stamp_ns)
+        code = None if poses is None else code_of(poses, snapshot.hypotheses)
+        if code is None:
+            results.append(SnapshotResult(snapshot, None, None, None))
+        else:
+            results.append(SnapshotResult(snapshot, code, poses, settled.get(snapshot.stamp_ns)))
+    return results
+
+
+#: The estimates scored against ground truth: ``top``, every object's most likely hypothesis (the paper's
+#: C111, no physics); ``chosen``, the configuration chosen with physics; ``settled``, its settled poses.
+ESTIMATES = ("top", "chosen", "settled")
+
+
+def _estimates(result: SnapshotResult) -> tuple[tuple[Pose, ...] | None, ...]:
+    """The poses of each of :data:`ESTIMATES` (None where nothing was chosen)."""
+    return rank_one_poses(result.snapshot.hypotheses), result.chosen, result.settled
+
+
+EstimateErrors = Mapping[str, Sequence[float] | None]
+
+
+def estimate_errors(result: SnapshotResult) -> dict[str, tuple[float, ...] | None] | None:
+    """Each estimate's per-object position errors in metres, keyed by :data:`ESTIMATES`.
+
+    ``chosen`` and ``settled`` are None where nothing was chosen (``top``, C11..1, always exists);
+    the whole is None without a ground truth.
+    """
+    truth = result.snapshot.ground_truth
+    if truth is None:
+        return None
+    return {
+        name: None if poses is None else position_errors(poses, truth)
+        for name, poses in zip(ESTIMATES, _estimates(result), strict=True)
+    }
+
+
+def is_scored(errors: EstimateErrors | None) -> bool:
+    """Whether a snapshot's :func:`estimate_errors` count in the means: a ground truth and a chosen configuration."""
+    return errors is not None and all(errors[name] is not None for name in ESTIMATES)
+
+
+def mean_scored_errors(errors: Iterable[EstimateErrors | None]) -> dict[str, tuple[float, ...]] | None:
+    """Per estimate (:data:`ESTIMATES`), each object's mean position error in metres.
+
+    ``errors`` are snapshots' :func:`estimate_errors`; the mean is over the scored ones
+    (:func:`is_scored`); None if there is none.
+    """
+    scored = [[e[name] for name in ESTIMATES] for e in errors if e is not None and is_scored(e)]
+    if not scored:
+        return None
+    means = np.mean(np.asarray(scored, dtype=float), axis=0)  # [estimate, object]
+    return {name: tuple(row.tolist()) for name, row in zip(ESTIMATES, means, strict=True)}
+
+
+def mean_errors(results: Sequence[SnapshotResult]) -> dict[str, tuple[float, ...]] | None:
+    """:func:`mean_scored_errors` of the results: averaged over those with a ground truth and a chosen configuration."""
+    return mean_scored_errors(map(estimate_errors, results))
+
+
+def evaluation_summary(results: Sequence[SnapshotResult], object_names: Sequence[str]) -> str:
+    """Snapshot counts, how often C11..1 was kept, and the error table (centimetres) when there is ground truth.
+
+    The total of a column is the sum over objects (the paper's total configuration error).
+    """
+    top = code_text((1,) * len(object_names))
+    chosen = [o.code for o in results if o.code is not None]
+    kept_top = sum(1 for code in chosen if all(rank == 1 for rank in code))
+    lines = [
+        f"{len(results)} snapshots, {len(chosen)} with a configuration: "
+        f"{top} in {kept_top}, another configuration in {len(chosen) - kept_top}"
+    ]
+    errors = mean_errors(results)
+    if errors is None:
+        lines.append("no error against ground truth (no /ground_truth in the bag, or no configuration)")
+        return "\n".join(lines)
+    width = max(len(name) for name in (*object_names, "total"))
+    scored = sum(1 for o in results if is_scored(estimate_errors(o)))
+    lines.append(f"mean position error against ground truth over the {scored} snapshots with a configuration [cm]:")
+    labels = (top, "chosen", "settled")  # the names of ESTIMATES, for people
+    lines.append(f"{'object':<{width}}" + "".join(f"{label:>10}" for label in labels))
+    for index, name in enumerate(object_names):
+        lines.append(f"{name:<{width}}" + "".join(f"{e[index] * 100:10.2f}" for e in errors.values()))
+    lines.append(f"{'total':<{width}}" + "".join(f"{sum(e) * 100:10.2f}" for e in errors.values()))
+    return "\n".join(lines)
+
+
+def snapshot_result_dict(result: SnapshotResult) -> dict[str, Any]:
+    """One snapshot's result as plain data: times, code, per-object position errors (m) of each estimate
+    (:func:`estimate_errors`) and, for an offline search, ``valid``, ``fallback_used``, ``visited`` (configurations
+    checked) and ``stopped_at_deadline`` (None for a live node's choice). Wall-clock times are left out, so that the
+    same search gives the same data on any machine."""
+    snapshot, search = result.snapshot, result.search
+    return {
+        "time_ns": snapshot.time_ns,
+        "stamp_ns": snapshot.stamp_ns,
+        "code": None if result.code is None else list(result.code),
+        "code_text": code_text(result.code),
+        "valid": None if search is None else search.valid,
+        "fallback_used": None if search is None else search.fallback_used,
+        "visited": None if search is None else search.stats.visited,
+        "stopped_at_deadline": None if search is None else search.stats.stopped_at_deadline,
+        "errors": estimate_errors(result),
+    }

@@ -1,0 +1,122 @@
+"""A bag's hypotheses as the node would see them: its input snapshots, burst by burst (ROS-free).
+
+The bag's messages go through the node's own input rules (:mod:`physics_mapper.mapping.inputs`)
+with the bag's receive times as the node's clock. A *snapshot* is taken at the end of every
+burst of messages (messages less than :data:`BURST_GAP_NS` apart, such as one iteration of
+``generate``), and in a continuous stream at least every :data:`MAX_BURST_NS` (the node's
+default tick period); a snapshot whose hypotheses differ from the previous one is a new search
+problem, as it would be for the node, which otherwise resumes its search.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass
+
+from physics_mapper.bags.storage import Bag, BagError, BagMessage, decoding, pose_array_from_cdr, weights_from_cdr
+from physics_mapper.mapping.inputs import InputSettings, InputTracker, check_poses, check_weights
+from physics_mapper.mapping.stamps import NANOSECONDS_PER_SECOND
+from physics_mapper.mapping.topics import GROUND_TRUTH_TOPIC, recorded_poses_topic, recorded_weights_topic
+from physics_mapper.model.geometry import Pose
+from physics_mapper.model.hypotheses import RankedHypotheses
+from physics_mapper.model.scene import Scene
+
+#: Messages closer together than this (ns) form one burst, after which the node's inputs are snapshot.
+BURST_GAP_NS = 50_000_000
+#: A burst is cut after this long (ns), like a node ticking at its default 2 Hz.
+MAX_BURST_NS = 500_000_000
+
+
+@dataclass(frozen=True)
+class BagSnapshot:
+    """The hypotheses a node would search after a burst of the bag's messages.
+
+    ``time_ns``: bag time of the burst's last message; ``stamp_ns``: newest header stamp among
+    the hypotheses used (the node's output stamp); ``stamps_ns``: the header stamp of each
+    object's PoseArray in use, in scene order (what the node's diagnostics show as ``stamp [ns]``);
+    ``ground_truth``: newest ``/ground_truth`` so far.
+    """
+
+    time_ns: int
+    stamp_ns: int
+    hypotheses: tuple[RankedHypotheses, ...]
+    ground_truth: tuple[Pose, ...] | None
+    stamps_ns: tuple[int, ...] = ()
+
+
+def _bursts(messages: Sequence[BagMessage]) -> Iterator[list[BagMessage]]:
+    burst: list[BagMessage] = []
+    for message in messages:
+        if burst and (
+            message.time_ns - burst[-1].time_ns >= BURST_GAP_NS or message.time_ns - burst[0].time_ns >= MAX_BURST_NS
+        ):
+            yield burst
+            burst = []
+        burst.append(message)
+    if burst:
+        yield burst
+
+
+def _ground_truth(message: BagMessage, scene: Scene) -> tuple[Pose, ...]:
+    poses = pose_array_from_cdr(message.raw).checked_poses()
+    if len(poses) != len(scene.objects):
+        raise BagError(f"{len(poses)} poses for {len(scene.objects)} scene objects")
+    return poses
+
+
+def input_topics(scene: Scene) -> tuple[str, ...]:
+    """The topics a replay of ``scene`` reads from a bag: every object's hypotheses and weights, the ground truth."""
+    per_object = ((recorded_poses_topic(name), recorded_weights_topic(name)) for name in scene.object_names)
+    return (*(topic for pair in per_object for topic in pair), GROUND_TRUTH_TOPIC)
+
+
+def no_snapshot_reason(scene: Scene) -> str:
+    """What a bag that gives no snapshot lacks: hypotheses of every object that pass the input rules."""
+    return (
+        "at no time does every object have usable hypotheses "
+        f"(frame_id must be {scene.frame_id!r}, poses finite with unit quaternions, weights valid)"
+    )
+
+
+def bag_snapshots(bag: Bag, scene: Scene, settings: InputSettings | None = None) -> list[BagSnapshot]:
+    """Feed the bag's hypotheses through the node's input rules; one snapshot per new set of hypotheses.
+
+    Only the messages on :func:`input_topics` count, also for the bursts: other topics of the bag
+    (a recording's camera or TF) neither decide nor cut a burst. Raises BagError, naming the bag,
+    topic and time, for a message that cannot be decoded or a malformed ground truth.
+    """
+    settings = settings or InputSettings()
+    tracker = InputTracker(scene.object_names)
+    poses_of = {recorded_poses_topic(name): name for name in scene.object_names}
+    weights_of = {recorded_weights_topic(name): name for name in scene.object_names}
+    wanted = set(input_topics(scene))
+    truth: tuple[Pose, ...] | None = None
+    snapshots: list[BagSnapshot] = []
+    for burst in _bursts([m for m in bag.messages if m.topic in wanted]):
+        for message in burst:
+            received = message.time_ns / NANOSECONDS_PER_SECOND
+            with decoding(bag, message):
+                if message.topic in poses_of:
+                    data = pose_array_from_cdr(message.raw)
+                    checked = check_poses(
+                        data.poses,
+                        frame_id=data.frame_id,
+                        expected_frame=scene.frame_id,
+                        workspace=scene.workspace,
+                        stamp_ns=data.stamp_ns,
+                        received=received,
+                    )
+                    tracker.add_poses(poses_of[message.topic], checked)
+                elif message.topic in weights_of:
+                    tracker.add_weights(
+                        weights_of[message.topic], check_weights(weights_from_cdr(message.raw), received=received)
+                    )
+                else:
+                    truth = _ground_truth(message, scene)
+        snapshot = tracker.snapshot(burst[-1].time_ns / NANOSECONDS_PER_SECOND, settings)
+        hypotheses, stamp_ns = snapshot.hypotheses, snapshot.stamp_ns
+        new = not snapshots or hypotheses != snapshots[-1].hypotheses
+        if hypotheses is not None and stamp_ns is not None and new:
+            stamps = tuple(o.stamp_ns for o in snapshot.objects if o.stamp_ns is not None)
+            snapshots.append(BagSnapshot(burst[-1].time_ns, stamp_ns, hypotheses, truth, stamps))
+    return snapshots

@@ -1,0 +1,285 @@
+"""Convex decomposition of concave meshes (CoACD, or pybullet's V-HACD), cached on disk.
+
+Bullet collides convex shapes. A concave object (a mug, a bowl, a tray) given as its convex
+hull is solid where it is hollow: a cube resting in a bowl overlaps the bowl's hull. A convex
+decomposition approximates the mesh by a few convex *parts* whose union follows its cavities;
+Bullet then collides each part (a compound shape).
+
+Methods:
+
+* ``coacd`` (default): CoACD, Wei et al. 2022, "Approximate convex decomposition for 3D meshes
+  with collision-aware concavity and tree search". ``threshold`` is its concavity threshold
+  (0.01 to 1, dimensionless: relative to the mesh's size); lower gives more, finer parts. Each part
+  is decimated to at most :data:`COACD_MAX_PART_VERTICES` vertices. Seeded, so a mesh always gives
+  the same parts. Slow: about 30 s for pybullet_data's mug on one core (more on a busy machine).
+* ``vhacd``: pybullet's built-in V-HACD (its default parameters, except a voxel resolution of
+  :data:`VHACD_RESOLUTION` instead of 1,000,000: ten times faster, about as many parts). Faster,
+  coarser; the fallback to compare against (``BENCHMARKS.md``).
+
+A decomposition is computed on the mesh file as read (unscaled, in its own frame) and stored in
+the cache as an OBJ file, one ``o part_<i>`` group per convex part, which pybullet loads as a
+compound of convex hulls (scaled by the body's ``scale``). The file name is a SHA-256 key of
+the mesh file's bytes, the method, its parameters and the library's version, so a changed file
+or parameter is decomposed again, and an unchanged one never is. Files are written to a temporary
+name and renamed, so concurrent loads (two nodes, a test run) never see half a file; nothing is
+ever evicted (delete the folder to reclaim the space).
+
+The cache folder is ``$PHYSICS_MAPPER_CACHE_DIR/decompositions`` if that variable is set, else the
+platform's user cache folder (``platformdirs``): ``~/.cache/physics_mapper/decompositions`` on
+Linux (``$XDG_CACHE_HOME`` honoured), ``~/Library/Caches/physics_mapper/decompositions`` on macOS,
+``%LOCALAPPDATA%\\physics_mapper\\Cache\\decompositions`` on Windows.
+
+Parts read from a user's own file (``parts:`` in a scene: an OBJ whose ``o``/``g`` groups are the
+convex parts, as V-HACD and pybullet_data's ``*_vhacd.obj`` files are) are copied into the cache
+in the same canonical form, so pybullet always loads a file written here.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import importlib
+import json
+import os
+import sys
+import tempfile
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import asdict, dataclass
+from importlib.metadata import PackageNotFoundError, version
+from pathlib import Path
+from typing import Literal
+
+import numpy as np
+from numpy.typing import NDArray
+
+FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.int64]
+Progress = Callable[[str], None]
+
+DecompositionMethod = Literal["coacd", "vhacd"]
+DECOMPOSITION_METHODS: tuple[DecompositionMethod, ...] = ("coacd", "vhacd")
+#: Environment variable naming the cache's parent folder (tests, CI, read-only homes).
+CACHE_ENVIRONMENT_VARIABLE = "PHYSICS_MAPPER_CACHE_DIR"
+#: Bumped when the cache's file format changes, so that old files are not read.
+CACHE_FORMAT = 1
+#: CoACD's concavity threshold range (its own documented range).
+THRESHOLD_LIMITS = (0.01, 1.0)
+#: Most vertices a CoACD part keeps (its decimation): Bullet's cost of a convex part grows with its vertices,
+#: and undecimated parts of the mug reach 500 (V-HACD's default cap is 64 too).
+COACD_MAX_PART_VERTICES = 64
+#: Voxels V-HACD fills the mesh with (pybullet's default is 1,000,000: 6 s on the mug, 14 parts; this: 0.5 s, 12).
+VHACD_RESOLUTION = 100_000
+
+
+@dataclass(frozen=True)
+class DecompositionSettings:
+    """How a mesh is decomposed: ``method`` and, for CoACD, its concavity ``threshold``."""
+
+    method: DecompositionMethod = "coacd"
+    threshold: float = 0.05
+
+
+@dataclass(frozen=True, eq=False)
+class ConvexPart:
+    """One convex part: ``vertices`` (K, 3) and triangle ``faces`` (F, 3) indexing them."""
+
+    vertices: FloatArray
+    faces: IntArray
+
+
+@dataclass(frozen=True)
+class Decomposition:
+    """Convex parts of a mesh, unscaled in the mesh file's frame, and the cached OBJ holding them.
+
+    ``computed_seconds`` is the wall-clock time the decomposition took when this call computed
+    it, and None when it came from the cache (or from a user's parts file).
+    """
+
+    parts: tuple[ConvexPart, ...]
+    file: Path
+    method: str
+    computed_seconds: float | None
+
+    @property
+    def from_cache(self) -> bool:
+        return self.computed_seconds is None
+
+
+class DecompositionError(ValueError):
+    """A decomposition could not be computed, read or stored (the message says which and why)."""
+
+
+def stderr_progress(line: str) -> None:
+    """Default progress report: one line on stderr (a first decomposition can take a minute)."""
+    print(f"physics_mapper: {line}", file=sys.stderr, flush=True)
+
+
+def cache_directory() -> Path:
+    """The folder of cached decompositions (see the module docstring); not created here."""
+    override = os.environ.get(CACHE_ENVIRONMENT_VARIABLE)
+    if override:
+        return Path(override).expanduser() / "decompositions"
+    from platformdirs import user_cache_dir
+
+    return Path(user_cache_dir("physics_mapper", appauthor=False)) / "decompositions"
+
+
+def cache_key(mesh_bytes: bytes, settings: DecompositionSettings) -> str:
+    """Hex key of a decomposition: SHA-256 of the mesh bytes, the settings and the library version."""
+    library = "coacd" if settings.method == "coacd" else "pybullet"
+    if settings.method == "coacd":
+        parameters = {**asdict(settings), "max_part_vertices": COACD_MAX_PART_VERTICES, "seed": 0}
+    else:
+        parameters = {"method": "vhacd", "resolution": VHACD_RESOLUTION}
+    header = json.dumps({"format": CACHE_FORMAT, "settings": parameters, library: _version(library)})
+    digest = hashlib.sha256(header.encode())
+    digest.update(mesh_bytes)
+    return digest.hexdigest()[:32]
+
+
+def _version(library: str) -> str:
+    try:
+        return version(library)
+    except PackageNotFoundError:  # decomposing says so, with what to do
+        return "not installed"
+
+
+def decompose(
+    mesh_file: Path,
+    vertices: FloatArray,
+    faces: IntArray,
+    settings: DecompositionSettings,
+    progress: Progress = stderr_progress,
+) -> Decomposition:
+    """The convex parts of the mesh read from ``mesh_file`` (``vertices``, ``faces``: as read, unscaled).
+
+    Read from the cache when there; otherwise computed (reported through ``progress``, before
+    and after), stored, and returned. Raises :class:`DecompositionError`.
+    """
+    directory = cache_directory()
+    cached = directory / f"{cache_key(_read_bytes(mesh_file), settings)}.obj"
+    if cached.is_file():
+        try:
+            return Decomposition(read_parts(cached), cached, settings.method, None)
+        except DecompositionError:
+            pass  # a damaged cache file (disk full, edited): computed again and replaced
+    where = f"threshold {settings.threshold:g}, " if settings.method == "coacd" else ""
+    progress(f"decomposing {mesh_file} with {settings.method} ({where}once: the result is cached in {directory})")
+    start = time.monotonic()
+    parts = _coacd(vertices, faces, settings) if settings.method == "coacd" else _vhacd(vertices, faces)
+    seconds = time.monotonic() - start
+    if not parts:
+        raise DecompositionError(f"{settings.method} returned no convex part")
+    write_parts(cached, parts, f"{settings.method} decomposition of {mesh_file} ({asdict(settings)})")
+    progress(f"decomposed {mesh_file}: {len(parts)} convex parts in {seconds:.1f} s, cached as {cached}")
+    return Decomposition(parts, cached, settings.method, seconds)
+
+
+def parts_from_file(parts_file: Path) -> Decomposition:
+    """A user's decomposition: the ``o``/``g`` groups of an OBJ file, copied into the cache in canonical form."""
+    parts = read_parts(parts_file)
+    cached = cache_directory() / f"parts-{hashlib.sha256(_read_bytes(parts_file)).hexdigest()[:32]}.obj"
+    if not cached.is_file():
+        write_parts(cached, parts, f"convex parts of {parts_file}")
+    return Decomposition(parts, cached, "parts file", None)
+
+
+def _read_bytes(path: Path) -> bytes:
+    try:
+        return path.read_bytes()
+    except OSError as error:
+        raise DecompositionError(f"cannot read {path}: {error.strerror or error}") from None
+
+
+def _coacd(vertices: FloatArray, faces: IntArray, settings: DecompositionSettings) -> tuple[ConvexPart, ...]:
+    try:
+        coacd = importlib.import_module("coacd")
+    except ImportError:
+        raise DecompositionError("coacd is not installed (pip install coacd), use method: vhacd") from None
+    coacd.set_log_level("error")
+    mesh = coacd.Mesh(np.ascontiguousarray(vertices, dtype=np.float64), np.ascontiguousarray(faces, dtype=np.int32))
+    parts = coacd.run_coacd(
+        mesh, threshold=settings.threshold, decimate=True, max_ch_vertex=COACD_MAX_PART_VERTICES, seed=0
+    )
+    return tuple(ConvexPart(np.asarray(v, dtype=np.float64), np.asarray(f, dtype=np.int64)) for v, f in parts)
+
+
+def _vhacd(vertices: FloatArray, faces: IntArray) -> tuple[ConvexPart, ...]:
+    from physics_mapper.model.bullet import pybullet, silenced_descriptor  # pybullet loads on first use
+
+    with tempfile.TemporaryDirectory(prefix="physics_mapper_vhacd_") as folder:
+        source, output, log = (Path(folder) / name for name in ("mesh.obj", "parts.obj", "log.txt"))
+        write_parts(source, (ConvexPart(vertices, faces),), "input of V-HACD")
+        with silenced_descriptor(1):  # V-HACD prints its parameters and progress on stdout
+            pybullet.vhacd(str(source), str(output), str(log), resolution=VHACD_RESOLUTION)
+        return read_parts(output)
+
+
+def write_parts(path: Path, parts: Sequence[ConvexPart], title: str) -> None:
+    """Write ``parts`` as an OBJ file, one ``o part_<i>`` group each, atomically (temporary file + rename)."""
+    lines = [f"# physics_mapper: {title}: {len(parts)} convex parts"]
+    offset = 1  # OBJ indices are 1-based and global across groups
+    for index, part in enumerate(parts):
+        lines.append(f"o part_{index}")
+        lines += [f"v {x!r} {y!r} {z!r}" for x, y, z in part.vertices.tolist()]
+        lines += [f"f {a + offset} {b + offset} {c + offset}" for a, b, c in part.faces.tolist()]
+        offset += len(part.vertices)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        with tempfile.NamedTemporaryFile("w", dir=path.parent, suffix=".tmp", delete=False, encoding="ascii") as file:
+            file.write("\n".join(lines) + "\n")
+        os.replace(file.name, path)
+    except OSError as error:
+        raise DecompositionError(
+            f"cannot write {path}: {error.strerror or error} (set {CACHE_ENVIRONMENT_VARIABLE} to a writable folder)"
+        ) from None
+
+
+def read_parts(path: Path) -> tuple[ConvexPart, ...]:
+    """The convex parts of an OBJ file: each ``o`` or ``g`` group with faces is one part.
+
+    Polygons are split into triangle fans; ``v`` lines are global, ``f`` indices 1-based or
+    negative (relative), with optional ``/texture/normal`` suffixes. Raises
+    :class:`DecompositionError` naming the line of a malformed entry.
+    """
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as error:
+        reason = error.strerror if isinstance(error, OSError) else "not a text (OBJ) file"
+        raise DecompositionError(f"cannot read {path}: {reason or error}") from None
+    vertices: list[tuple[float, float, float]] = []
+    groups: list[list[tuple[int, int, int]]] = [[]]
+    for number, line in enumerate(text.splitlines(), start=1):
+        words = line.split()
+        if not words:
+            continue
+        try:
+            if words[0] == "v":
+                x, y, z = (float(w) for w in words[1:4])
+                vertices.append((x, y, z))
+            elif words[0] == "f":
+                corners = [_vertex_index(w, len(vertices)) for w in words[1:]]
+                groups[-1] += [(corners[0], corners[i], corners[i + 1]) for i in range(1, len(corners) - 1)]
+            elif words[0] in ("o", "g") and groups[-1]:
+                groups.append([])
+        except (ValueError, IndexError):
+            raise DecompositionError(f"{path}: line {number}: malformed {words[0]!r} entry") from None
+    parts = tuple(_part(np.asarray(vertices, dtype=np.float64), faces) for faces in groups if faces)
+    if not parts:
+        raise DecompositionError(f"{path}: no faces, so no convex part")
+    return parts
+
+
+def _vertex_index(word: str, count: int) -> int:
+    """0-based index of an OBJ face corner ``v``, ``v/vt``, ``v//vn`` or ``v/vt/vn`` (negative: from the end)."""
+    index = int(word.split("/")[0])
+    resolved = index - 1 if index > 0 else count + index
+    if not 0 <= resolved < count:
+        raise IndexError(index)
+    return resolved
+
+
+def _part(vertices: FloatArray, faces: Sequence[tuple[int, int, int]]) -> ConvexPart:
+    """The part made of ``faces``, with only the vertices they use, renumbered."""
+    used, inverse = np.unique(np.asarray(faces, dtype=np.int64), return_inverse=True)
+    return ConvexPart(vertices[used], inverse.reshape(-1, 3).astype(np.int64))

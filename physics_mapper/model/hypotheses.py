@@ -1,0 +1,78 @@
+"""Weighted pose hypotheses of one object, ranked as the search needs them."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from physics_mapper.model.geometry import Pose
+
+
+@dataclass(frozen=True)
+class Hypothesis:
+    """One pose hypothesis and its (unnormalised or normalised) weight."""
+
+    pose: Pose
+    weight: float
+
+
+def weights_problem(weights: Sequence[float] | NDArray[np.float64], expected_count: int) -> str | None:
+    """Say what makes a weight vector unusable for ``expected_count`` poses, or return None.
+
+    Refused: wrong length, a non-finite or negative weight, or weights that sum to zero or
+    overflow to infinity. Vectorised: a message of 10,000 weights is checked in microseconds.
+    """
+    values = np.asarray(weights, dtype=np.float64)
+    if len(values) != expected_count:
+        return f"{len(values)} weights for {expected_count} poses"
+    if not np.isfinite(values).all():
+        return "non-finite weight (NaN or Inf)"
+    if (values < 0.0).any():
+        return "negative weight"
+    with np.errstate(over="ignore"):  # an overflow is the refusal below, not a warning
+        total = float(values.sum())
+    if total <= 0.0:
+        return "weights sum to zero"
+    if not np.isfinite(total):
+        return "weights sum to infinity (too large to normalise)"
+    return None
+
+
+@dataclass(frozen=True)
+class RankedHypotheses:
+    """An object's hypotheses, weights normalised to sum 1, ranked by decreasing weight.
+
+    Ties keep their input order (a stable sort), so with uniform weights the
+    published order is the ranking. Rank r (1-based) is ``hypotheses[r - 1]``.
+    """
+
+    hypotheses: tuple[Hypothesis, ...]
+
+    @classmethod
+    def from_weighted(cls, hypotheses: Sequence[Hypothesis], keep_at_most: int | None = None) -> RankedHypotheses:
+        """Normalise and rank; keep only the ``keep_at_most`` heaviest (renormalised).
+
+        Raises ValueError when there are no hypotheses or the weights are unusable.
+        """
+        if not hypotheses:
+            raise ValueError("no hypotheses")
+        problem = weights_problem([h.weight for h in hypotheses], len(hypotheses))
+        if problem is not None:
+            raise ValueError(problem)
+        ranked = sorted(hypotheses, key=lambda h: -h.weight)[:keep_at_most]
+        total = sum(h.weight for h in ranked)
+        return cls(tuple(Hypothesis(h.pose, h.weight / total) for h in ranked))
+
+    def __len__(self) -> int:
+        return len(self.hypotheses)
+
+    def weight(self, rank: int) -> float:
+        """Normalised weight of the hypothesis of 1-based ``rank``."""
+        return self.hypotheses[rank - 1].weight
+
+    def pose(self, rank: int) -> Pose:
+        """Pose of the hypothesis of 1-based ``rank``."""
+        return self.hypotheses[rank - 1].pose

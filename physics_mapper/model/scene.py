@@ -1,0 +1,334 @@
+"""The scene model: bodies and their shapes, search parameters, scenes and problems (SPEC section 3).
+
+A *scene* is the fixed environment, the movable objects (in the order used for configuration
+codes and output arrays) and the search parameters. A *problem* is a scene plus weighted
+hypotheses for every object. Lengths are metres, masses kilograms, times seconds. Loading and
+validating the YAML files is :mod:`physics_mapper.model.scene_files`.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from functools import cached_property
+from pathlib import Path
+from typing import Literal, assert_never
+
+from physics_mapper.model.geometry import ORIGIN, Pose, Vector3
+from physics_mapper.model.hypotheses import RankedHypotheses
+from physics_mapper.model.meshes import MeshCollision, MeshGeometry
+
+Fallback = Literal["none", "settled", "refine"]
+FALLBACKS: tuple[Fallback, ...] = ("none", "settled", "refine")
+#: ``grouped``: Algorithm 1 per interaction group (issue 8); ``joint``: the paper's single search.
+Strategy = Literal["grouped", "joint"]
+STRATEGIES: tuple[Strategy, ...] = ("grouped", "joint")
+#: How T bounds a node: ``relative`` p(C) / p(root) < T, per group; ``absolute`` p(C) < T (the paper's).
+Bound = Literal["relative", "absolute"]
+BOUNDS: tuple[Bound, ...] = ("relative", "absolute")
+#: ``early``: a settling may stop at rest or once an object's jitter is beyond the threshold; ``full``: never.
+SettleExit = Literal["early", "full"]
+SETTLE_EXITS: tuple[SettleExit, ...] = ("early", "full")
+
+
+@dataclass(frozen=True)
+class Box:
+    """Box with full edge lengths ``size`` (x, y, z) in metres, centred on its pose."""
+
+    size: tuple[float, float, float]
+
+
+@dataclass(frozen=True)
+class Sphere:
+    """Sphere of ``radius`` metres, centred on its pose."""
+
+    radius: float
+
+
+@dataclass(frozen=True)
+class Cylinder:
+    """Cylinder of ``radius`` and ``length`` metres along its local z axis, centred on its pose."""
+
+    radius: float
+    length: float
+
+
+@dataclass(frozen=True)
+class Plane:
+    """Infinite plane through its pose, normal along its local +z (static bodies only)."""
+
+
+#: How a movable object's mesh may collide; static bodies may also use a triangle mesh.
+OBJECT_MESH_COLLISIONS: tuple[MeshCollision, ...] = ("convex_hull", "decomposition")
+STATIC_MESH_COLLISIONS: tuple[MeshCollision, ...] = ("convex_hull", "decomposition", "triangle_mesh")
+
+
+@dataclass(frozen=True)
+class Mesh:
+    """Triangle mesh read from ``file`` (OBJ or STL), posed in the file's own frame, scaled per axis.
+
+    ``file`` is the absolute path read; ``uri`` how RViz finds it (``package://`` where the scene
+    gave one, else ``file://``); ``collision`` how Bullet collides it (see
+    :mod:`~physics_mapper.model.meshes`); ``geometry`` the loaded mesh: scaled surface, convex
+    parts, mass properties.
+    """
+
+    file: Path
+    uri: str
+    scale: Vector3
+    collision: MeshCollision
+    geometry: MeshGeometry = field(compare=False, repr=False)
+
+
+Shape = Box | Sphere | Cylinder | Plane | Mesh
+ObjectShape = Box | Sphere | Cylinder | Mesh
+OBJECT_SHAPES = ("box", "sphere", "cylinder", "mesh")
+STATIC_SHAPES = ("plane", "box", "sphere", "cylinder", "mesh")
+
+
+def shape_volume(shape: ObjectShape) -> float:
+    """Volume in m^3 of a movable object's shape.
+
+    A mesh's is its solid's if it is closed, else its collision geometry's (its mass properties').
+    """
+    if isinstance(shape, Box):
+        return shape.size[0] * shape.size[1] * shape.size[2]
+    if isinstance(shape, Sphere):
+        return 4.0 / 3.0 * math.pi * shape.radius**3
+    if isinstance(shape, Cylinder):
+        return math.pi * shape.radius**2 * shape.length
+    properties = shape.geometry.mass_properties
+    if properties is None:
+        raise ValueError(f"{shape.file}: loaded without mass properties (a static body's mesh)")
+    return properties.volume
+
+
+def bounding_radius(shape: Shape) -> float | None:
+    """Radius (m) of the smallest sphere about the shape's pose that holds it; None for an unbounded plane.
+
+    Rotation-invariant: a body posed anywhere stays within this distance of its pose's position. A
+    mesh's pose is its file's origin, which need not be inside the mesh (the radius covers the mesh
+    and its convex parts from there). Every shape must have a branch (mypy checks it): the default
+    workspace is derived from these radii.
+    """
+    if isinstance(shape, Box):
+        return math.hypot(*shape.size) / 2.0
+    if isinstance(shape, Sphere):
+        return shape.radius
+    if isinstance(shape, Cylinder):
+        return math.hypot(shape.radius, shape.length / 2.0)
+    if isinstance(shape, Mesh):
+        return shape.geometry.bounding_radius
+    if isinstance(shape, Plane):
+        return None
+    assert_never(shape)
+
+
+def object_radius(shape: Shape) -> float:
+    """An object's bounding radius, metres (:func:`bounding_radius`: objects are bounded)."""
+    radius = bounding_radius(shape)
+    if radius is None:
+        raise ValueError(f"{type(shape).__name__} is not a shape of a movable object")
+    return radius
+
+
+#: Metres the default workspace extends beyond the scene's bodies and ground truth on every side.
+DEFAULT_WORKSPACE_MARGIN = 10.0
+
+
+@dataclass(frozen=True)
+class Workspace:
+    """An axis-aligned box of the scene frame, corners in metres, that every hypothesis's position must lie in.
+
+    Bounds are inclusive. ``derived`` marks the default a scene without ``workspace:`` gets
+    (:func:`default_workspace`).
+    """
+
+    min_corner: Vector3
+    max_corner: Vector3
+    derived: bool = False
+
+    def problem(self, position: Sequence[float]) -> str | None:
+        """Say why ``position`` (m) lies outside the box, or return None when it lies inside."""
+        bounds = zip(self.min_corner, position, self.max_corner, strict=True)
+        if all(low <= value <= high for low, value, high in bounds):
+            return None
+        shown = ", ".join(f"{value:g}" for value in position)
+        return f"({shown}) m is outside the workspace {self}"
+
+    def __str__(self) -> str:
+        ranges = ", ".join(
+            f"{axis} [{low:g}, {high:g}]"
+            for axis, low, high in zip("xyz", self.min_corner, self.max_corner, strict=True)
+        )
+        origin = f" (default: the scene's bodies plus {DEFAULT_WORKSPACE_MARGIN:g} m; set workspace: to change it)"
+        return f"{ranges} m{origin if self.derived else ''}"
+
+
+@dataclass(frozen=True)
+class StaticBody:
+    """A fixed body of the environment (floor, wall, groove side)."""
+
+    name: str
+    shape: Shape
+    pose: Pose = ORIGIN
+    friction: float = 0.8
+
+
+@dataclass(frozen=True)
+class ObjectModel:
+    """A movable rigid body; ``mass`` in kg, Coulomb ``friction`` coefficient.
+
+    ``rolling_friction`` (Bullet's, in metres) lets round objects come to rest. The centre of
+    mass and inertia are the shape's at uniform density: the pose's origin for the primitives,
+    the mesh's own (:class:`~physics_mapper.model.meshes.MassProperties`) for a mesh.
+    """
+
+    name: str
+    shape: ObjectShape
+    mass: float = 0.5
+    friction: float = 0.8
+    rolling_friction: float = 0.0
+
+
+@dataclass(frozen=True)
+class SearchParams:
+    """Thresholds and budgets of the search (SPEC section 2).
+
+    probability_threshold: T; nodes with p(C) < T are not expanded.
+    penetration_threshold: deepest allowed overlap between two bodies, metres.
+    jitter_threshold: largest allowed per-object jitter J_i (metres + weighted radians).
+    angular_weight: metres per radian of rotation in J_i.
+    settle_time: simulated seconds under gravity for the stability test.
+    deadline: wall-clock seconds a search may run.
+    fallback: what to report when no configuration is valid.
+    refine_max_speed: ``fallback: refine``'s speed cap, m/s: depenetration moves an object at most
+        ``refine_max_speed * TIME_STEP`` metres per iteration, and its settling caps linear speeds.
+    refine_mean_radius: ``fallback: refine`` starts each object at the weighted mean position of its
+        hypotheses within this many metres of its most likely one (0: at the most likely one).
+    strategy: one search over all objects (``joint``) or one per interaction group (``grouped``).
+    bound: whether T bounds p(C) itself (``absolute``) or p(C) / p(root) of the group (``relative``).
+    settle_exit: whether a settling may stop early (``early``) or always runs settle_time (``full``).
+    interaction_margin: metres added around every object's bounding ball when grouping objects.
+    queue_limit: nodes the search's queues hold at most (each group an equal share).
+    trace_limit: trace entries kept at most (None: all); later visits are counted, not recorded.
+    """
+
+    probability_threshold: float = 0.0002
+    penetration_threshold: float = 0.005
+    jitter_threshold: float = 0.01
+    angular_weight: float = 0.1
+    settle_time: float = 0.5
+    deadline: float = 0.2
+    fallback: Fallback = "none"
+    refine_max_speed: float = 1.0
+    refine_mean_radius: float = 0.1
+    strategy: Strategy = "grouped"
+    bound: Bound = "relative"
+    settle_exit: SettleExit = "early"
+    interaction_margin: float = 0.02
+    queue_limit: int = 20_000
+    trace_limit: int | None = 5_000
+
+
+@dataclass(frozen=True)
+class Scene:
+    """Environment, objects in code order, default search parameters and the workspace."""
+
+    objects: tuple[ObjectModel, ...]
+    static: tuple[StaticBody, ...] = ()
+    search: SearchParams = field(default_factory=SearchParams)
+    frame_id: str = "world"
+    #: Optional true pose of each object, in object order (for generating data and scoring).
+    ground_truth: tuple[Pose, ...] | None = None
+    #: The scene file's ``workspace:`` box; None: the default (:attr:`workspace`).
+    explicit_workspace: Workspace | None = None
+
+    @property
+    def object_names(self) -> tuple[str, ...]:
+        return tuple(o.name for o in self.objects)
+
+    @cached_property
+    def workspace(self) -> Workspace:
+        """The box hypotheses must lie in: :attr:`explicit_workspace`, else :func:`default_workspace`."""
+        return self.explicit_workspace or default_workspace(self)
+
+
+def default_workspace(scene: Scene) -> Workspace:
+    """The workspace of a scene without ``workspace:``: what it holds, plus a margin.
+
+    The smallest box holding every bounded static body and every ground-truth object (a sphere
+    of :func:`bounding_radius` about its pose) and the pose of every plane, grown by
+    :data:`DEFAULT_WORKSPACE_MARGIN` on every side. A scene with none of these is taken
+    around the origin of its frame.
+    """
+    shapes = [(body.pose, body.shape) for body in scene.static]
+    if scene.ground_truth is not None:
+        shapes += zip(scene.ground_truth, (model.shape for model in scene.objects), strict=True)
+    bodies = [(pose, bounding_radius(shape) or 0.0) for pose, shape in shapes]
+    if not bodies:
+        bodies = [(ORIGIN, 0.0)]
+    reach = [(pose.position, radius + DEFAULT_WORKSPACE_MARGIN) for pose, radius in bodies]
+    low = tuple(min(position[axis] - extra for position, extra in reach) for axis in range(3))
+    high = tuple(max(position[axis] + extra for position, extra in reach) for axis in range(3))
+    return Workspace((low[0], low[1], low[2]), (high[0], high[1], high[2]), derived=True)
+
+
+@dataclass(frozen=True)
+class Problem:
+    """A scene and, for each of its objects in order, ranked hypotheses.
+
+    ``notes`` say what loading the problem's file changed, each as ``file: key: what`` (an object
+    with more hypotheses than a file may bring keeps the heaviest).
+    """
+
+    scene: Scene
+    hypotheses: tuple[RankedHypotheses, ...]
+    notes: tuple[str, ...] = ()
+
+
+#: Inclusive range of each numeric search parameter: checked for files and for the node's
+#: parameters alike (the node declares them as its parameter ranges).
+SEARCH_LIMITS: dict[str, tuple[float, float]] = {
+    "probability_threshold": (0.0, 1.0),
+    "penetration_threshold": (0.0, 1.0),  # metres
+    "jitter_threshold": (0.0, 10.0),  # metres + weighted radians
+    "angular_weight": (0.0, 10.0),  # metres per radian
+    "settle_time": (0.0, 10.0),  # simulated seconds
+    "deadline": (0.0, 3600.0),  # wall-clock seconds, and positive
+    "refine_max_speed": (0.001, 100.0),  # metres per second
+    "refine_mean_radius": (0.0, 10.0),  # metres
+    "interaction_margin": (0.0, 1.0),  # metres
+    "queue_limit": (1, 100_000_000),  # nodes
+    "trace_limit": (0, 100_000_000),  # trace entries
+}
+#: The search parameters that are whole numbers.
+SEARCH_INTEGERS = ("queue_limit", "trace_limit")
+#: The allowed values of each search parameter that is a word.
+SEARCH_CHOICES: dict[str, tuple[str, ...]] = {
+    "fallback": FALLBACKS,
+    "strategy": STRATEGIES,
+    "bound": BOUNDS,
+    "settle_exit": SETTLE_EXITS,
+}
+
+
+def search_params_problem(params: SearchParams) -> str | None:
+    """Say which search parameter is out of range (:data:`SEARCH_LIMITS`), or return None."""
+    if params.deadline <= 0.0:
+        return f"deadline must be positive, got {params.deadline:g}"
+    for name, (low, high) in SEARCH_LIMITS.items():
+        value = getattr(params, name)
+        if value is None and name == "trace_limit":
+            continue  # no limit: every visit recorded
+        if not low <= value <= high:
+            return f"{name} must be in [{low:g}, {high:g}], got {value:g}"
+    for name in SEARCH_INTEGERS:
+        value = getattr(params, name)
+        if value is not None and value != int(value):
+            return f"{name} must be a whole number, got {value:g}"
+    for name, choices in SEARCH_CHOICES.items():
+        if getattr(params, name) not in choices:
+            return f"{name} must be one of {', '.join(choices)}, got {getattr(params, name)!r}"
+    return None

@@ -1,0 +1,143 @@
+"""Rule 1 from a pairwise table, filled lazily and reused (issue 8).
+
+Whether hypothesis a of object i overlaps hypothesis b of object j, or a static body, depends on
+those two bodies' poses alone: Bullet computes every pair's contacts from an empty cache. So the
+deepest overlap of a configuration is the largest of its pairs' deepest overlaps, and each pair is
+worth computing once. The table keeps, in metres,
+
+- per object i and rank a: the deepest overlap of i at a with each static body;
+- per pair of objects i < j and ranks a, b: the deepest overlap of i at a with j at b,
+
+(-inf when the bodies have no contact point), in one array per object and per pair of objects,
+made when first needed. A configuration whose entries are all known is
+decided with no engine call; otherwise one collision pass with the configuration's objects placed
+(:meth:`~physics_mapper.physics.checker.PhysicsChecker.contact_depths`) fills all its missing entries
+at once. Two objects whose bounding balls are apart cannot overlap and are never looked up.
+
+The depths are those :meth:`~physics_mapper.physics.checker.PhysicsChecker.find_collision` sees, bit for
+bit, and the threshold is applied at lookup: the deepest pair beyond ``penetration_threshold`` is
+the collision, equal depths resolved as a collision pass does
+(:func:`~physics_mapper.physics.checker.deepest_collision`). Entries depend
+on hypotheses only, not on search parameters; :meth:`CollisionTable.updated` drops the entries of
+objects whose hypotheses changed. At most :data:`TABLE_LIMIT` numbers are kept; beyond, the table
+starts over.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import numpy as np
+from numpy.typing import NDArray
+
+from physics_mapper.model.hypotheses import RankedHypotheses
+from physics_mapper.model.scene import object_radius
+from physics_mapper.physics.checker import Collision, PhysicsChecker, deepest_collision
+
+#: Numbers (8 bytes each) the table holds at most, 16 MB; beyond, it starts over.
+TABLE_LIMIT = 2_000_000
+#: An entry not computed yet, and a pair of bodies without a contact point.
+UNKNOWN = math.nan
+NO_CONTACT = -math.inf
+
+
+class CollisionTable:
+    """The pairwise Rule 1 table of one scene's checker and hypotheses (module docstring)."""
+
+    def __init__(self, checker: PhysicsChecker, hypotheses: Sequence[RankedHypotheses]) -> None:
+        self.checker = checker
+        self.hypotheses = tuple(hypotheses)
+        self._radii = tuple(object_radius(model.shape) for model in checker.scene.objects)
+        self._static_count = len(checker.scene.static)
+        # Object i -> (M_i, statics + 1): depth against each static body, then 0 once the row is known.
+        self._static: dict[int, NDArray[np.float64]] = {}
+        # Objects (i, j), i < j -> (M_i, M_j): depth of i at a against j at b.
+        self._pairs: dict[tuple[int, int], NDArray[np.float64]] = {}
+        #: Collision passes run to fill entries (engine calls), over the table's life.
+        self.engine_checks = 0
+
+    def __len__(self) -> int:
+        """Entries known: object-static rows and object-object pairs of ranks."""
+        rows = sum(int(np.count_nonzero(~np.isnan(array[:, -1]))) for array in self._static.values())
+        return rows + sum(int(np.count_nonzero(~np.isnan(array))) for array in self._pairs.values())
+
+    def _numbers(self) -> int:
+        return sum(array.size for array in (*self._static.values(), *self._pairs.values()))
+
+    def updated(self, hypotheses: Sequence[RankedHypotheses]) -> CollisionTable:
+        """A table for new ``hypotheses`` that keeps the entries of every object whose hypotheses are unchanged."""
+        table = CollisionTable(self.checker, hypotheses)
+        same = [old == new for old, new in zip(self.hypotheses, table.hypotheses, strict=True)]
+        table._static = {i: array for i, array in self._static.items() if same[i]}
+        table._pairs = {(i, j): array for (i, j), array in self._pairs.items() if same[i] and same[j]}
+        table.engine_checks = self.engine_checks
+        return table
+
+    def _static_rows(self, i: int) -> NDArray[np.float64]:
+        if i not in self._static:
+            self._static[i] = np.full((len(self.hypotheses[i]), self._static_count + 1), UNKNOWN)
+        return self._static[i]
+
+    def _pair_table(self, i: int, j: int) -> NDArray[np.float64]:
+        if (i, j) not in self._pairs:
+            self._pairs[(i, j)] = np.full((len(self.hypotheses[i]), len(self.hypotheses[j])), UNKNOWN)
+        return self._pairs[(i, j)]
+
+    def _near(self, objects: Sequence[int], code: Sequence[int]) -> list[tuple[int, int, int, int]]:
+        """The object pairs (i, a, j, b), i < j, of a configuration whose bounding balls meet."""
+        pairs = []
+        for first in range(len(objects)):
+            i, a = objects[first], code[first]
+            position_i = self.hypotheses[i].pose(a).position
+            for second in range(first + 1, len(objects)):
+                j, b = objects[second], code[second]
+                if math.dist(position_i, self.hypotheses[j].pose(b).position) < self._radii[i] + self._radii[j]:
+                    pairs.append((i, a, j, b))
+        return pairs
+
+    def find_collision(
+        self, objects: Sequence[int], code: Sequence[int], penetration_threshold: float
+    ) -> Collision | None:
+        """Rule 1 for objects ``objects`` (scene indices, ascending) at ranks ``code``: the deepest
+        overlap beyond ``penetration_threshold`` metres, or None (as ``PhysicsChecker.find_collision``)."""
+        near = self._near(objects, code)
+        rows, pairs = self._entries(objects, code, near)
+        if any(math.isnan(row[-1]) for _, row in rows) or any(math.isnan(depth) for _, _, depth in pairs):
+            self._fill(objects, code, near)
+            rows, pairs = self._entries(objects, code, near)
+        object_count = len(self._radii)
+        depths = {
+            (i, object_count + k): float(depth)
+            for i, row in rows
+            for k, depth in enumerate(row[:-1])
+            if depth != NO_CONTACT
+        }
+        depths.update({(i, j): float(depth) for i, j, depth in pairs if depth != NO_CONTACT})
+        return deepest_collision(depths, penetration_threshold, self.checker.body_name)
+
+    def _entries(
+        self, objects: Sequence[int], code: Sequence[int], near: list[tuple[int, int, int, int]]
+    ) -> tuple[list[tuple[int, NDArray[np.float64]]], list[tuple[int, int, float]]]:
+        """A configuration's table entries: per object its static row, per near pair its depth (NaN: unknown)."""
+        rows = [(i, self._static_rows(i)[a - 1]) for i, a in zip(objects, code, strict=True)]
+        pairs = [(i, j, float(self._pair_table(i, j)[a - 1, b - 1])) for i, a, j, b in near]
+        return rows, pairs
+
+    def _fill(self, objects: Sequence[int], code: Sequence[int], near: list[tuple[int, int, int, int]]) -> None:
+        """One collision pass with the configuration placed; store every entry it decides."""
+        if self._numbers() > TABLE_LIMIT:
+            self._static.clear()
+            self._pairs.clear()
+        poses = [self.hypotheses[i].pose(a) for i, a in zip(objects, code, strict=True)]
+        depths = self.checker.contact_depths(objects, poses)
+        self.engine_checks += 1
+        object_count = len(self._radii)
+        for i, a in zip(objects, code, strict=True):
+            row = self._static_rows(i)[a - 1]
+            row[:] = NO_CONTACT
+            row[-1] = 0.0  # known
+            for k in range(self._static_count):
+                row[k] = depths.get((i, object_count + k), NO_CONTACT)
+        for i, a, j, b in near:
+            self._pair_table(i, j)[a - 1, b - 1] = depths.get((i, j), NO_CONTACT)

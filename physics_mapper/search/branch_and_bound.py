@@ -1,0 +1,630 @@
+"""Best-first branch and bound over configurations (paper Algorithm 1, SPEC section 2), and the search entry points.
+
+A configuration picks one hypothesis per object and is written as its *code*, the
+1-based ranks in object order: ``(2, 1, 1)`` is the paper's C211. Its probability is
+the product of the chosen normalised weights,
+
+    p(C) = prod_i w_i(code_i).
+
+The root is (1, ..., 1); a node's children each advance one object's rank by one, so
+p(child) <= p(parent) and visits come in non-increasing p(C). A node below the bound is
+still checked but not expanded ("bounded"): with ``bound: absolute`` (the paper's reading)
+when p(C) < T, with ``bound: relative`` when p(C) / p(root) < T. Rule 1 is tested first, and
+only collision-free nodes are simulated. Among valid nodes the least total jitter J wins.
+
+With ``fallback: refine``, once the root has failed a rule and while no node is valid, the
+search makes the refined map of the root (:mod:`physics_mapper.physics.refine`) before it visits
+further nodes, so that a map exists from the first tick; a valid node found later replaces it.
+
+Ties in p(C) are broken by the smaller code in lexicographic order (C112 before
+C121), after rounding p(C) to 12 significant digits so that products of the same
+weights taken in another order compare equal. A child's (rounded p, code) key is therefore
+always after its parent's, so nodes are visited in strictly increasing key order and a node is
+never queued again once visited: the set that keeps a node from being queued twice only needs
+to hold the queued nodes.
+
+:class:`BranchAndBound` searches the objects it is given: every object of the scene (the paper's
+joint search), or one interaction group (:mod:`physics_mapper.search.grouped`);
+:mod:`physics_mapper.search.strategy` picks the search by ``params.strategy``, and every caller goes
+through it.
+
+Bounded memory: the queue holds at most ``queue_limit`` nodes (beyond, the least probable are
+dropped and the search can no longer say it visited everything: it ends ``truncated``); the trace
+holds at most ``trace_limit`` entries (later visits are counted in ``untraced``).
+"""
+
+from __future__ import annotations
+
+import heapq
+import math
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, fields, replace
+from typing import TYPE_CHECKING, Literal, NamedTuple, Protocol
+
+import numpy as np
+
+from physics_mapper.model.geometry import Pose
+from physics_mapper.model.hypotheses import RankedHypotheses
+from physics_mapper.model.scene import Fallback, SearchParams
+from physics_mapper.physics.checker import (
+    TIME_STEP,
+    Collision,
+    EarlyExit,
+    PartialSettling,
+    PhysicsChecker,
+    SettleStop,
+    Settling,
+)
+from physics_mapper.physics.refine import RefinedMap, Refinement, refinement_start
+
+if TYPE_CHECKING:
+    from physics_mapper.physics.collision_table import CollisionTable
+
+Code = tuple[int, ...]
+Outcome = Literal["collision", "unstable", "valid"]
+#: How a search that emptied its queue ended: ``exhausted`` (every configuration visited), ``bounded``
+#: (configurations below the bound were never queued) or ``truncated`` (the queue limit dropped nodes).
+SearchEnd = Literal["exhausted", "bounded", "truncated"]
+
+#: An object is at rest while its jitter rate (m/s, |v| + angular_weight * |omega|) would add at most
+#: this share of ``jitter_threshold`` over a whole ``settle_time``.
+REST_SHARE = 0.05
+
+
+@dataclass(frozen=True, slots=True)
+class TraceEntry:
+    """One visited node: its code, p(C), outcome and evidence (paper Fig. 4).
+
+    ``bounded`` is true when the node is below the bound, so it was checked but not expanded.
+    For ``collision``: ``pair`` and penetration ``depth`` (m). For ``unstable``:
+    ``moved`` (the object with the largest J_i) and ``jitter`` (J). For ``valid``: ``jitter``.
+    ``parent`` is the node whose expansion first queued this one (None for the root).
+    ``group`` is the interaction group's id when the code covers that group's objects only
+    (None: every object). ``settle_stop`` says why the settling stopped early (``rest`` or
+    ``beyond_threshold``: the jitter is then the one at that moment) after ``settled_time``
+    simulated seconds (both None for a settling of the whole ``settle_time``).
+    """
+
+    code: Code
+    probability: float
+    outcome: Outcome
+    bounded: bool
+    pair: tuple[str, str] | None = None
+    depth: float | None = None
+    moved: str | None = None
+    jitter: float | None = None
+    parent: Code | None = None
+    group: int | None = None
+    settle_stop: SettleStop | None = None
+    settled_time: float | None = None
+
+
+@dataclass
+class SearchStats:
+    """Counters and timing of a search, accumulated over resumed runs.
+
+    ``end`` is None while nodes are queued (``queued`` of them when the result was made);
+    ``dropped`` counts queued nodes the queue limit threw away, ``untraced`` visits the trace
+    limit left out. ``settle_steps`` are the simulation steps run, ``settle_steps_saved`` those
+    early exits spared, ``memo_hits`` settlings reused, ``merges`` escape-guard merges.
+    """
+
+    visited: int = 0
+    expanded: int = 0
+    bounded: int = 0
+    collisions: int = 0
+    unstable: int = 0
+    valid: int = 0
+    search_time: float = 0.0  # seconds of wall-clock time spent searching
+    stopped_at_deadline: bool = False
+    end: SearchEnd | None = None
+    queued: int = 0
+    dropped: int = 0
+    untraced: int = 0
+    settle_steps: int = 0
+    settle_steps_saved: int = 0
+    memo_hits: int = 0
+    merges: int = 0
+
+    @property
+    def exhausted(self) -> bool:
+        """Every configuration was visited: the result is the best of all of them."""
+        return self.end == "exhausted"
+
+    @property
+    def finished(self) -> bool:
+        """The queue emptied (``end`` is set): running longer would change nothing."""
+        return self.end is not None
+
+    @property
+    def configurations_per_second(self) -> float:
+        return self.visited / self.search_time if self.search_time > 0.0 else 0.0
+
+    def add(self, other: SearchStats) -> None:
+        """Add ``other``'s counters (not its time nor how it ended) to these."""
+        for name in _COUNTERS:
+            setattr(self, name, getattr(self, name) + getattr(other, name))
+
+
+#: The fields of :class:`SearchStats` that count something (added up over groups).
+_COUNTERS = tuple(f.name for f in fields(SearchStats) if f.type == "int")
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """A checked, collision-free configuration with its settling."""
+
+    code: Code
+    probability: float
+    settling: Settling
+
+
+@dataclass(frozen=True)
+class GroupResult:
+    """One interaction group's part of a result: its objects (scene indices), best so far and progress.
+
+    ``id`` is the group's id in the trace (None for a search over every object), ``code`` the
+    group's ranks (its objects' order), ``valid`` whether that sub-configuration passed both rules.
+    ``kept`` says the group's search was carried over unchanged from the previous search.
+    """
+
+    id: int | None
+    objects: tuple[int, ...]
+    valid: bool
+    code: Code | None
+    probability: float | None
+    jitter: float | None
+    visited: int
+    end: SearchEnd | None
+    kept: bool = False
+
+
+@dataclass(frozen=True)
+class SearchResult:
+    """Best configuration found so far.
+
+    ``valid`` says whether ``code`` passed both rules. When no configuration is valid,
+    ``code`` is the fallback's (the collision-free one of highest p(C), when the fallback
+    is ``settled``; the root, when it is ``refine``) or None; ``poses`` are the chosen
+    hypotheses, ``settled_poses`` the same objects after settling (for ``refine``: the refined
+    map), ``object_jitters`` each object's J_i (their sum is ``jitter``). ``fallback`` names the
+    fallback that gave the map (None for a valid one or none), and ``refinement`` tells how the
+    refined map was made. ``groups`` are the interaction groups searched (one, with every
+    object, for a joint search).
+    """
+
+    valid: bool
+    code: Code | None
+    probability: float | None
+    jitter: float | None
+    poses: tuple[Pose, ...] | None
+    settled_poses: tuple[Pose, ...] | None
+    object_jitters: tuple[float, ...] | None
+    fallback_used: bool
+    stats: SearchStats
+    trace: tuple[TraceEntry, ...]
+    fallback: Fallback | None = None
+    refinement: RefinedMap | None = None
+    groups: tuple[GroupResult, ...] = ()
+
+
+def _tie_key(probability: float) -> float:
+    return float(f"{probability:.12g}")
+
+
+class _QueueItem(NamedTuple):
+    """A queued node; compared as a tuple, by (-p(C) rounded, code), which are unique in the queue."""
+
+    neg_probability: float
+    code: Code
+    probability: float
+    parent: Code | None
+
+
+def early_exit_rule(params: SearchParams, complete: bool) -> EarlyExit | None:
+    """When a settling may stop early under ``params`` (None: ``settle_exit: full``).
+
+    At rest: jitter rate at most :data:`REST_SHARE` x jitter_threshold / settle_time (1 mm/s with
+    the defaults). ``complete`` keeps a settling going past the jitter threshold (the settling a
+    fallback may report), so it ends at rest or at ``settle_time``.
+    """
+    if params.settle_exit == "full" or params.settle_time <= 0.0:
+        return None
+    rest_rate = REST_SHARE * params.jitter_threshold / params.settle_time
+    return EarlyExit(rest_rate, None if complete else params.jitter_threshold)
+
+
+class BranchAndBound:
+    """Anytime best-first search; :meth:`run` may be called again to resume it.
+
+    The physics checker must hold the same scene the hypotheses are for. ``objects`` are the scene
+    indices the hypotheses belong to (default: every object, in order); codes then rank those objects
+    only, and the others stay parked while settling. With ``collisions`` (a pairwise table) Rule 1
+    is looked up there; without it every node gets a collision pass of all objects (the paper's way,
+    which needs every object).
+    """
+
+    def __init__(
+        self,
+        checker: PhysicsChecker,
+        hypotheses: Sequence[RankedHypotheses],
+        params: SearchParams,
+        objects: Sequence[int] | None = None,
+        collisions: CollisionTable | None = None,
+    ) -> None:
+        self.objects = checker.all_objects if objects is None else tuple(objects)
+        if len(hypotheses) != len(self.objects):
+            raise ValueError(f"{len(hypotheses)} hypothesis sets for {len(self.objects)} objects")
+        if collisions is None and self.objects != checker.all_objects:
+            raise ValueError("a search over some objects only needs a pairwise collision table")
+        self.checker = checker
+        self.hypotheses = tuple(hypotheses)
+        self.params = params
+        self.collisions = collisions
+        self.stats = SearchStats()
+        self.queue_limit = params.queue_limit
+        #: The group id trace entries carry (None: the codes rank every object).
+        self.trace_group: int | None = None
+        self._trace: list[TraceEntry] = []
+        self._queue: list[_QueueItem] = []
+        self._enqueued: set[Code] = set()  # the queued codes (visited ones never come back)
+        self._best: Candidate | None = None
+        self._first_collision_free: Candidate | None = None
+        # The node whose settling the deadline interrupted (first in the queue), and that settling.
+        self._interrupted: tuple[Code, PartialSettling] | None = None
+        # fallback refine: the root's refinement under way, and the refined map once made.
+        self._refinement: Refinement | None = None
+        self._refined: RefinedMap | None = None
+        self._root: Code = tuple(1 for _ in self.hypotheses)
+        self.root_probability = self.probability(self._root)
+        self._configurations = math.prod(len(h) for h in self.hypotheses)
+        self._push(self._root, None)
+
+    def probability(self, code: Code) -> float:
+        """p(C): product of the chosen hypotheses' normalised weights."""
+        return math.prod(h.weight(rank) for h, rank in zip(self.hypotheses, code, strict=True))
+
+    def poses(self, code: Code) -> tuple[Pose, ...]:
+        """The chosen hypotheses' poses, in object order."""
+        return tuple(h.pose(rank) for h, rank in zip(self.hypotheses, code, strict=True))
+
+    def is_bounded(self, probability: float) -> bool:
+        """Whether a node of p(C) = ``probability`` is below the bound (checked, not expanded)."""
+        threshold = self.params.probability_threshold
+        if self.params.bound == "relative":
+            return probability / self.root_probability < threshold
+        return probability < threshold
+
+    def _push(self, code: Code, parent: Code | None) -> None:
+        if code in self._enqueued:
+            return
+        self._enqueued.add(code)
+        probability = self.probability(code)
+        heapq.heappush(self._queue, _QueueItem(-_tie_key(probability), code, probability, parent))
+        if len(self._queue) > self.queue_limit:
+            self._trim_queue()
+
+    def _trim_queue(self) -> None:
+        """Drop the least probable queued nodes, down to three quarters of the limit (so trims are rare)."""
+        keep = max(1, self.queue_limit - self.queue_limit // 4)
+        keys = np.fromiter((item.neg_probability for item in self._queue), float, len(self._queue))
+        cut = np.partition(keys, keep - 1)[keep - 1]
+        kept = [item for item in self._queue if item.neg_probability < cut]
+        tied = sorted(item for item in self._queue if item.neg_probability == cut)  # by code, as they would pop
+        kept += tied[: keep - len(kept)]
+        self.stats.dropped += len(self._queue) - len(kept)
+        heapq.heapify(kept)
+        self._queue = kept
+        self._enqueued = {item.code for item in kept}
+
+    def _children(self, code: Code) -> list[Code]:
+        return [(*code[:i], rank + 1, *code[i + 1 :]) for i, rank in enumerate(code) if rank < len(self.hypotheses[i])]
+
+    @property
+    def settling_in_progress(self) -> Code | None:
+        """The node whose settling the deadline interrupted; the next run continues it first."""
+        return None if self._interrupted is None else self._interrupted[0]
+
+    @property
+    def done(self) -> bool:
+        """True once every reachable node has been visited (and a due refined map made)."""
+        return not self._queue and not self.refinement_due
+
+    @property
+    def queued(self) -> int:
+        """Nodes in the queue (at most ``queue_limit``)."""
+        return len(self._queue)
+
+    @property
+    def next_probability(self) -> float | None:
+        """p(C) of the node the search visits next (None: nothing left)."""
+        return self._queue[0].probability if self._queue else None
+
+    @property
+    def best_valid(self) -> Candidate | None:
+        """The valid configuration of least jitter found so far."""
+        return self._best
+
+    def run(self, budget: float | None = None) -> SearchResult:
+        """Search for at most ``budget`` wall-clock seconds (None: until the queue empties).
+
+        A node whose settling the deadline interrupts is put back and checked first on the
+        next run, which continues its simulation where it stopped
+        (:meth:`PhysicsChecker.resume_settling`), so resuming loses nothing: the runs together
+        visit the same nodes with the same outcomes as one uninterrupted run. A run that gets
+        to that node simulates at least :data:`~physics_mapper.physics.CLOCK_CHECK_STEPS` steps
+        of it, so a settling longer than the budget still ends after enough runs.
+        """
+        start = time.monotonic()
+        stop_at = None if budget is None else start + budget
+        self.stats.stopped_at_deadline = False
+        try:
+            while not self.done:
+                if stop_at is not None and time.monotonic() >= stop_at:
+                    self.stats.stopped_at_deadline = True
+                    break
+                if not self.step(stop_at):
+                    self.stats.stopped_at_deadline = True
+                    break
+        finally:
+            self.stats.search_time += time.monotonic() - start
+        return self.result()
+
+    def step(self, stop_at: float | None) -> bool:
+        """Make the due refined map, or else visit the next node; False if the deadline ``stop_at``
+        came first (the work goes on at the next step)."""
+        if self.refinement_due:
+            return self._refine(stop_at)
+        item = heapq.heappop(self._queue)
+        self._enqueued.discard(item.code)
+        entry = self._visit(item, stop_at)
+        if entry is None:
+            heapq.heappush(self._queue, item)
+            self._enqueued.add(item.code)
+        self._update_end()
+        return entry is not None
+
+    @property
+    def refinement_due(self) -> bool:
+        """Whether the root's refined map is to be made now: fallback refine, the root visited and
+        not valid, no valid node yet, no node's settling waiting to be continued."""
+        return (
+            self.params.fallback == "refine"
+            and self._refined is None
+            and self._best is None
+            and self.stats.visited > 0
+            and self._interrupted is None
+        )
+
+    def _refine(self, stop_at: float | None) -> bool:
+        """Make (or go on making) the root's refined map; False if ``stop_at`` came first."""
+        if self._refinement is None:
+            params = self.params
+            start = [refinement_start(h, params.refine_mean_radius) for h in self.hypotheses]
+            self._refinement = Refinement(self.checker, self.objects, start, self.poses(self._root), params)
+        self._refined = self._refinement.run(stop_at)
+        return self._refined is not None
+
+    def _update_end(self) -> None:
+        if self._queue:
+            self.stats.end = None
+        elif self.stats.dropped:
+            self.stats.end = "truncated"
+        else:
+            self.stats.end = "exhausted" if self.stats.visited == self._configurations else "bounded"
+
+    def _visit(self, item: _QueueItem, stop_at: float | None) -> TraceEntry | None:
+        """Check one node and expand it; None if the deadline interrupted its settling."""
+        code, probability = item.code, item.probability
+        bounded = self.is_bounded(probability)
+        check = self._check(code, stop_at)
+        if isinstance(check, PartialSettling):
+            self._interrupted = (code, check)
+            return None
+        if isinstance(check, Collision):
+            entry = TraceEntry(code, probability, "collision", bounded, pair=check.pair, depth=check.depth)
+        else:
+            entry = self._judge(Candidate(code, probability, check), bounded)
+        entry = replace(entry, parent=item.parent, group=self.trace_group)
+        self._record(entry)
+        if not bounded:
+            for child in self._children(code):
+                self._push(child, code)
+            self.stats.expanded += 1
+        return entry
+
+    def _check(self, code: Code, stop_at: float | None) -> Collision | Settling | PartialSettling:
+        """Rule 1, then Rule 2 if no collision; an interrupted node's settling is continued."""
+        interrupted, self._interrupted = self._interrupted, None
+        if interrupted is not None and interrupted[0] == code:
+            outcome = self.checker.resume_settling(interrupted[1], stop_at)
+            if isinstance(outcome, Settling):
+                self._settled(code, outcome)
+            return outcome
+        poses = self.poses(code)
+        collision = self._rule1(code, poses)
+        if collision is not None:
+            return collision
+        return self._settle(code, poses, stop_at)
+
+    def _rule1(self, code: Code, poses: tuple[Pose, ...]) -> Collision | None:
+        threshold = self.params.penetration_threshold
+        if self.collisions is not None:
+            return self.collisions.find_collision(self.objects, code, threshold)
+        return self.checker.find_collision(poses, threshold)
+
+    @property
+    def _settling_completely(self) -> bool:
+        """Whether the next settling must not stop beyond the threshold: it is the first collision-free
+        node's, which the ``settled`` fallback reports."""
+        return self._first_collision_free is None and self.params.fallback == "settled"
+
+    def _settle(self, code: Code, poses: tuple[Pose, ...], stop_at: float | None) -> Settling | PartialSettling:
+        """Rule 2 of one node (settled completely when a fallback may report it)."""
+        params = self.params
+        early_exit = early_exit_rule(params, complete=self._settling_completely)
+        outcome = self.checker.settle(
+            poses,
+            params.settle_time,
+            params.angular_weight,
+            stop_at,
+            objects=self.objects,
+            early_exit=early_exit,
+            track_reach=self._track_reach,
+        )
+        if isinstance(outcome, Settling):
+            self._settled(code, outcome)
+        return outcome
+
+    #: Whether settlings record where objects went (the grouped search's escape guard needs it).
+    _track_reach = False
+
+    def _settled(self, code: Code, settling: Settling) -> None:
+        """Called once per settling the engine finished (not for one a memo provided)."""
+        self.stats.settle_steps += settling.steps
+        self.stats.settle_steps_saved += settling.steps_total - settling.steps
+
+    def _judge(self, candidate: Candidate, bounded: bool) -> TraceEntry:
+        settling = candidate.settling
+        if self._first_collision_free is None:
+            self._first_collision_free = candidate
+        if not settling.is_stable(self.params.jitter_threshold):
+            moved = self.checker.scene.objects[self.objects[settling.most_moved]].name
+            entry = TraceEntry(
+                candidate.code, candidate.probability, "unstable", bounded, moved=moved, jitter=settling.total_jitter
+            )
+        else:
+            if self._best is None or settling.total_jitter < self._best.settling.total_jitter:
+                self._best = candidate
+            entry = TraceEntry(candidate.code, candidate.probability, "valid", bounded, jitter=settling.total_jitter)
+        if settling.stopped is None:
+            return entry
+        return replace(entry, settle_stop=settling.stopped, settled_time=settling.steps * TIME_STEP)
+
+    def _record(self, entry: TraceEntry) -> None:
+        limit = self.params.trace_limit
+        if limit is None or len(self._trace) < limit:
+            self._trace.append(entry)
+        else:
+            self.stats.untraced += 1
+        self._count(entry)
+
+    def _count(self, entry: TraceEntry) -> None:
+        stats = self.stats
+        stats.visited += 1
+        stats.bounded += entry.bounded
+        stats.collisions += entry.outcome == "collision"
+        stats.unstable += entry.outcome == "unstable"
+        stats.valid += entry.outcome == "valid"
+
+    def chosen(self) -> tuple[Candidate | None, bool]:
+        """The candidate a result reports, and whether it is valid (else the fallback's, or None).
+
+        The fallback reports a complete settling: one stopped beyond the threshold (settled while
+        the fallback was ``none``) is simulated again, to the end, first.
+        """
+        if self._best is not None:
+            return self._best, True
+        if self.params.fallback == "refine":
+            refined = self._refined
+            if refined is None:
+                return None, False
+            settling = Settling(refined.settled_poses, refined.jitters)
+            return Candidate(self._root, self.probability(self._root), settling), False
+        candidate = self._first_collision_free
+        if candidate is None or self.params.fallback != "settled":
+            return None, False
+        if candidate.settling.stopped == "beyond_threshold":
+            params = self.params
+            settling = self.checker.settle(
+                self.poses(candidate.code),
+                params.settle_time,
+                params.angular_weight,
+                objects=self.objects,
+                early_exit=early_exit_rule(params, complete=True),
+            )
+            candidate = self._first_collision_free = replace(candidate, settling=settling)
+        return candidate, False
+
+    def group_result(self, group_id: int | None = None, kept: bool = False) -> GroupResult:
+        """This search's part of a result, as a group of :attr:`objects`."""
+        chosen, valid = self.chosen()
+        return GroupResult(
+            id=group_id,
+            objects=self.objects,
+            valid=valid and chosen is not None,
+            code=None if chosen is None else chosen.code,
+            probability=None if chosen is None else chosen.probability,
+            jitter=None if chosen is None else chosen.settling.total_jitter,
+            visited=self.stats.visited,
+            end=self.stats.end,
+            kept=kept,
+        )
+
+    @property
+    def refined(self) -> RefinedMap | None:
+        """The root's refined map, once made (``fallback: refine``)."""
+        return self._refined
+
+    def result(self) -> SearchResult:
+        """The best valid configuration so far, else the fallback, with stats and trace."""
+        chosen, valid = self.chosen()
+        trace = tuple(self._trace)
+        groups = (self.group_result(),)
+        stats = replace(self.stats, queued=self.queued)
+        if chosen is None:
+            return SearchResult(False, None, None, None, None, None, None, False, stats, trace, groups=groups)
+        refinement = self._refined if not valid and self.params.fallback == "refine" else None
+        return SearchResult(
+            valid=valid,
+            code=chosen.code,
+            probability=chosen.probability,
+            jitter=chosen.settling.total_jitter,
+            poses=self.poses(chosen.code),
+            settled_poses=chosen.settling.settled_poses,
+            object_jitters=chosen.settling.jitters,
+            fallback_used=not valid,
+            stats=stats,
+            trace=trace,
+            fallback=None if valid else self.params.fallback,
+            refinement=refinement,
+            groups=groups,
+        )
+
+
+class Search(Protocol):
+    """What every search offers (:class:`BranchAndBound` over all objects, or a grouped search)."""
+
+    checker: PhysicsChecker
+    hypotheses: tuple[RankedHypotheses, ...]
+    params: SearchParams
+
+    def run(self, budget: float | None = None) -> SearchResult: ...
+
+    def result(self) -> SearchResult: ...
+
+    @property
+    def done(self) -> bool: ...
+
+    @property
+    def queued(self) -> int: ...
+
+    @property
+    def settling_in_progress(self) -> Code | None: ...
+
+
+def continuable(running: SearchParams, wanted: SearchParams) -> bool:
+    """Whether a search under ``running`` may go on under ``wanted``.
+
+    The deadline and the fallback change neither which nodes are visited nor their outcomes,
+    so changing them keeps the search's progress; any other parameter starts a new search.
+    """
+    return replace(running, deadline=wanted.deadline, fallback=wanted.fallback) == wanted
+
+
+def resumable(
+    previous: Search, checker: PhysicsChecker, hypotheses: tuple[RankedHypotheses, ...], params: SearchParams
+) -> bool:
+    """Whether ``previous`` may simply go on: the same world and hypotheses, parameters it can continue under."""
+    return previous.checker is checker and previous.hypotheses == hypotheses and continuable(previous.params, params)

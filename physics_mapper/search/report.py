@@ -1,0 +1,195 @@
+"""Search results as plain data (for JSON) and as text for people."""
+
+from __future__ import annotations
+
+from dataclasses import asdict
+from typing import Any
+
+from physics_mapper.model.geometry import Pose
+from physics_mapper.model.scene import Fallback
+from physics_mapper.physics.refine import OVERLAP_TOLERANCE, RefinedMap
+from physics_mapper.search.branch_and_bound import Code, GroupResult, SearchResult, SearchStats, TraceEntry
+
+
+def code_text(code: Code | None) -> str:
+    """The paper's notation: ``(2, 1, 1)`` -> ``C211``; ranks above 9 are comma-separated."""
+    if code is None:
+        return "none"
+    if all(rank < 10 for rank in code):
+        return "C" + "".join(str(rank) for rank in code)
+    return "C(" + ",".join(str(rank) for rank in code) + ")"
+
+
+def pose_dict(pose: Pose) -> dict[str, list[float]]:
+    return {"position": list(pose.position), "orientation": list(pose.orientation)}
+
+
+def _poses(poses: tuple[Pose, ...] | None, names: tuple[str, ...]) -> dict[str, Any] | None:
+    if poses is None:
+        return None
+    return {name: pose_dict(pose) for name, pose in zip(names, poses, strict=True)}
+
+
+def trace_entry_dict(entry: TraceEntry) -> dict[str, Any]:
+    """A trace entry with only the fields that apply to its outcome."""
+    data = {key: value for key, value in asdict(entry).items() if value is not None}
+    data["code"] = list(entry.code)
+    if entry.parent is not None:
+        data["parent"] = list(entry.parent)
+    if entry.pair is not None:
+        data["pair"] = list(entry.pair)
+    return data
+
+
+def refinement_dict(refined: RefinedMap, names: tuple[str, ...]) -> dict[str, Any]:
+    """How a refined map was made: start and depenetrated poses keyed by object name, iterations, overlaps (m)."""
+    refined_names = tuple(names[index] for index in refined.objects)
+    return {
+        "start_poses": _poses(refined.start_poses, refined_names),
+        "depenetrated_poses": _poses(refined.depenetrated_poses, refined_names),
+        "iterations": refined.iterations,
+        "converged": refined.converged,
+        "initial_overlap": refined.initial_overlap,
+        "remaining_overlap": refined.remaining_overlap,
+    }
+
+
+def stats_dict(stats: SearchStats) -> dict[str, Any]:
+    """A search's counters, how it ended (``end``; ``exhausted`` when every configuration was
+    visited) and its speed."""
+    data = asdict(stats)
+    data["exhausted"] = stats.exhausted
+    data["configurations_per_second"] = stats.configurations_per_second
+    return data
+
+
+def group_dict(group: GroupResult, names: tuple[str, ...]) -> dict[str, Any]:
+    """One interaction group of a result: its objects by name and its part of the answer."""
+    return {
+        "id": group.id,
+        "objects": [names[i] for i in group.objects],
+        "valid": group.valid,
+        "code": None if group.code is None else list(group.code),
+        "probability": group.probability,
+        "jitter": group.jitter,
+        "visited": group.visited,
+        "end": group.end,
+    }
+
+
+def result_dict(result: SearchResult, names: tuple[str, ...]) -> dict[str, Any]:
+    """Machine-readable result (SPEC section 5): poses keyed by object name."""
+    return {
+        "valid": result.valid,
+        "code": None if result.code is None else list(result.code),
+        "probability": result.probability,
+        "jitter": result.jitter,
+        "fallback_used": result.fallback_used,
+        "fallback": result.fallback,
+        "refinement": None if result.refinement is None else refinement_dict(result.refinement, names),
+        "poses": _poses(result.poses, names),
+        "settled_poses": _poses(result.settled_poses, names),
+        "object_jitters": None
+        if result.object_jitters is None
+        else dict(zip(names, result.object_jitters, strict=True)),
+        "stats": stats_dict(result.stats),
+        "groups": [group_dict(group, names) for group in result.groups],
+        "trace": [trace_entry_dict(entry) for entry in result.trace],
+    }
+
+
+def outcome_kind(entry: TraceEntry) -> str:
+    """A node's outcome with who caused it: ``collision a-b``, ``unstable (a moved)`` or ``valid``."""
+    if entry.outcome == "collision":
+        assert entry.pair is not None
+        return f"collision {entry.pair[0]}-{entry.pair[1]}"
+    if entry.outcome == "unstable":
+        return f"unstable ({entry.moved} moved)"
+    return "valid"
+
+
+def describe_entry(entry: TraceEntry) -> str:
+    """One line: outcome and its evidence, e.g. ``collision cube_a-cube_b 3.1 cm``."""
+    if entry.outcome == "collision":
+        assert entry.depth is not None
+        evidence = f"{entry.depth * 100:.1f} cm"
+    else:
+        evidence = f"J={entry.jitter:.4f}"
+        if entry.settle_stop is not None:
+            evidence += f" (settling stopped {_STOPS[entry.settle_stop]} at {entry.settled_time:.3f} s)"
+    return f"{outcome_kind(entry)} {evidence}" + (" [bounded]" if entry.bounded else "")
+
+
+_STOPS = {"rest": "at rest", "beyond_threshold": "beyond the jitter threshold"}
+
+
+def search_ending(stats: SearchStats) -> str:
+    """How a search's last run ended, for people."""
+    if stats.end is None:
+        return "stopped at the deadline"
+    return {
+        "exhausted": "exhausted: all nodes visited",
+        "bounded": "bounded: the queue emptied; nodes below the bound were not expanded",
+        "truncated": f"truncated: the queue emptied after the queue limit dropped {stats.dropped} nodes",
+    }[stats.end]
+
+
+def trace_tree(trace: tuple[TraceEntry, ...], groups: tuple[GroupResult, ...] = (), names: tuple[str, ...] = ()) -> str:
+    """The search tree: each node under the node that queued it, in visiting order (one tree per group,
+    headed by its objects when ``groups`` and the scene's object ``names`` are given)."""
+    objects = {group.id: ", ".join(names[i] for i in group.objects) for group in groups} if names else {}
+    children: dict[tuple[int | None, Code | None], list[tuple[int, TraceEntry]]] = {}
+    for index, entry in enumerate(trace, start=1):
+        children.setdefault((entry.group, entry.parent), []).append((index, entry))
+    lines: list[str] = []
+
+    def walk(group: int | None, parent: Code | None, prefix: str) -> None:
+        kids = children.get((group, parent), [])
+        for position, (index, entry) in enumerate(kids):
+            last = position == len(kids) - 1
+            root = "" if group is None else f"group {group}{f' ({objects[group]})' if group in objects else ''}: "
+            branch = root if parent is None else ("└─ " if last else "├─ ")
+            lines.append(
+                f"{prefix}{branch}{code_text(entry.code)}  #{index}  p={entry.probability:.4g}  {describe_entry(entry)}"
+            )
+            walk(group, entry.code, prefix + ("" if parent is None else ("   " if last else "│  ")))
+
+    for group in dict.fromkeys(entry.group for entry in trace if entry.parent is None):
+        walk(group, None, "")
+    return "\n".join(lines)
+
+
+def refinement_text(refined: RefinedMap) -> str:
+    """What the depenetration did, e.g. ``overlaps up to 3.0 cm resolved in 8 iterations``."""
+    if refined.initial_overlap <= OVERLAP_TOLERANCE:
+        return "no overlap"
+    deepest = f"overlaps up to {refined.initial_overlap * 100:.1f} cm"
+    if refined.converged:
+        return f"{deepest} resolved in {refined.iterations} iterations"
+    return f"{deepest}, {refined.remaining_overlap * 100:.1f} cm left after {refined.iterations} iterations"
+
+
+def result_summary(result: SearchResult, fallback: Fallback) -> str:
+    """A few lines: chosen code, p(C), J, validity, and how the search went (``fallback``: the search's)."""
+    stats = result.stats
+    if result.code is None:
+        reason = "no collision-free configuration to settle" if fallback == "settled" else "nothing reported"
+        head = f"no valid configuration (fallback: {fallback}, {reason})"
+    elif result.valid:
+        head = f"valid {code_text(result.code)}  p={result.probability:.4g}  J={result.jitter:.4f}"
+    elif result.refinement is not None:
+        head = (
+            f"no valid configuration; fallback refine: {code_text(result.code)} refined "
+            f"({refinement_text(result.refinement)}) and settled  J={result.jitter:.4f}"
+        )
+    else:
+        head = f"no valid configuration; fallback settled {code_text(result.code)}  p={result.probability:.4g}"
+    solved = sum(group.valid for group in result.groups)
+    groups = f"{len(result.groups)} interaction groups, {solved} solved; " if len(result.groups) > 1 else ""
+    return (
+        f"{head}\n"
+        f"{groups}visited {stats.visited} (expanded {stats.expanded}, bounded {stats.bounded}); "
+        f"rejected: {stats.collisions} collision, {stats.unstable} unstable; valid {stats.valid}\n"
+        f"search time {stats.search_time * 1000:.1f} ms "
+        f"({stats.configurations_per_second:.0f} configurations/s), {search_ending(stats)}"
+    )

@@ -1,0 +1,45 @@
+"""The search ``strategy`` asks for: the paper's joint search or one per interaction group.
+
+:func:`make_search` builds (or carries over) a search; :func:`solve` runs a fresh one to its
+deadline. Every caller goes through them, so ``strategy: joint|grouped`` means the same everywhere.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+from physics_mapper.model.hypotheses import RankedHypotheses
+from physics_mapper.model.scene import SearchParams
+from physics_mapper.physics.checker import PhysicsChecker
+from physics_mapper.physics.refine import load_solver
+from physics_mapper.search.branch_and_bound import BranchAndBound, Search, SearchResult, resumable
+from physics_mapper.search.grouped import GroupedSearch
+
+
+def make_search(
+    checker: PhysicsChecker,
+    hypotheses: Sequence[RankedHypotheses],
+    params: SearchParams,
+    previous: Search | None = None,
+) -> BranchAndBound | GroupedSearch:
+    """The search ``params.strategy`` asks for, carrying over what ``previous`` found that still holds.
+
+    ``joint``: the paper's single search (:class:`BranchAndBound`); ``grouped``: one per interaction
+    group (:class:`~physics_mapper.search.grouped.GroupedSearch`). With the same hypotheses and
+    parameters that only change the deadline or the fallback, ``previous`` itself is returned, to be
+    resumed; a grouped search also keeps every group whose objects' hypotheses are unchanged.
+    """
+    hypotheses = tuple(hypotheses)
+    if params.fallback == "refine":
+        load_solver()  # before the deadline starts (once per process)
+    if params.strategy == "joint":
+        if type(previous) is BranchAndBound and resumable(previous, checker, hypotheses, params):
+            previous.params = params
+            return previous
+        return BranchAndBound(checker, hypotheses, params)
+    return GroupedSearch.following(checker, hypotheses, params, previous)
+
+
+def solve(checker: PhysicsChecker, hypotheses: Sequence[RankedHypotheses], params: SearchParams) -> SearchResult:
+    """Run a fresh search until ``params.deadline`` seconds have passed or the queue empties."""
+    return make_search(checker, hypotheses, params).run(params.deadline)
