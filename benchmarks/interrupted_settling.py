@@ -24,7 +24,8 @@ from pathlib import Path
 from physics_mapper.model.geometry import Pose
 from physics_mapper.model.scene import Problem
 from physics_mapper.model.scene_files import load_problem
-from physics_mapper.physics.checker import PartialSettling, PhysicsChecker, Settling
+from physics_mapper.physics.checker import PhysicsChecker
+from physics_mapper.physics.settling import PartialSettling, Settling
 
 PROBLEMS = Path(__file__).resolve().parent.parent / "config" / "problems"
 PAST = 0.0  # a time.monotonic() instant long past: every look at the clock interrupts

@@ -20,7 +20,8 @@ from matplotlib.image import imread
 
 from physics_mapper.model.geometry import make_pose
 from physics_mapper.model.scene_files import load_scene
-from physics_mapper.physics.checker import TIME_STEP, PhysicsChecker
+from physics_mapper.physics.checker import PhysicsChecker
+from physics_mapper.physics.world import TIME_STEP
 
 RUNS = 3
 PARTICLES = 300

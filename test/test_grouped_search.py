@@ -23,8 +23,10 @@ from physics_mapper.model.geometry import pose_displacement
 from physics_mapper.model.hypotheses import RankedHypotheses
 from physics_mapper.model.scene import Scene, SearchParams
 from physics_mapper.model.scene_files import load_problem
-from physics_mapper.physics.checker import Collision, PartialSettling, PhysicsChecker
+from physics_mapper.physics.checker import PhysicsChecker
+from physics_mapper.physics.collision import Collision
 from physics_mapper.physics.collision_table import CollisionTable
+from physics_mapper.physics.settling import PartialSettling
 from physics_mapper.search.branch_and_bound import REST_SHARE, BranchAndBound, Code, SearchResult, TraceEntry
 from physics_mapper.search.grouped import GroupedSearch
 from physics_mapper.search.report import result_dict, trace_tree

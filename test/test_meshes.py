@@ -75,7 +75,7 @@ def mesh_of(scene: Scene, index: int) -> Mesh:
 
 def inertia_in_pybullet(checker: PhysicsChecker, index: int) -> tuple[float, np.ndarray, np.ndarray]:
     """(mass, inertia tensor about the centre of mass in the body frame, centre of mass) as pybullet holds them."""
-    uid, client = checker._bodies[index], checker._client
+    uid, client = checker.world.object_uids[index], checker.client_id
     mass, _, diagonal, position, orientation = pybullet.getDynamicsInfo(uid, -1, physicsClientId=client)[:5]
     axes = Rotation.from_quat(orientation).as_matrix()
     return mass, axes @ np.diag(diagonal) @ axes.T, np.array(position)

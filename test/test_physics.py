@@ -11,14 +11,9 @@ from core_builders import CUBE_SIZE, ON_FLOOR, cube, floor_scene, ground_truth, 
 
 from physics_mapper.model.geometry import Pose, rotation_angle, translation_distance
 from physics_mapper.model.scene import Scene, SearchParams
-from physics_mapper.physics.checker import (
-    CLOCK_CHECK_STEPS,
-    TIME_STEP,
-    EarlyExit,
-    PartialSettling,
-    PhysicsChecker,
-    Settling,
-)
+from physics_mapper.physics.checker import PhysicsChecker
+from physics_mapper.physics.settling import CLOCK_CHECK_STEPS, EarlyExit, PartialSettling, Settling
+from physics_mapper.physics.world import TIME_STEP
 
 JITTER_THRESHOLD = SearchParams().jitter_threshold
 PENETRATION_THRESHOLD = SearchParams().penetration_threshold
@@ -269,7 +264,7 @@ def next_saved_state_id(checker: PhysicsChecker) -> int:
 
     pybullet reuses freed ids, so only states the checker leaked would push it up.
     """
-    client = checker._client  # the test inspects pybullet itself, not the checker's bookkeeping
+    client = checker.client_id
     state = int(pybullet.saveState(physicsClientId=client))
     pybullet.removeState(state, physicsClientId=client)
     return state

@@ -35,8 +35,9 @@ from physics_mapper.model.geometry import Pose, make_pose, quaternion_about_axis
 from physics_mapper.model.hypotheses import RankedHypotheses
 from physics_mapper.model.scene import Fallback, Scene, SearchParams
 from physics_mapper.model.scene_files import SceneError, load_problem, scene_from_dict
-from physics_mapper.physics.checker import TIME_STEP, PhysicsChecker
+from physics_mapper.physics.checker import PhysicsChecker
 from physics_mapper.physics.refine import OVERLAP_TOLERANCE, RefinedMap, Refinement, refine_objects, refinement_start
+from physics_mapper.physics.world import TIME_STEP
 from physics_mapper.search.branch_and_bound import BranchAndBound, SearchResult
 
 REFINE = SearchParams(fallback="refine")

@@ -28,7 +28,9 @@ from core_builders import (
 
 from physics_mapper.model.scene import SearchParams
 from physics_mapper.model.scene_files import load_problem
-from physics_mapper.physics.checker import CLOCK_CHECK_STEPS, TIME_STEP, PhysicsChecker
+from physics_mapper.physics.checker import PhysicsChecker
+from physics_mapper.physics.settling import CLOCK_CHECK_STEPS
+from physics_mapper.physics.world import TIME_STEP
 from physics_mapper.search.branch_and_bound import BranchAndBound, Code, SearchResult, TraceEntry
 
 #: A 4 x 3 x 3 problem with distinct, unequal weights (normalised by the ranking).

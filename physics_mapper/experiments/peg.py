@@ -33,7 +33,8 @@ from physics_mapper.experiments.common import (
 from physics_mapper.model.geometry import IDENTITY, Y_AXIS, Pose, make_pose, quaternion_about_axis, rotation_angle
 from physics_mapper.model.hypotheses import Hypothesis, RankedHypotheses
 from physics_mapper.model.scene import Box, Cylinder, Scene, StaticBody
-from physics_mapper.physics.checker import PhysicsChecker, TrajectorySample
+from physics_mapper.physics.checker import PhysicsChecker
+from physics_mapper.physics.settling import TrajectorySample
 from physics_mapper.search.branch_and_bound import SearchResult, TraceEntry
 from physics_mapper.search.report import code_text, describe_entry, trace_entry_dict
 

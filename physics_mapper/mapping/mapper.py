@@ -13,8 +13,9 @@ from dataclasses import dataclass
 from physics_mapper.mapping.inputs import InputSettings, InputSnapshot, InputTracker
 from physics_mapper.model.hypotheses import RankedHypotheses
 from physics_mapper.model.scene import Scene, SearchParams, search_params_problem
-from physics_mapper.physics.checker import PhysicsChecker, PhysicsEngineError
+from physics_mapper.physics.checker import PhysicsChecker
 from physics_mapper.physics.refine import load_solver
+from physics_mapper.physics.world import PhysicsEngineError
 from physics_mapper.search.branch_and_bound import BranchAndBound, Code, SearchResult
 from physics_mapper.search.grouped import GroupedSearch
 from physics_mapper.search.strategy import make_search

@@ -33,7 +33,8 @@ from numpy.typing import NDArray
 
 from physics_mapper.model.hypotheses import RankedHypotheses
 from physics_mapper.model.scene import object_radius
-from physics_mapper.physics.checker import Collision, PhysicsChecker, deepest_collision
+from physics_mapper.physics.checker import PhysicsChecker
+from physics_mapper.physics.collision import Collision, deepest_collision
 
 #: Numbers (8 bytes each) the table holds at most, 16 MB; beyond, it starts over.
 TABLE_LIMIT = 2_000_000

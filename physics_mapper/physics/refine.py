@@ -60,7 +60,10 @@ from numpy.typing import NDArray
 from physics_mapper.model.geometry import Pose, Vector3, pose_displacement
 from physics_mapper.model.hypotheses import RankedHypotheses
 from physics_mapper.model.scene import SearchParams
-from physics_mapper.physics.checker import TIME_STEP, PartialSettling, PhysicsChecker, Proximity, Settling
+from physics_mapper.physics.checker import PhysicsChecker
+from physics_mapper.physics.collision import Proximity
+from physics_mapper.physics.settling import PartialSettling, Settling
+from physics_mapper.physics.world import TIME_STEP
 
 FloatArray = NDArray[np.float64]
 

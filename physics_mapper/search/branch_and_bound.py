@@ -47,16 +47,11 @@ import numpy as np
 from physics_mapper.model.geometry import Pose
 from physics_mapper.model.hypotheses import RankedHypotheses
 from physics_mapper.model.scene import Fallback, SearchParams
-from physics_mapper.physics.checker import (
-    TIME_STEP,
-    Collision,
-    EarlyExit,
-    PartialSettling,
-    PhysicsChecker,
-    SettleStop,
-    Settling,
-)
+from physics_mapper.physics.checker import PhysicsChecker
+from physics_mapper.physics.collision import Collision
 from physics_mapper.physics.refine import RefinedMap, Refinement, refinement_start
+from physics_mapper.physics.settling import EarlyExit, PartialSettling, SettleStop, Settling
+from physics_mapper.physics.world import TIME_STEP
 
 if TYPE_CHECKING:
     from physics_mapper.physics.collision_table import CollisionTable

@@ -42,9 +42,10 @@ from typing import NamedTuple
 from physics_mapper.model.geometry import Pose
 from physics_mapper.model.hypotheses import RankedHypotheses
 from physics_mapper.model.scene import SearchParams
-from physics_mapper.physics.checker import PartialSettling, PhysicsChecker, SettleStop, Settling
+from physics_mapper.physics.checker import PhysicsChecker
 from physics_mapper.physics.collision_table import CollisionTable
 from physics_mapper.physics.refine import RefinedMap
+from physics_mapper.physics.settling import PartialSettling, SettleStop, Settling
 from physics_mapper.search.branch_and_bound import (
     BranchAndBound,
     Code,

@@ -1,0 +1,152 @@
+"""Rule 1, volume separation: no two bodies overlap deeper than ``penetration_threshold`` (metres).
+
+Only pairs involving an object count; static bodies may touch each other. Every pair's contacts
+start from an empty contact cache and depend on the two bodies' poses alone, so a pair's depth
+is the same whatever else is placed (:func:`contact_depths`) and whatever was checked before.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+
+from physics_mapper.model.bullet import pybullet
+from physics_mapper.model.geometry import Pose, Vector3
+from physics_mapper.physics.world import PhysicsWorld
+
+
+@dataclass(frozen=True)
+class Collision:
+    """Rule 1 violated: ``pair`` (object first) overlaps by ``depth`` metres."""
+
+    pair: tuple[str, str]
+    depth: float
+
+
+@dataclass(frozen=True)
+class Proximity:
+    """The closest points of object ``first`` and a nearby body (object ``second``, or a static body: None).
+
+    ``distance`` is their signed distance in metres, negative when they overlap (minus the
+    penetration depth); ``normal`` is the unit vector along which moving ``first`` (or moving
+    ``second`` the opposite way) increases it.
+    """
+
+    first: int
+    second: int | None
+    normal: Vector3
+    distance: float
+
+
+def deepest_collision(
+    depths: Mapping[tuple[int, int], float], penetration_threshold: float, name: Callable[[int], str]
+) -> Collision | None:
+    """The deepest of body pairs' overlaps (m) beyond ``penetration_threshold``, or None.
+
+    ``depths`` maps body index pairs, lower first (objects in scene order, then static bodies), to
+    their deepest overlap; ``name`` names a body index. Of pairs that overlap equally deep the
+    first in that order wins, so the answer does not depend on the order Bullet lists its contacts
+    in (which depends on what the world held before).
+    """
+    deepest: tuple[float, tuple[int, int]] | None = None
+    for pair in sorted(depths):
+        depth = depths[pair]
+        if depth > penetration_threshold and (deepest is None or depth > deepest[0]):
+            deepest = (depth, pair)
+    if deepest is None:
+        return None
+    depth, (first, second) = deepest
+    return Collision((name(first), name(second)), depth)
+
+
+def find_collision(world: PhysicsWorld, poses: Sequence[Pose], penetration_threshold: float) -> Collision | None:
+    """Rule 1 with every object at ``poses``: the deepest overlap beyond ``penetration_threshold`` metres, or None."""
+    world.place(poses)
+    pybullet.performCollisionDetection(physicsClientId=world.client)
+    return deepest_collision(_depths(world), penetration_threshold, world.body_name)
+
+
+def contact_depths(world: PhysicsWorld, objects: Sequence[int], poses: Sequence[Pose]) -> dict[tuple[int, int], float]:
+    """Rule 1 evidence with only ``objects`` (scene indices) placed at ``poses``, the others parked.
+
+    Returns, for every pair of bodies with a contact point that involves one of ``objects``,
+    the pair's deepest overlap in metres (a depth <= 0 is a gap within Bullet's contact
+    threshold). A pair is named by body indices, lower first (:meth:`PhysicsWorld.body_name`).
+    Each pair's depth is the one :func:`find_collision` sees with every object placed, bit for bit.
+    """
+    if len(poses) != len(objects):
+        raise ValueError(f"{len(poses)} poses for {len(objects)} objects")
+    world.save_kept()
+    world.empty_contact_caches(world.placed)
+    world.simulate_only(tuple(objects))  # Bullet skips pairs of two fixed bodies
+    for index, pose in zip(objects, poses, strict=True):
+        world.set_pose(index, pose)
+    world.placed = tuple(objects)
+    pybullet.performCollisionDetection(physicsClientId=world.client)
+    return _depths(world)
+
+
+def _depths(world: PhysicsWorld) -> dict[tuple[int, int], float]:
+    """Every body pair's deepest overlap (m) among the world's contact points, pairs involving an object."""
+    depths: dict[tuple[int, int], float] = {}
+    bodies, object_count = world.body_index, len(world.object_uids)
+    for contact in pybullet.getContactPoints(physicsClientId=world.client):
+        body_a, body_b = bodies[contact[1]], bodies[contact[2]]
+        pair = (body_a, body_b) if body_a < body_b else (body_b, body_a)
+        if pair[0] >= object_count:
+            continue  # two static bodies
+        depth = -float(contact[8])
+        if pair not in depths or depth > depths[pair]:
+            depths[pair] = depth
+    return depths
+
+
+def proximities(
+    world: PhysicsWorld, poses: Sequence[Pose], margin: float, objects: Sequence[int] | None = None
+) -> tuple[Proximity, ...]:
+    """Put ``objects`` (scene indices; None: all) at ``poses``, the others parked, and list their near bodies.
+
+    One :class:`Proximity` per pair of a placed object and another placed object or a static
+    body whose signed distance is below ``margin`` metres: Bullet's closest points (the
+    deepest point and its normal for an overlap). Candidates come from the broadphase, the
+    objects' bounding boxes grown by ``margin``. Each pair is listed once, in object order.
+    """
+    world.place(poses, objects)
+    client = world.client
+    indices = world.indices(objects)
+    placed = set(indices)
+    found: list[Proximity] = []
+    for index in indices:
+        uid = world.object_uids[index]
+        low, high = pybullet.getAABB(uid, physicsClientId=client)
+        grown = ([v - margin for v in low], [v + margin for v in high])
+        near = pybullet.getOverlappingObjects(*grown, physicsClientId=client) or ()
+        for other in sorted({body for body, _link in near}):
+            other_index = world.object_index.get(other)
+            if other_index is not None and (other_index not in placed or other_index <= index):
+                continue  # itself, a parked object, or a pair already listed from the other side
+            points = pybullet.getClosestPoints(uid, other, margin, physicsClientId=client)
+            if points:
+                closest = min(points, key=lambda point: float(point[8]))
+                normal = (float(closest[7][0]), float(closest[7][1]), float(closest[7][2]))
+                found.append(Proximity(index, other_index, normal, float(closest[8])))
+    return tuple(found)
+
+
+def static_overlap(world: PhysicsWorld, index: int, pose: Pose) -> float:
+    """The deepest overlap, metres (0 if none), of object ``index`` at ``pose`` with the static bodies.
+
+    Moves that object only (the world is reset by the next placement anyway); the other
+    objects are not looked at, wherever they are.
+    """
+    world.save_kept()
+    client, uid = world.client, world.object_uids[index]
+    world.set_pose(index, pose)
+    world.placed = None if world.placed is None else (*world.placed, index)
+    low, high = pybullet.getAABB(uid, physicsClientId=client)
+    deepest = 0.0
+    for other, _link in pybullet.getOverlappingObjects(low, high, physicsClientId=client) or ():
+        if other not in world.object_index:
+            for point in pybullet.getClosestPoints(uid, other, 0.0, physicsClientId=client):
+                deepest = max(deepest, -float(point[8]))
+    return deepest

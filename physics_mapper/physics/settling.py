@@ -1,0 +1,342 @@
+"""Rule 2, stability: under gravity for ``settle_time`` seconds, each object moves at most ``jitter_threshold``.
+
+Object i's jitter is
+
+    J_i = |p_i - p'_i| + angular_weight * angle(q_i, q'_i)
+
+with p in metres and the rotation angle in radians, between its pose at the start and after
+settling; the configuration's jitter J is the sum.
+
+A settling given a deadline (``stop_at``) that passes is interrupted, not abandoned: it returns
+a :class:`PartialSettling` that :meth:`Settler.resume_settling` continues where it stopped, ending
+bit for bit where the same settling run uninterrupted in this world ends. Resumed at once, the
+world simply holds the interrupted simulation and goes on; if the world is used for another
+configuration first, the interrupted simulation is saved and restored on resume, positions,
+velocities and contact points, measured bit for bit too (BENCHMARKS.md, "Interrupted settlings").
+A settler keeps one interrupted settling: interrupting another frees the first's saved state, and
+resuming the first then simulates it again from its start (same result, more time); so does
+resuming after other objects were parked or placed. A settling may cap the objects' speed
+(``max_speed``).
+
+Early exit (:class:`EarlyExit`): a settling may stop before ``settle_time`` once every simulated
+object has stayed at rest for :data:`REST_CHECKS` looks at it, or once an object has stayed at rest
+with its jitter beyond the jitter threshold for as many looks. Beyond the threshold alone is not
+enough: a rocking object's jitter passes the threshold and comes back (measured on the tabletop
+mesh scene: 5 of 50 valid C11..1 were cut short as unstable). The state is looked at every
+:data:`CLOCK_CHECK_STEPS` steps (the same instants as the clock), and looking does not change the
+simulation, so a settling that does not stop early ends bit for bit where a full one does.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
+from typing import Literal, TypedDict, Unpack, overload
+
+from physics_mapper.model.bullet import pybullet
+from physics_mapper.model.geometry import Pose, Vector3, pose_displacement
+from physics_mapper.physics.world import TIME_STEP, PhysicsWorld
+
+#: Simulation steps between two looks at the wall clock during settling: an interrupted settling
+#: stops at most this many steps after its deadline, and a resumed one advances at least this many.
+CLOCK_CHECK_STEPS = 8
+#: Consecutive looks (every :data:`CLOCK_CHECK_STEPS` steps, 0.1 s in all at 240 Hz) at which every
+#: simulated object, or one object beyond the jitter threshold, must be at rest before a settling
+#: stops early.
+REST_CHECKS = 3
+#: Why a settling stopped before ``settle_time``: every object at rest, or one object at rest with
+#: its jitter beyond the threshold (it came to rest elsewhere: the configuration is unstable).
+SettleStop = Literal["rest", "beyond_threshold"]
+#: The smallest axis-aligned box (low corner, high corner), metres, holding an object's positions.
+PositionRange = tuple[Vector3, Vector3]
+
+
+@dataclass(frozen=True)
+class EarlyExit:
+    """When a settling may stop before its ``settle_time``.
+
+    ``rest_rate`` (m/s): an object is at rest while its jitter rate |v| + angular_weight * |omega|
+    (linear speed in m/s, angular speed in rad/s) is at most this; once every simulated object has
+    been at rest at :data:`REST_CHECKS` consecutive looks, the settling stops (``"rest"``).
+    ``jitter_threshold`` (m + weighted rad): once an object has been at rest with its J_i beyond it at
+    :data:`REST_CHECKS` consecutive looks, the settling stops (``"beyond_threshold"``): the object
+    came to rest elsewhere. None keeps such a settling going (a complete settling).
+    """
+
+    rest_rate: float
+    jitter_threshold: float | None
+
+
+@dataclass(frozen=True)
+class Settling:
+    """Rule 2 measurement: poses after ``settle_time`` and each object's jitter J_i.
+
+    ``stopped`` says why the settling ended before ``settle_time`` (None: it ran to the end);
+    ``steps`` of ``steps_total`` :data:`TIME_STEP` steps were simulated. ``reach``, when the
+    settling was asked to track it, is each object's :data:`PositionRange` over its start and every
+    look at the world (every :data:`CLOCK_CHECK_STEPS` steps, and the end).
+    """
+
+    settled_poses: tuple[Pose, ...]
+    jitters: tuple[float, ...]
+    stopped: SettleStop | None = None
+    steps: int = 0
+    steps_total: int = 0
+    reach: tuple[PositionRange, ...] | None = None
+
+    @property
+    def total_jitter(self) -> float:
+        """J, the sum of the per-object jitters."""
+        return sum(self.jitters)
+
+    @property
+    def most_moved(self) -> int:
+        """Index of the object with the largest J_i."""
+        return max(range(len(self.jitters)), key=self.jitters.__getitem__)
+
+    def is_stable(self, jitter_threshold: float) -> bool:
+        """True iff every J_i is at most ``jitter_threshold``."""
+        return max(self.jitters) <= jitter_threshold
+
+
+@dataclass(frozen=True, eq=False)
+class PartialSettling:
+    """A settling its deadline interrupted, for :meth:`PhysicsChecker.resume_settling`.
+
+    ``steps_done`` of ``steps_total`` :data:`TIME_STEP` steps are simulated from rest at
+    ``poses`` (the start, from which the jitters are measured). Compared by identity: the
+    checker that interrupted it recognises it as the settling it kept. ``objects``,
+    ``max_speed`` and ``early_exit`` are the settling's (see :meth:`PhysicsChecker.settle`), with
+    the consecutive looks so far with every object at rest (``rest_checks``) and with an object at
+    rest beyond the jitter threshold (``beyond_checks``), and the ``reach`` so far (None: not tracked).
+    """
+
+    poses: tuple[Pose, ...]
+    angular_weight: float
+    steps_done: int
+    steps_total: int
+    objects: tuple[int, ...] | None = None
+    max_speed: float | None = None
+    early_exit: EarlyExit | None = None
+    rest_checks: int = 0
+    beyond_checks: int = 0
+    reach: tuple[PositionRange, ...] | None = None
+
+    def restarted(self) -> PartialSettling:
+        """The same settling, not yet begun."""
+        start = None if self.reach is None else _start_reach(self.poses)
+        return replace(self, steps_done=0, rest_checks=0, beyond_checks=0, reach=start)
+
+
+def _start_reach(poses: Sequence[Pose]) -> tuple[PositionRange, ...]:
+    return tuple((pose.position, pose.position) for pose in poses)
+
+
+def _widened(reach: tuple[PositionRange, ...], poses: Sequence[Pose]) -> tuple[PositionRange, ...]:
+    """Each range grown to hold the matching pose's position."""
+    grown = []
+    for (low, high), pose in zip(reach, poses, strict=True):
+        p = pose.position
+        grown.append(
+            (
+                (min(low[0], p[0]), min(low[1], p[1]), min(low[2], p[2])),
+                (max(high[0], p[0]), max(high[1], p[1]), max(high[2], p[2])),
+            )
+        )
+    return tuple(grown)
+
+
+class SettleOptions(TypedDict, total=False):
+    """Keyword options of :meth:`PhysicsChecker.settle` (see there): which objects settle (scene
+    indices; the others stay parked), a speed cap (m/s), an early exit, and whether to record reach."""
+
+    objects: Sequence[int] | None
+    max_speed: float | None
+    early_exit: EarlyExit | None
+    track_reach: bool
+
+
+@dataclass(frozen=True)
+class TrajectorySample:
+    """The objects' poses ``time`` seconds into a simulation."""
+
+    time: float
+    poses: tuple[Pose, ...]
+
+
+class Settler:
+    """Rule 2 in a :class:`~physics_mapper.physics.world.PhysicsWorld`: settlings, their interruption and resumption."""
+
+    def __init__(self, world: PhysicsWorld) -> None:
+        self.world = world
+        # The interrupted settling a resume continues (the world keeps its simulation), and the
+        # objects that were massless when it stopped.
+        self._interrupted: PartialSettling | None = None
+        self._interrupted_massless: set[int] = set()
+
+    @overload
+    def settle(
+        self, poses: Sequence[Pose], settle_time: float, angular_weight: float, **options: Unpack[SettleOptions]
+    ) -> Settling: ...
+
+    @overload
+    def settle(
+        self,
+        poses: Sequence[Pose],
+        settle_time: float,
+        angular_weight: float,
+        stop_at: float | None,
+        **options: Unpack[SettleOptions],
+    ) -> Settling | PartialSettling: ...
+
+    def settle(
+        self,
+        poses: Sequence[Pose],
+        settle_time: float,
+        angular_weight: float,
+        stop_at: float | None = None,
+        **options: Unpack[SettleOptions],
+    ) -> Settling | PartialSettling:
+        """Rule 2: simulate ``settle_time`` seconds from rest at ``poses``; measure each J_i.
+
+        ``stop_at`` is a ``time.monotonic()`` instant. The clock is read every
+        :data:`CLOCK_CHECK_STEPS` steps; once it has passed, the simulation stops and a
+        :class:`PartialSettling` is returned, so a caller overruns its deadline by at most that
+        many steps. :meth:`resume_settling` continues it.
+
+        ``objects`` (scene indices) settles only those objects, ``poses`` being theirs; the others
+        stay parked. ``max_speed`` (m/s) caps each object's linear speed after every step (within a
+        step, gravity adds at most g * TIME_STEP = 0.04 m/s to it). ``early_exit`` may end the
+        settling before ``settle_time`` (:class:`EarlyExit`); ``track_reach`` records where each
+        object went (:attr:`Settling.reach`).
+        """
+        objects = options.get("objects")
+        self.world.place(poses, objects)
+        plan = PartialSettling(
+            poses=tuple(poses),
+            angular_weight=angular_weight,
+            steps_done=0,
+            steps_total=round(settle_time / TIME_STEP),
+            objects=None if objects is None else tuple(objects),
+            max_speed=options.get("max_speed"),
+            early_exit=options.get("early_exit"),
+            reach=_start_reach(poses) if options.get("track_reach", False) else None,
+        )
+        return self._simulate(plan, stop_at)
+
+    @overload
+    def resume_settling(self, partial: PartialSettling) -> Settling: ...
+
+    @overload
+    def resume_settling(self, partial: PartialSettling, stop_at: float | None) -> Settling | PartialSettling: ...
+
+    def resume_settling(self, partial: PartialSettling, stop_at: float | None = None) -> Settling | PartialSettling:
+        """Continue an interrupted settling where it stopped, until done or ``stop_at`` (as :meth:`settle`).
+
+        The settled poses are bit for bit those of the settling run uninterrupted, also when
+        other configurations were checked in between (see the module docstring). Each call
+        simulates at least :data:`CLOCK_CHECK_STEPS` steps, so repeated calls finish. A partial
+        this settler no longer keeps (it interrupted another settling since, or the partial is
+        another settler's, or objects were parked or placed since) is simulated again from its start.
+        """
+        if partial is not self._interrupted:
+            self.world.place(partial.poses, partial.objects)
+            return self._simulate(partial.restarted(), stop_at)
+        if self.world.kept_was_saved() and self.world.massless != self._interrupted_massless:
+            # Objects were parked or placed since (their masses changed): Bullet re-entered them into
+            # its world, so the saved contact points would not come back as they were. Start over.
+            self._forget_interrupted()
+            self.world.place(partial.poses, partial.objects)
+            return self._simulate(partial.restarted(), stop_at)
+        if self.world.kept_was_saved():
+            self.world.restore_kept(partial.objects)
+        self._forget_interrupted()
+        return self._simulate(partial, stop_at)
+
+    def _simulate(self, plan: PartialSettling, stop_at: float | None) -> Settling | PartialSettling:
+        """Step the world from ``plan.steps_done`` to ``plan.steps_total``, or until it may stop early
+        or ``stop_at`` passes (:meth:`settle`)."""
+        steps_done, steps_total = plan.steps_done, plan.steps_total
+        uids = self.world.uids(plan.objects)
+        watched = plan.early_exit is not None or plan.reach is not None
+        rest_checks, beyond_checks, reach = plan.rest_checks, plan.beyond_checks, plan.reach
+        while steps_done < steps_total:
+            batch_end = min(steps_done + CLOCK_CHECK_STEPS, steps_total)
+            for _ in range(steps_done, batch_end):
+                self.world.step()
+                if plan.max_speed is not None:
+                    self._cap_speeds(uids, plan.max_speed)
+            steps_done = batch_end
+            if watched and steps_done < steps_total:
+                poses = self.world.poses(plan.objects)
+                reach = None if reach is None else _widened(reach, poses)
+                if plan.early_exit is not None:
+                    jitters = self._jitters(plan.poses, poses, plan.angular_weight)
+                    at_rest = self._at_rest(uids, plan.angular_weight, plan.early_exit.rest_rate)
+                    threshold = plan.early_exit.jitter_threshold
+                    beyond = threshold is not None and any(
+                        resting and jitter > threshold for resting, jitter in zip(at_rest, jitters, strict=True)
+                    )
+                    beyond_checks = beyond_checks + 1 if beyond else 0
+                    rest_checks = rest_checks + 1 if all(at_rest) else 0
+                    if beyond_checks >= REST_CHECKS:
+                        return Settling(poses, jitters, "beyond_threshold", steps_done, steps_total, reach)
+                    if rest_checks >= REST_CHECKS:
+                        return Settling(poses, jitters, "rest", steps_done, steps_total, reach)
+            if stop_at is not None and steps_done < steps_total and time.monotonic() >= stop_at:
+                self.world.keep_simulation()
+                self._interrupted = replace(
+                    plan, steps_done=steps_done, rest_checks=rest_checks, beyond_checks=beyond_checks, reach=reach
+                )
+                self._interrupted_massless = set(self.world.massless)
+                return self._interrupted
+        settled = self.world.poses(plan.objects)
+        reach = None if reach is None else _widened(reach, settled)
+        jitters = self._jitters(plan.poses, settled, plan.angular_weight)
+        return Settling(settled, jitters, None, steps_done, steps_total, reach)
+
+    def _forget_interrupted(self) -> None:
+        self.world.forget_kept()
+        self._interrupted = None
+
+    @staticmethod
+    def _jitters(start: Sequence[Pose], now: Sequence[Pose], angular_weight: float) -> tuple[float, ...]:
+        return tuple(pose_displacement(a, b, angular_weight) for a, b in zip(start, now, strict=True))
+
+    def _at_rest(self, uids: Sequence[int], angular_weight: float, rest_rate: float) -> list[bool]:
+        """Per body, whether its jitter rate |v| + angular_weight * |omega| is at most ``rest_rate`` (m/s)."""
+        resting = []
+        for uid in uids:
+            linear, angular = pybullet.getBaseVelocity(uid, physicsClientId=self.world.client)
+            resting.append(math.hypot(*linear) + angular_weight * math.hypot(*angular) <= rest_rate)
+        return resting
+
+    def _cap_speeds(self, uids: Sequence[int], max_speed: float) -> None:
+        """Scale down every linear velocity faster than ``max_speed`` m/s to that speed (same direction)."""
+        for uid in uids:
+            linear, angular = pybullet.getBaseVelocity(uid, physicsClientId=self.world.client)
+            speed = math.hypot(*linear)
+            if speed > max_speed:
+                scale = max_speed / speed
+                capped = [v * scale for v in linear]
+                pybullet.resetBaseVelocity(uid, capped, angular, physicsClientId=self.world.client)
+
+    def trajectory(
+        self, poses: Sequence[Pose], duration: float, sample_interval: float
+    ) -> tuple[TrajectorySample, ...]:
+        """Simulate ``duration`` seconds from rest at ``poses``, recording the objects' poses.
+
+        Returns a sample at time 0 and then every ``sample_interval`` seconds (rounded to
+        whole :data:`TIME_STEP` steps, at least one). For plots and inspection; the rules use
+        :meth:`settle`, which steps the same world the same way.
+        """
+        self.world.place(poses)
+        steps_per_sample = max(1, round(sample_interval / TIME_STEP))
+        samples = [TrajectorySample(0.0, self.world.poses())]
+        for step in range(1, round(duration / TIME_STEP) + 1):
+            self.world.step()
+            if step % steps_per_sample == 0:
+                samples.append(TrajectorySample(step * TIME_STEP, self.world.poses()))
+        return tuple(samples)
