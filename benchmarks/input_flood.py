@@ -1,4 +1,4 @@
-"""Does the node keep its ticks on time under a 200 Hz input flood, and when does a message arrive? (issue 11, point 3)
+"""Does the node keep its ticks on time under a 200 Hz input flood, and when does a message arrive?
 
 The node runs in this process, once with rclpy's single-threaded executor (what ``main`` uses)
 and once with a multi-threaded one (its subscriptions and timers are in separate callback

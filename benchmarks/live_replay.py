@@ -1,6 +1,6 @@
 """Live replay of the shipped pyramid bag against offline search: what the timed live searches find at each speed.
 
-The figures ``make demo`` and the live replay tests used to assert (issue 11, point 11): the
+The figures ``make demo`` and the live replay tests used to assert: the
 node's searches are timed, so which snapshots get a configuration, and which, depends on the
 machine and the replay speed. Per ``--rate``, the bag is replayed live into a node started for
 it (default parameters: 2 Hz, deadline 0.2 s), and compared with the offline ``--exhaustive``

@@ -1,4 +1,4 @@
-"""What meshes cost (issue 10): the two rules on the shipped mesh scenes against their box twins, and decompositions.
+"""What meshes cost: the two rules on the shipped mesh scenes against their box twins, and decompositions.
 
 Run: ``.venv/bin/python benchmarks/mesh_costs.py [--repeats N] [--no-decompositions]``. Prints, for
 each shipped mesh scene, the median cost of a collision check (Rule 1) and of a settling (Rule 2) of

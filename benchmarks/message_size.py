@@ -1,4 +1,4 @@
-"""How large a PoseArray arrives reliably on the node's input QoS; is every loss reported? (issue 12, point 6)
+"""How large a PoseArray arrives reliably on the node's input QoS; is every loss reported?
 
 A child process publishes ``--messages`` PoseArrays of each size at ``--hz`` with a reliable
 publisher (as ``ros2 topic pub`` and most pose estimators do); this process subscribes as the

@@ -1,4 +1,4 @@
-"""Memory of a live replay of a bag with camera images (issue 11, point 9): streamed now, read whole before.
+"""Memory of a live replay of a bag with camera images: streamed now, read whole before.
 
 A bag like ``ros2 bag record -a`` makes on a robot: ``--megabytes`` of 640x480 RGB images at
 30 Hz beside the pyramid's hypotheses (the shipped bag's, repeated). Printed: the peak resident

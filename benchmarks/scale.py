@@ -1,4 +1,4 @@
-"""The scale benchmark (issue 8): joint and grouped searches side by side, the time-to-answer plot, node memory.
+"""The scale benchmark: joint and grouped searches side by side, the time-to-answer plot, node memory.
 
 Run: ``.venv/bin/python benchmarks/scale.py [--seeds N] [--node-minutes M] [--png PATH] [--quick]``,
 the same as ``physics-mapper bench --scale``. Prints the markdown table and the targets that

@@ -1,4 +1,4 @@
-"""Soak and load (issue 12, point 11): a long live replay at 5x of noisy hypotheses, idle and with both cores busy.
+"""Soak and load: a long live replay at 5x of noisy hypotheses, idle and with both cores busy.
 
 A bag of noisy particle-filter hypotheses (``generate``: the pyramid, sigma 3 cm and 3 degrees,
 10 hypotheses per cube, an iteration every 0.5 s of bag time) long enough for ``--minutes`` of

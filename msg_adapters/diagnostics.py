@@ -1,6 +1,6 @@
 """A tick's report -> ``diagnostic_msgs/DiagnosticArray``.
 
-One status for the search (name ``<node>: search``) with the key-values of SPEC section 4 and,
+One status for the search (name ``<node>: search``) with the key-values users debug with and,
 from the node, how its ticks kept time since the previous message, then one status per object
 (name ``<node>: hypotheses/<object>``) saying what its input is.
 Every status's ``hardware_id`` is the node's fully qualified name, which tells apart nodes
@@ -20,8 +20,8 @@ from physics_mapper.mapping.inputs import Level, ObjectStatus
 from physics_mapper.mapping.mapper import TickReport
 from physics_mapper.mapping.tick_statistics import TickPeriod
 from physics_mapper.model.limits import MAX_DIAGNOSTIC_TEXT, clipped
-from physics_mapper.search.branch_and_bound import GroupResult, SearchEnd, SearchResult, SearchStats
 from physics_mapper.search.report import code_text, refinement_text
+from physics_mapper.search.results import GroupResult, SearchEnd, SearchResult, SearchStats
 
 LEVELS = {Level.OK: DiagnosticStatus.OK, Level.WARN: DiagnosticStatus.WARN, Level.ERROR: DiagnosticStatus.ERROR}
 

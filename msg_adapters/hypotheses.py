@@ -5,7 +5,7 @@ Incoming messages become :class:`~physics_mapper.inputs.ReceivedPoses` and
 collected, none raised); the node receives PoseArrays serialised (:func:`received_pose_array`,
 see :mod:`msg_adapters.pose_array_cdr`); outgoing hypotheses become the same two message types. Header
 stamps are integer nanoseconds (``stamp_ns``), exact both ways: a float of seconds since the
-epoch resolves only about 0.2 microseconds, and outputs carry their input's stamp (SPEC section 4).
+epoch resolves only about 0.2 microseconds, and outputs carry their input's stamp.
 """
 
 from __future__ import annotations

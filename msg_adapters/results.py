@@ -19,7 +19,7 @@ from visualization_msgs.msg import Marker, MarkerArray
 from msg_adapters.hypotheses import pose_array_msg, pose_msg, stamp_from_nanoseconds
 from physics_mapper.model.geometry import Pose, compose_poses
 from physics_mapper.model.scene import Box, Cylinder, Mesh, Plane, Scene, Shape, Sphere
-from physics_mapper.search.branch_and_bound import SearchResult
+from physics_mapper.search.results import SearchResult
 
 #: Marker namespaces (see the module docstring), ``id`` = the body's index in its scene list.
 SHAPE_NAMESPACE = "objects"
@@ -129,7 +129,7 @@ def markers_msg(result: SearchResult, scene: Scene, *, stamp_ns: int) -> MarkerA
     """One marker per object in its true shape, a text label ``name J=...``, and the fixed bodies.
 
     A valid configuration is drawn green at its chosen poses; a fallback orange at its settled
-    poses, the corrected estimate (SPEC section 2). J is the object's jitter J_i. The fixed
+    poses, the corrected estimate. J is the object's jitter J_i. The fixed
     bodies come with every map, since RViz keeps only the last latched MarkerArray. Empty if
     nothing was chosen. Headers are stamped ``stamp_ns`` (integer nanoseconds).
     """

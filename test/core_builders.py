@@ -20,7 +20,8 @@ from physics_mapper.model.hypotheses import Hypothesis, RankedHypotheses
 from physics_mapper.model.scene import Box, ObjectModel, Plane, Scene, SearchParams, StaticBody
 from physics_mapper.model.scene_files import load_scene
 from physics_mapper.physics.checker import PhysicsChecker
-from physics_mapper.search.branch_and_bound import BranchAndBound, Code, SearchResult
+from physics_mapper.search.branch_and_bound import BranchAndBound
+from physics_mapper.search.results import Code, SearchResult
 
 #: Edge length of the test cubes.
 CUBE_SIZE = 0.1

@@ -38,8 +38,8 @@ from physics_mapper.mapping.topics import (
 from physics_mapper.ros.child_process import start_node, stop_node
 from physics_mapper.ros.qos import DIAGNOSTICS_QOS, MAP_QOS
 
-#: The search status keys SPEC section 4 requires.
-SPEC_DIAGNOSTIC_KEYS = (
+#: The search status keys every diagnostics message carries.
+REQUIRED_DIAGNOSTIC_KEYS = (
     "nodes visited",
     "nodes expanded",
     "nodes bounded",

@@ -11,7 +11,7 @@ from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PoseArray
 from mesh_builders import MUG_FILE, floor_scene_dict, load_inline, mesh_object
 from rclpy.serialization import serialize_message
-from ros_helpers import SPEC_DIAGNOSTIC_KEYS
+from ros_helpers import REQUIRED_DIAGNOSTIC_KEYS
 from rosbags.typesys import Stores, get_typestore
 from std_msgs.msg import Float64MultiArray
 from visualization_msgs.msg import Marker
@@ -240,7 +240,7 @@ def mixed_result() -> object:
 
 
 def test_configuration_messages_hold_chosen_and_settled_poses(mixed_result: object) -> None:
-    from physics_mapper.search.branch_and_bound import SearchResult
+    from physics_mapper.search.results import SearchResult
 
     assert isinstance(mixed_result, SearchResult) and mixed_result.valid
     messages = configuration_msgs(mixed_result, frame_id="table", stamp_ns=4_500_000_000)
@@ -254,7 +254,7 @@ def test_configuration_messages_hold_chosen_and_settled_poses(mixed_result: obje
 
 
 def test_each_object_gets_its_chosen_and_settled_pose_with_the_map_s_header(mixed_result: object) -> None:
-    from physics_mapper.search.branch_and_bound import SearchResult
+    from physics_mapper.search.results import SearchResult
 
     assert isinstance(mixed_result, SearchResult)
     assert mixed_result.poses is not None and mixed_result.settled_poses is not None
@@ -269,7 +269,7 @@ def test_each_object_gets_its_chosen_and_settled_pose_with_the_map_s_header(mixe
 
 def test_a_realistic_stamp_goes_from_input_to_outputs_exactly(mixed_result: object) -> None:
     """A PoseArray's stamp -> ReceivedPoses -> InputSnapshot -> configuration, settled and markers headers."""
-    from physics_mapper.search.branch_and_bound import SearchResult
+    from physics_mapper.search.results import SearchResult
 
     assert isinstance(mixed_result, SearchResult)
     tracker = InputTracker(["crate"])
@@ -286,7 +286,7 @@ def test_a_realistic_stamp_goes_from_input_to_outputs_exactly(mixed_result: obje
 
 
 def test_markers_show_each_objects_true_shape_and_a_label_with_its_jitter(mixed_result: object) -> None:
-    from physics_mapper.search.branch_and_bound import SearchResult
+    from physics_mapper.search.results import SearchResult
 
     assert isinstance(mixed_result, SearchResult)
     markers = markers_msg(mixed_result, MIXED, stamp_ns=4_500_000_000).markers
@@ -358,7 +358,7 @@ def test_diagnostics_hold_the_spec_keys_and_one_status_per_object() -> None:
     )
     search, *objects = diagnostics.status
     values = {kv.key: kv.value for kv in search.values}
-    assert set(SPEC_DIAGNOSTIC_KEYS) <= set(values)
+    assert set(REQUIRED_DIAGNOSTIC_KEYS) <= set(values)
     assert (search.name, search.level) == ("physics_mapper: search", DiagnosticStatus.OK)
     assert search.message.startswith("valid C111, p(C)=1, J=")
     assert values["best code"] == "C111" and values["nodes visited"] == "1" and values["deadline [s]"] == "0.3"

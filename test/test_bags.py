@@ -229,7 +229,7 @@ def replay_error(capsys: pytest.CaptureFixture[str], bag: Path, scene: str = "py
 
 
 def test_bags_written_here_carry_every_mcap_checksum(tmp_path: Path) -> None:
-    """Chunk, data-section and summary CRCs, in generated bags and the shipped one (issue 12, point 8)."""
+    """Chunk, data-section and summary CRCs, in generated bags and the shipped one."""
     fresh = tmp_path / "fresh"
     generate(fresh)
     for mcap_file in (fresh / "fresh.mcap", DATA / "pyramid" / "pyramid.mcap"):
@@ -243,7 +243,7 @@ DAMAGED_COPIES, DAMAGE_SEED = 40, 12
 
 
 def test_a_damaged_mcap_is_reported_and_never_read_as_other_messages(tmp_path: Path) -> None:
-    """Issue 12: 16 random bytes overwritten gave exit 0 and silently different results in 7 of 40 copies."""
+    """16 random bytes overwritten gave exit 0 and silently different results in 7 of 40 copies."""
     bag, storage_file = copy_of_fixture(tmp_path, "pyramid")
     intact = storage_file.read_bytes()
     rng = random.Random(DAMAGE_SEED)

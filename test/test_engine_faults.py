@@ -1,4 +1,4 @@
-"""Engine faults: a pybullet world that fails mid-search is rebuilt, and the mapper goes on (issue 12, point 10).
+"""Engine faults: a pybullet world that fails mid-search is rebuilt, and the mapper goes on.
 
 The world is broken the way a crashed or closed physics server breaks it: its client is
 disconnected from under the mapper, between two ticks. The node over DDS is tested in

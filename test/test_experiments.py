@@ -1,4 +1,4 @@
-"""The paper's experiments (issue 4): each runs at a reduced size and writes a real plot and a consistent summary.
+"""The paper's experiments: each runs at a reduced size and writes a real plot and a consistent summary.
 
 One run of ``physics-mapper experiment all`` (3 runs, 300 particles) feeds the per-figure checks;
 the full-size outputs are in ``reports/`` (``make paper``).

@@ -1,6 +1,6 @@
 """Property-based fuzzing (hypothesis) of the message adapters, the input rules, the mapper and the file loader.
 
-Invariants (issue 12, point 9):
+Invariants:
 
 - no exception escapes except the documented one (none from a message; :class:`SceneError` from a file);
 - every refusal and every dropped pose has a reason, short and on one line;

@@ -1,4 +1,4 @@
-"""The grouped search (issue 8): Algorithm 1 per interaction group, against the paper's joint search.
+"""The grouped search: Algorithm 1 per interaction group, against the paper's joint search.
 
 Real pybullet throughout. The reduced suite is the benchmark's generator (``physics_mapper.bench.
 scale_suite``) at small sizes, where the joint search finishes: piles of cubes whose only valid
@@ -27,9 +27,10 @@ from physics_mapper.physics.checker import PhysicsChecker
 from physics_mapper.physics.collision import Collision
 from physics_mapper.physics.collision_table import CollisionTable
 from physics_mapper.physics.settling import PartialSettling
-from physics_mapper.search.branch_and_bound import REST_SHARE, BranchAndBound, Code, SearchResult, TraceEntry
+from physics_mapper.search.branch_and_bound import REST_SHARE, BranchAndBound
 from physics_mapper.search.grouped import GroupedSearch
 from physics_mapper.search.report import result_dict, trace_tree
+from physics_mapper.search.results import Code, SearchResult, TraceEntry
 from physics_mapper.search.strategy import make_search
 
 SHIPPED = ("stack", "pyramid", "peg_in_hole", "sphere_groove")

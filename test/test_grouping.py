@@ -1,4 +1,4 @@
-"""Interaction groups (issue 8): which objects share a group, and the escape guard that merges groups.
+"""Interaction groups: which objects share a group, and the escape guard that merges groups.
 
 The rule (``physics_mapper.search.groups``): an object's volume is the union of cubes of
 half-edge r + margin around its hypotheses' positions; objects whose volumes meet share a group.

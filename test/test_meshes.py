@@ -1,4 +1,4 @@
-"""Mesh shapes (issue 10): loading, mass properties, the two rules on meshes, decomposition and its cache, errors.
+"""Mesh shapes: loading, mass properties, the two rules on meshes, decomposition and its cache, errors.
 
 Real meshes, real pybullet: small meshes made by :mod:`mesh_builders`, and pybullet_data's mug
 with pybullet's own convex decomposition of it (so no test waits for CoACD on the mug).

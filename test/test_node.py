@@ -1,4 +1,4 @@
-"""The node over real DDS: a child process fed by an in-test rclpy node (SPEC section 4, issue 3).
+"""The node over real DDS: a child process fed by an in-test rclpy node.
 
 Two node processes are shared by the tests of this module, for speed: ``pyramid`` (the shipped
 pyramid scene) and ``busy`` (a problem far too large to finish). Each test feeds the shared node
@@ -26,7 +26,7 @@ from geometry_msgs.msg import PoseArray, PoseStamped
 from rclpy.qos import ReliabilityPolicy
 from ros_helpers import (
     PHYSICS_MAPPER,
-    SPEC_DIAGNOSTIC_KEYS,
+    REQUIRED_DIAGNOSTIC_KEYS,
     NodeProcess,
     RosClient,
     object_status,
@@ -158,7 +158,7 @@ def test_nothing_is_published_until_every_object_has_hypotheses(fresh_pyramid: R
 
 
 def test_a_realistic_input_stamp_comes_back_exactly_on_the_outputs(pyramid: Running) -> None:
-    """SPEC section 4: the outputs' stamp is the newest input stamp used, to the nanosecond."""
+    """The outputs' stamp is the newest input stamp used, to the nanosecond."""
     client = pyramid.client
     stamp_ns = 1_732_233_600_123_456_789
     configuration = publish_until_configured(client, load_problem(PYRAMID_PROBLEM), stamp_ns)
@@ -213,7 +213,7 @@ def test_diagnostics_hold_the_spec_keys(fed_pyramid: Running) -> None:
     search = search_status(diagnostics)
     assert search is not None
     found = values(search)
-    assert set(SPEC_DIAGNOSTIC_KEYS) <= set(found)
+    assert set(REQUIRED_DIAGNOSTIC_KEYS) <= set(found)
     assert {f"input {name}" for name in OBJECTS} <= set(found)
     assert int(found["nodes visited"]) > 0
     assert found["deadline [s]"] == "0.2"

@@ -1,4 +1,4 @@
-"""The node's grouped search over real DDS (issue 8): an object's new hypotheses restart its group only.
+"""The node's grouped search over real DDS: an object's new hypotheses restart its group only.
 
 A 20-cube scene (the scale suite's singletons: every cube its own interaction group) is fed once;
 then one cube gets new hypotheses at every tick, and the diagnostics show the other 19 groups'

@@ -1,4 +1,4 @@
-"""The node over real DDS against issue 12's reliability points: engine faults, oversized input text, number spellings.
+"""The node over real DDSagainst reliability faults: engine faults, oversized input text, number spellings.
 
 One node process, started from a parameters file that spells its numbers as people write them,
 serves the size and spelling tests; the engine-fault test runs the node in this process (its
@@ -84,7 +84,7 @@ def text_size(msg: DiagnosticArray) -> int:
 
 
 def test_a_200000_character_frame_id_is_quoted_clipped_in_the_diagnostics(spelled: Spelled) -> None:
-    """Issue 12: such a frame_id was copied into every /diagnostics message (858 -> 601,092 characters)."""
+    """Such a frame_id was copied into every /diagnostics message (858 -> 601,092 characters)."""
     client = spelled.client
     frame = "f" * 200_000
     huge = pose_array_msg([Pose((0.0, 0.0, 0.3))], frame_id=frame, stamp_ns=10**9)

@@ -1,4 +1,4 @@
-"""``fallback: refine`` (issue 9): penetrations resolved with little motion, no energy added, a settled map.
+"""``fallback: refine``: penetrations resolved with little motion, no energy added, a settled map.
 
 Core tests on small hand-made scenes and the shipped ones, then the same through ``solve --json``
 and through the node over DDS.
@@ -38,7 +38,8 @@ from physics_mapper.model.scene_files import SceneError, load_problem, scene_fro
 from physics_mapper.physics.checker import PhysicsChecker
 from physics_mapper.physics.refine import OVERLAP_TOLERANCE, RefinedMap, Refinement, refine_objects, refinement_start
 from physics_mapper.physics.world import TIME_STEP
-from physics_mapper.search.branch_and_bound import BranchAndBound, SearchResult
+from physics_mapper.search.branch_and_bound import BranchAndBound
+from physics_mapper.search.results import SearchResult
 
 REFINE = SearchParams(fallback="refine")
 #: A time.monotonic() instant long past: every deadline-aware call stops as soon as it may.

@@ -328,7 +328,7 @@ def test_an_explicit_workspace_is_used_and_holds_the_ground_truth(tmp_path: Path
 
 
 def test_numbers_are_read_in_every_usual_spelling(tmp_path: Path) -> None:
-    """YAML 1.1 reads 1e-4 and 1E+9 as strings; files take them as people write them (issue 12, point 4)."""
+    """YAML 1.1 reads 1e-4 and 1E+9 as strings; files take them as people write them."""
     path = tmp_path / "problem.yaml"
     path.write_text(
         "objects:\n"

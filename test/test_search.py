@@ -31,7 +31,8 @@ from physics_mapper.model.scene_files import load_problem
 from physics_mapper.physics.checker import PhysicsChecker
 from physics_mapper.physics.settling import CLOCK_CHECK_STEPS
 from physics_mapper.physics.world import TIME_STEP
-from physics_mapper.search.branch_and_bound import BranchAndBound, Code, SearchResult, TraceEntry
+from physics_mapper.search.branch_and_bound import BranchAndBound
+from physics_mapper.search.results import Code, SearchResult, TraceEntry
 
 #: A 4 x 3 x 3 problem with distinct, unequal weights (normalised by the ranking).
 UNEVEN_WEIGHTS = ((0.5, 0.3, 0.15, 0.05), (0.6, 0.25, 0.15), (0.45, 0.35, 0.2))

@@ -1,4 +1,4 @@
-"""SIGINT and SIGTERM stop the node cleanly at any moment (issue 12, point 1): exit code 0, nothing but its log.
+"""SIGINT and SIGTERM stop the node cleanly at any moment: exit code 0, nothing but its log.
 
 One test, many runs at seeded random moments: during start-up (from the moment the process runs
 our code, read from /proc: the entry point holds both signals from its first line until it

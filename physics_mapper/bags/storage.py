@@ -1,4 +1,4 @@
-"""rosbag2 bags of hypotheses and results, written and read with the ``rosbags`` library (SPEC section 6).
+"""rosbag2 bags of hypotheses and results, written and read with the ``rosbags`` library.
 
 Bags are mcap (the Jazzy default) or sqlite3, metadata version 9, messages CDR-serialised with
 the ROS 2 Jazzy type store, so ``ros2 bag play`` / ``ros2 bag record`` on a ROS machine and

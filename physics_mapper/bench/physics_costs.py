@@ -16,7 +16,7 @@ from dataclasses import dataclass
 from physics_mapper.model.geometry import Pose
 from physics_mapper.model.scene import Problem
 from physics_mapper.physics.checker import PhysicsChecker
-from physics_mapper.search.branch_and_bound import SearchStats
+from physics_mapper.search.results import SearchStats
 from physics_mapper.search.strategy import make_search
 
 

@@ -1,4 +1,4 @@
-"""The scale benchmark (issue 8): the joint and the grouped search side by side on the seeded suite.
+"""The scale benchmark: the joint and the grouped search side by side on the seeded suite.
 
 Every problem of :mod:`physics_mapper.bench.scale_suite` is first searched to the end by the grouped
 search (no deadline): its result is *the answer* (the configuration an exhaustive search returns).
@@ -30,8 +30,9 @@ from physics_mapper.bench.scale_suite import CUBE_EDGE, LAYOUTS, ScaleCase, Scal
 from physics_mapper.model.geometry import pose_displacement
 from physics_mapper.model.scene import SearchParams
 from physics_mapper.physics.checker import PhysicsChecker
-from physics_mapper.search.branch_and_bound import REST_SHARE, Code, SearchResult
+from physics_mapper.search.branch_and_bound import REST_SHARE
 from physics_mapper.search.groups import interaction_groups
+from physics_mapper.search.results import Code, SearchResult
 from physics_mapper.search.strategy import make_search
 
 Strategy = Literal["joint", "grouped"]
@@ -287,7 +288,7 @@ def figures_table(figures: Sequence[CellFigures]) -> str:
 
 @dataclass(frozen=True)
 class Targets:
-    """Issue 8's targets, measured."""
+    """The targets of the scale benchmark, measured."""
 
     grouped_solved: tuple[int, int]  # (solved within 0.2 s, problems) for N <= 50, piles <= 3, M <= 10
     joint_solved_from_10: tuple[int, int]  # the same for the joint search, N >= 10

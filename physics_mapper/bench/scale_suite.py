@@ -23,7 +23,7 @@ from physics_mapper.model.geometry import Pose
 from physics_mapper.model.hypotheses import Hypothesis, RankedHypotheses
 from physics_mapper.model.scene import Box, ObjectModel, Plane, Problem, Scene, SearchParams, StaticBody
 from physics_mapper.physics.checker import PhysicsChecker
-from physics_mapper.search.branch_and_bound import Code
+from physics_mapper.search.results import Code
 
 Layout = Literal["singletons", "pairs", "pyramids", "mixed"]
 LAYOUTS: tuple[Layout, ...] = ("singletons", "pairs", "pyramids", "mixed")

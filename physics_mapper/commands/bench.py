@@ -1,6 +1,6 @@
 """``physics-mapper bench``: what the physics checks and the search cost on a problem, on this machine.
 
-``--scale`` runs the scale benchmark instead (issue 8, ``physics_mapper.bench.scale``): the seeded
+``--scale`` runs the scale benchmark instead (``physics_mapper.bench.scale``): the seeded
 suite searched by the joint and the grouped search side by side, a PNG of the time to the answer
 against N, and the memory of a node searching a 50-object scene for ``--node-minutes`` minutes.
 """

@@ -1,4 +1,4 @@
-"""``physics-mapper experiment``: the paper's figures reproduced as plots and summaries (SPEC section 6)."""
+"""``physics-mapper experiment``: the paper's figures reproduced as plots and summaries."""
 
 from __future__ import annotations
 

@@ -121,8 +121,8 @@ def run(args: argparse.Namespace) -> int:
 def _offline(args: argparse.Namespace, scene: Scene, snapshots: Sequence[BagSnapshot]) -> list[SnapshotResult]:
     from physics_mapper.bags.storage import BagWriter
     from physics_mapper.evaluation.snapshot_results import search_offline, write_results
-    from physics_mapper.search.branch_and_bound import SearchResult
     from physics_mapper.search.report import code_text
+    from physics_mapper.search.results import SearchResult
 
     if args.deadline is not None:
         if not args.deadline > 0.0:

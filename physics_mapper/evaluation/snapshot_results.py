@@ -32,8 +32,8 @@ from physics_mapper.model.geometry import Pose, is_same_pose
 from physics_mapper.model.hypotheses import RankedHypotheses
 from physics_mapper.model.scene import Scene
 from physics_mapper.physics.checker import PhysicsChecker
-from physics_mapper.search.branch_and_bound import Code, SearchResult
 from physics_mapper.search.report import code_text
+from physics_mapper.search.results import Code, SearchResult
 from physics_mapper.search.strategy import make_search
 
 #: A published pose is a hypothesis whose position is this close (metres) and whose orientation q'

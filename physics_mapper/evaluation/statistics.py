@@ -16,7 +16,6 @@ from scipy.stats import kruskal, wilcoxon
 def compare_errors(without: NDArray[np.float64], with_: NDArray[np.float64]) -> dict[str, Any]:
     """Compare two estimates' errors, indexed [run, iteration] and paired by run and iteration.
 
-
     * ``wilcoxon_paired_by_run``: the headline test, :func:`paired_by_run_test`.
     * ``kruskal_wallis_pooled``: the paper's test, :func:`pooled_kruskal_wallis`.
     * ``physics_lower`` / ``physics_higher`` / ``equal``: how many of the runs x iterations pairs
@@ -39,7 +38,6 @@ def reduction_percent(without: NDArray[np.float64], with_: NDArray[np.float64]) 
 
 def paired_by_run_test(without: NDArray[np.float64], with_: NDArray[np.float64]) -> dict[str, Any]:
     """Wilcoxon signed-rank test (:func:`paired_wilcoxon`) of the per-run mean errors, two-sided.
-
 
     The runs are independent, the iterations of one run are not (they share one filter), and
     both estimates of a run come from the same hypotheses: so each run gives one pair
@@ -67,7 +65,6 @@ EXACT_WILCOXON_PAIRS = 200
 
 def paired_wilcoxon(without: NDArray[np.float64], with_: NDArray[np.float64]) -> dict[str, Any]:
     """Wilcoxon signed-rank test (scipy), two-sided, of paired samples: ``with_[k]`` against ``without[k]``.
-
 
     Zero differences (pairs where the two estimates agree) are dropped, Wilcoxon's convention, and
     the p-value of the remaining n differences comes from the exact null distribution (exact while
@@ -97,7 +94,6 @@ def paired_wilcoxon(without: NDArray[np.float64], with_: NDArray[np.float64]) ->
 
 def pooled_kruskal_wallis(without: NDArray[np.float64], with_: NDArray[np.float64]) -> dict[str, Any]:
     """Kruskal-Wallis test (scipy) of all runs x iterations pooled into one sample per estimate.
-
 
     The paper's test, kept for comparison with its p-value. It treats the samples as
     independent and unpaired, which they are not (see :func:`paired_by_run_test`).

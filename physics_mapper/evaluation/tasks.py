@@ -20,7 +20,7 @@ from physics_mapper.bags.storage import Bag, BagError
 from physics_mapper.evaluation.snapshot_results import SnapshotResult, search_offline, snapshot_result_dict
 from physics_mapper.evaluation.sources import UnreadableBag, load_snapshots
 from physics_mapper.model.scene import Scene
-from physics_mapper.search.branch_and_bound import SearchResult
+from physics_mapper.search.results import SearchResult
 
 
 @dataclass(frozen=True)

@@ -1,4 +1,4 @@
-"""Real objects in clutter (issue 10): the most likely hypotheses C11..1 against the physics map, on meshes.
+"""Real objects in clutter: the most likely hypotheses C11..1 against the physics map, on meshes.
 
 Scenes (``config/scenes``): ``tabletop.yaml`` (ten household-like objects on a table),
 ``tray_pile.yaml`` (eight objects piled in a tray) and ``jenga_tower.yaml`` (twelve blocks), every
@@ -59,7 +59,7 @@ from physics_mapper.model.hypotheses import RankedHypotheses
 from physics_mapper.model.scene import Fallback, Scene, SearchParams
 from physics_mapper.perception.particle_filter import TrackerSettings, run_generators, settle_ground_truth, track
 from physics_mapper.physics.checker import PhysicsChecker
-from physics_mapper.search.branch_and_bound import SearchResult
+from physics_mapper.search.results import SearchResult
 from physics_mapper.search.strategy import make_search
 
 NAME = "clutter"
@@ -362,7 +362,7 @@ Rules: overlap at most {100 * part["penetration_threshold_m"]:g} cm, jitter at m
 
 def markdown(summary: dict[str, Any], options: ExperimentOptions) -> str:
     scenes = "\n".join(_scene_text(name, part) for name, part in summary["scenes"].items())
-    return f"""# Real objects in clutter: C11..1 against the physics map (issue 10)
+    return f"""# Real objects in clutter: C11..1 against the physics map
 
 Command: `{reproduce_command(NAME, options)}`
 

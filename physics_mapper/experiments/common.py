@@ -26,7 +26,7 @@ from physics_mapper.model.scene import Box, Cylinder, Scene, SearchParams, Stati
 from physics_mapper.model.scene_files import SceneError, load_scene
 from physics_mapper.model.shipped import shipped_path
 from physics_mapper.physics.checker import PhysicsChecker
-from physics_mapper.search.branch_and_bound import SearchResult
+from physics_mapper.search.results import SearchResult
 from physics_mapper.search.strategy import solve
 
 #: Wall-clock budget, seconds, of each search. The experiments have at most 5^3 = 125

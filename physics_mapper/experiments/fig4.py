@@ -35,8 +35,8 @@ from physics_mapper.model.geometry import Z_AXIS, Pose, make_pose, quaternion_ab
 from physics_mapper.model.hypotheses import Hypothesis, RankedHypotheses
 from physics_mapper.model.scene import SearchParams
 from physics_mapper.physics.checker import PhysicsChecker
-from physics_mapper.search.branch_and_bound import SearchResult
 from physics_mapper.search.report import code_text, describe_entry, trace_entry_dict
+from physics_mapper.search.results import SearchResult
 
 NAME = "fig4"
 SCENE_FILE = "stack.yaml"
@@ -270,7 +270,7 @@ here: queue emptied = {summary["queue_emptied"]}.
   probabilities and tree size differ: ours are a seeded random draw, the first from the requested seed whose
   tree has the same features.
 - The paper's figure shows the first 14 visits only; ours shows the whole search, run until its queue is empty.
-- Our J is in metres plus 0.1 m per radian of rotation (SPEC section 2); the paper's J values are in unstated
+- Our J is in metres plus 0.1 m per radian of rotation; the paper's J values are in unstated
   units (ODE), so they cannot be compared with ours.
 - For C111 the paper notes both a collision and hovering cubes; like Algorithm 1 we stop at the first failed rule,
   so a colliding node is never simulated and only its deepest overlapping pair is named.

@@ -69,7 +69,7 @@ from physics_mapper.experiments.tracking import (
 )
 from physics_mapper.model.geometry import Pose
 from physics_mapper.model.scene import SearchParams
-from physics_mapper.search.branch_and_bound import SearchResult
+from physics_mapper.search.results import SearchResult
 
 NAME = "fig6"
 SCENE_FILE = "pyramid.yaml"

@@ -63,7 +63,7 @@ from physics_mapper.experiments.tracking import (
 )
 from physics_mapper.model.geometry import Pose
 from physics_mapper.model.scene import Box, Scene, SearchParams, Sphere
-from physics_mapper.search.branch_and_bound import SearchResult
+from physics_mapper.search.results import SearchResult
 
 NAME = "fig8"
 SCENE_FILE = "sphere_groove.yaml"

@@ -35,8 +35,8 @@ from physics_mapper.model.hypotheses import Hypothesis, RankedHypotheses
 from physics_mapper.model.scene import Box, Cylinder, Scene, StaticBody
 from physics_mapper.physics.checker import PhysicsChecker
 from physics_mapper.physics.settling import TrajectorySample
-from physics_mapper.search.branch_and_bound import SearchResult, TraceEntry
 from physics_mapper.search.report import code_text, describe_entry, trace_entry_dict
+from physics_mapper.search.results import SearchResult, TraceEntry
 
 NAME = "peg"
 SCENE_FILE = "peg_in_hole.yaml"

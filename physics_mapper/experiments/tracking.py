@@ -10,7 +10,7 @@ each iteration two estimates of the scene are scored against that truth:
   yields nothing (no valid configuration and no fallback), C11..1 is kept and counted.
 
 The filters run once; their hypotheses are searched under each of the given rule sets
-(:class:`~physics_mapper.scene.SearchParams`), so that rule sets are compared on the same hypotheses.
+(:class:`~physics_mapper.model.scene.SearchParams`), so that rule sets are compared on the same hypotheses.
 
 Run k draws from child k of ``numpy.random.SeedSequence(seed)``
 (:func:`~physics_mapper.particle_filter.run_generators`, as ``generate`` does), so a run's numbers
@@ -35,8 +35,8 @@ from physics_mapper.model.hypotheses import RankedHypotheses
 from physics_mapper.model.scene import Scene, SearchParams
 from physics_mapper.perception.particle_filter import TrackerSettings, run_generators, settle_ground_truth, track
 from physics_mapper.physics.checker import PhysicsChecker
-from physics_mapper.search.branch_and_bound import SearchResult
 from physics_mapper.search.report import outcome_kind
+from physics_mapper.search.results import SearchResult
 
 #: The paper's sizes: 20 runs of a 1000-particle filter.
 PAPER_RUNS = 20

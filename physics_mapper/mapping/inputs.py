@@ -1,4 +1,4 @@
-"""The node's input bookkeeping: newest hypotheses per object, weights pairing, staleness (SPEC section 4).
+"""The node's input bookkeeping: newest hypotheses per object, weights pairing, staleness.
 
 ROS-free. The node's callbacks hand in :class:`ReceivedPoses` and :class:`ReceivedWeights`
 (built from messages by ``msg_adapters``); every tick asks :class:`InputTracker` for a

@@ -16,8 +16,9 @@ from physics_mapper.model.scene import Scene, SearchParams, search_params_proble
 from physics_mapper.physics.checker import PhysicsChecker
 from physics_mapper.physics.refine import load_solver
 from physics_mapper.physics.world import PhysicsEngineError
-from physics_mapper.search.branch_and_bound import BranchAndBound, Code, SearchResult
+from physics_mapper.search.branch_and_bound import BranchAndBound
 from physics_mapper.search.grouped import GroupedSearch
+from physics_mapper.search.results import Code, SearchResult
 from physics_mapper.search.strategy import make_search
 
 #: Seconds a tick's search may run past its deadline: the search looks at the clock every

@@ -1,4 +1,4 @@
-"""The scene model: bodies and their shapes, search parameters, scenes and problems (SPEC section 3).
+"""The scene model: bodies and their shapes, search parameters, scenes and problems.
 
 A *scene* is the fixed environment, the movable objects (in the order used for configuration
 codes and output arrays) and the search parameters. A *problem* is a scene plus weighted
@@ -21,7 +21,7 @@ from physics_mapper.model.meshes import MeshCollision, MeshGeometry
 
 Fallback = Literal["none", "settled", "refine"]
 FALLBACKS: tuple[Fallback, ...] = ("none", "settled", "refine")
-#: ``grouped``: Algorithm 1 per interaction group (issue 8); ``joint``: the paper's single search.
+#: ``grouped``: Algorithm 1 per interaction group; ``joint``: the paper's single search.
 Strategy = Literal["grouped", "joint"]
 STRATEGIES: tuple[Strategy, ...] = ("grouped", "joint")
 #: How T bounds a node: ``relative`` p(C) / p(root) < T, per group; ``absolute`` p(C) < T (the paper's).
@@ -194,7 +194,7 @@ class ObjectModel:
 
 @dataclass(frozen=True)
 class SearchParams:
-    """Thresholds and budgets of the search (SPEC section 2).
+    """Thresholds and budgets of the search.
 
     probability_threshold: T; nodes with p(C) < T are not expanded.
     penetration_threshold: deepest allowed overlap between two bodies, metres.

@@ -1,4 +1,4 @@
-"""Scene and problem files: YAML loaded and validated into the scene model (SPEC section 3).
+"""Scene and problem files: YAML loaded and validated into the scene model.
 
 Every error names the file, the key path and the problem (:class:`SceneError`), so a bad file
 gives one clear line and never a traceback. Files are read by :func:`~physics_mapper.model.yaml_files.read_yaml`

@@ -1,4 +1,4 @@
-"""Rule 1 from a pairwise table, filled lazily and reused (issue 8).
+"""Rule 1 from a pairwise table, filled lazily and reused.
 
 Whether hypothesis a of object i overlaps hypothesis b of object j, or a static body, depends on
 those two bodies' poses alone: Bullet computes every pair's contacts from an empty cache. So the

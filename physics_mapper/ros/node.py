@@ -1,4 +1,4 @@
-"""The ``physics_mapper`` ROS 2 node (SPEC section 4): weighted pose hypotheses in, a physically valid map out.
+"""The ``physics_mapper`` ROS 2 node: weighted pose hypotheses in, a physically valid map out.
 
 A thin shell: subscriptions hand messages to ``msg_adapters`` and the ROS-free
 :class:`~physics_mapper.mapping.mapper.Mapper`; a timer at ``rate_hz`` runs one tick and
@@ -86,7 +86,7 @@ from physics_mapper.model.scene import (
 from physics_mapper.model.scene_files import SceneError, load_scene
 from physics_mapper.ros.qos import DIAGNOSTICS_QOS, MAP_QOS, input_qos
 from physics_mapper.ros.spinning import STOP_POLL, SignalStop, shutdown_ros
-from physics_mapper.search.branch_and_bound import SearchResult
+from physics_mapper.search.results import SearchResult
 
 #: Seconds between two /diagnostics messages unless ``diagnostics_period`` says otherwise (the ~1 Hz convention).
 DEFAULT_DIAGNOSTICS_PERIOD = 1.0
@@ -96,7 +96,7 @@ DEFAULT_DIAGNOSTICS_PERIOD = 1.0
 class ParameterSpec:
     """A node parameter: ``default`` None means the scene file's ``search:`` value; ``limits`` inclusive.
 
-    The search parameters' limits are the scene model's (:data:`~physics_mapper.scene.SEARCH_LIMITS`).
+    The search parameters' limits are the scene model's (:data:`~physics_mapper.model.scene.SEARCH_LIMITS`).
     A ``read_only`` parameter is read once, at start-up.
     """
 
@@ -440,7 +440,7 @@ class PhysicsMapperNode(Node):
         )
 
     def _publish_map(self, report: TickReport) -> None:
-        """Outputs carry the newest input stamp used (SPEC section 4)."""
+        """Outputs carry the newest input stamp used."""
         result, scene = report.result, self.mapper.scene
         stamp_ns = report.snapshot.stamp_ns
         if result is None or stamp_ns is None:

@@ -1,4 +1,4 @@
-"""Best-first branch and bound over configurations (paper Algorithm 1, SPEC section 2), and the search entry points.
+"""Best-first branch and bound over configurations (paper Algorithm 1), and the search entry points.
 
 A configuration picks one hypothesis per object and is written as its *code*, the
 1-based ranks in object order: ``(2, 1, 1)`` is the paper's C211. Its probability is
@@ -39,169 +39,28 @@ import heapq
 import math
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass, fields, replace
-from typing import TYPE_CHECKING, Literal, NamedTuple, Protocol
+from dataclasses import replace
+from typing import TYPE_CHECKING, NamedTuple, Protocol
 
 import numpy as np
 
 from physics_mapper.model.geometry import Pose
 from physics_mapper.model.hypotheses import RankedHypotheses
-from physics_mapper.model.scene import Fallback, SearchParams
+from physics_mapper.model.scene import SearchParams
 from physics_mapper.physics.checker import PhysicsChecker
 from physics_mapper.physics.collision import Collision
 from physics_mapper.physics.refine import RefinedMap, Refinement, refinement_start
-from physics_mapper.physics.settling import EarlyExit, PartialSettling, SettleStop, Settling
+from physics_mapper.physics.settling import EarlyExit, PartialSettling, Settling
 from physics_mapper.physics.world import TIME_STEP
+from physics_mapper.search.results import Candidate, Code, GroupResult, SearchResult, SearchStats, TraceEntry
 
 if TYPE_CHECKING:
     from physics_mapper.physics.collision_table import CollisionTable
 
-Code = tuple[int, ...]
-Outcome = Literal["collision", "unstable", "valid"]
-#: How a search that emptied its queue ended: ``exhausted`` (every configuration visited), ``bounded``
-#: (configurations below the bound were never queued) or ``truncated`` (the queue limit dropped nodes).
-SearchEnd = Literal["exhausted", "bounded", "truncated"]
 
 #: An object is at rest while its jitter rate (m/s, |v| + angular_weight * |omega|) would add at most
 #: this share of ``jitter_threshold`` over a whole ``settle_time``.
 REST_SHARE = 0.05
-
-
-@dataclass(frozen=True, slots=True)
-class TraceEntry:
-    """One visited node: its code, p(C), outcome and evidence (paper Fig. 4).
-
-    ``bounded`` is true when the node is below the bound, so it was checked but not expanded.
-    For ``collision``: ``pair`` and penetration ``depth`` (m). For ``unstable``:
-    ``moved`` (the object with the largest J_i) and ``jitter`` (J). For ``valid``: ``jitter``.
-    ``parent`` is the node whose expansion first queued this one (None for the root).
-    ``group`` is the interaction group's id when the code covers that group's objects only
-    (None: every object). ``settle_stop`` says why the settling stopped early (``rest`` or
-    ``beyond_threshold``: the jitter is then the one at that moment) after ``settled_time``
-    simulated seconds (both None for a settling of the whole ``settle_time``).
-    """
-
-    code: Code
-    probability: float
-    outcome: Outcome
-    bounded: bool
-    pair: tuple[str, str] | None = None
-    depth: float | None = None
-    moved: str | None = None
-    jitter: float | None = None
-    parent: Code | None = None
-    group: int | None = None
-    settle_stop: SettleStop | None = None
-    settled_time: float | None = None
-
-
-@dataclass
-class SearchStats:
-    """Counters and timing of a search, accumulated over resumed runs.
-
-    ``end`` is None while nodes are queued (``queued`` of them when the result was made);
-    ``dropped`` counts queued nodes the queue limit threw away, ``untraced`` visits the trace
-    limit left out. ``settle_steps`` are the simulation steps run, ``settle_steps_saved`` those
-    early exits spared, ``memo_hits`` settlings reused, ``merges`` escape-guard merges.
-    """
-
-    visited: int = 0
-    expanded: int = 0
-    bounded: int = 0
-    collisions: int = 0
-    unstable: int = 0
-    valid: int = 0
-    search_time: float = 0.0  # seconds of wall-clock time spent searching
-    stopped_at_deadline: bool = False
-    end: SearchEnd | None = None
-    queued: int = 0
-    dropped: int = 0
-    untraced: int = 0
-    settle_steps: int = 0
-    settle_steps_saved: int = 0
-    memo_hits: int = 0
-    merges: int = 0
-
-    @property
-    def exhausted(self) -> bool:
-        """Every configuration was visited: the result is the best of all of them."""
-        return self.end == "exhausted"
-
-    @property
-    def finished(self) -> bool:
-        """The queue emptied (``end`` is set): running longer would change nothing."""
-        return self.end is not None
-
-    @property
-    def configurations_per_second(self) -> float:
-        return self.visited / self.search_time if self.search_time > 0.0 else 0.0
-
-    def add(self, other: SearchStats) -> None:
-        """Add ``other``'s counters (not its time nor how it ended) to these."""
-        for name in _COUNTERS:
-            setattr(self, name, getattr(self, name) + getattr(other, name))
-
-
-#: The fields of :class:`SearchStats` that count something (added up over groups).
-_COUNTERS = tuple(f.name for f in fields(SearchStats) if f.type == "int")
-
-
-@dataclass(frozen=True)
-class Candidate:
-    """A checked, collision-free configuration with its settling."""
-
-    code: Code
-    probability: float
-    settling: Settling
-
-
-@dataclass(frozen=True)
-class GroupResult:
-    """One interaction group's part of a result: its objects (scene indices), best so far and progress.
-
-    ``id`` is the group's id in the trace (None for a search over every object), ``code`` the
-    group's ranks (its objects' order), ``valid`` whether that sub-configuration passed both rules.
-    ``kept`` says the group's search was carried over unchanged from the previous search.
-    """
-
-    id: int | None
-    objects: tuple[int, ...]
-    valid: bool
-    code: Code | None
-    probability: float | None
-    jitter: float | None
-    visited: int
-    end: SearchEnd | None
-    kept: bool = False
-
-
-@dataclass(frozen=True)
-class SearchResult:
-    """Best configuration found so far.
-
-    ``valid`` says whether ``code`` passed both rules. When no configuration is valid,
-    ``code`` is the fallback's (the collision-free one of highest p(C), when the fallback
-    is ``settled``; the root, when it is ``refine``) or None; ``poses`` are the chosen
-    hypotheses, ``settled_poses`` the same objects after settling (for ``refine``: the refined
-    map), ``object_jitters`` each object's J_i (their sum is ``jitter``). ``fallback`` names the
-    fallback that gave the map (None for a valid one or none), and ``refinement`` tells how the
-    refined map was made. ``groups`` are the interaction groups searched (one, with every
-    object, for a joint search).
-    """
-
-    valid: bool
-    code: Code | None
-    probability: float | None
-    jitter: float | None
-    poses: tuple[Pose, ...] | None
-    settled_poses: tuple[Pose, ...] | None
-    object_jitters: tuple[float, ...] | None
-    fallback_used: bool
-    stats: SearchStats
-    trace: tuple[TraceEntry, ...]
-    fallback: Fallback | None = None
-    refinement: RefinedMap | None = None
-    groups: tuple[GroupResult, ...] = ()
 
 
 def _tie_key(probability: float) -> float:
@@ -232,6 +91,11 @@ def early_exit_rule(params: SearchParams, complete: bool) -> EarlyExit | None:
 
 class BranchAndBound:
     """Anytime best-first search; :meth:`run` may be called again to resume it.
+
+    Extension surface: a search over part of a scene (one interaction group) specialises how a
+    node is settled and what is done with results by overriding :meth:`settle_node`,
+    :meth:`on_settled` and :meth:`record`, and asks for reach tracking with :attr:`tracks_reach`.
+    Everything else (queue, bound, tie rule, trace order) stays the paper's.
 
     The physics checker must hold the same scene the hypotheses are for. ``objects`` are the scene
     indices the hypotheses belong to (default: every object, in order); codes then rank those objects
@@ -422,7 +286,7 @@ class BranchAndBound:
         else:
             entry = self._judge(Candidate(code, probability, check), bounded)
         entry = replace(entry, parent=item.parent, group=self.trace_group)
-        self._record(entry)
+        self.record(entry)
         if not bounded:
             for child in self._children(code):
                 self._push(child, code)
@@ -435,13 +299,13 @@ class BranchAndBound:
         if interrupted is not None and interrupted[0] == code:
             outcome = self.checker.resume_settling(interrupted[1], stop_at)
             if isinstance(outcome, Settling):
-                self._settled(code, outcome)
+                self.on_settled(code, outcome)
             return outcome
         poses = self.poses(code)
         collision = self._rule1(code, poses)
         if collision is not None:
             return collision
-        return self._settle(code, poses, stop_at)
+        return self.settle_node(code, poses, stop_at)
 
     def _rule1(self, code: Code, poses: tuple[Pose, ...]) -> Collision | None:
         threshold = self.params.penetration_threshold
@@ -450,15 +314,20 @@ class BranchAndBound:
         return self.checker.find_collision(poses, threshold)
 
     @property
-    def _settling_completely(self) -> bool:
+    def settling_completely(self) -> bool:
         """Whether the next settling must not stop beyond the threshold: it is the first collision-free
         node's, which the ``settled`` fallback reports."""
         return self._first_collision_free is None and self.params.fallback == "settled"
 
-    def _settle(self, code: Code, poses: tuple[Pose, ...], stop_at: float | None) -> Settling | PartialSettling:
-        """Rule 2 of one node (settled completely when a fallback may report it)."""
+    def settle_node(self, code: Code, poses: tuple[Pose, ...], stop_at: float | None) -> Settling | PartialSettling:
+        """Rule 2 of one collision-free node at ``poses``, interrupted at ``stop_at`` (extension point).
+
+        Settles completely (:attr:`settling_completely`) when a fallback may report it, and calls
+        :meth:`on_settled` for a settling the engine finished. An override may serve a settling it
+        already knows instead (a memo), without calling :meth:`on_settled`.
+        """
         params = self.params
-        early_exit = early_exit_rule(params, complete=self._settling_completely)
+        early_exit = early_exit_rule(params, complete=self.settling_completely)
         outcome = self.checker.settle(
             poses,
             params.settle_time,
@@ -466,17 +335,17 @@ class BranchAndBound:
             stop_at,
             objects=self.objects,
             early_exit=early_exit,
-            track_reach=self._track_reach,
+            track_reach=self.tracks_reach,
         )
         if isinstance(outcome, Settling):
-            self._settled(code, outcome)
+            self.on_settled(code, outcome)
         return outcome
 
     #: Whether settlings record where objects went (the grouped search's escape guard needs it).
-    _track_reach = False
+    tracks_reach = False
 
-    def _settled(self, code: Code, settling: Settling) -> None:
-        """Called once per settling the engine finished (not for one a memo provided)."""
+    def on_settled(self, code: Code, settling: Settling) -> None:
+        """Called once per settling the engine finished (extension point; overrides call this one)."""
         self.stats.settle_steps += settling.steps
         self.stats.settle_steps_saved += settling.steps_total - settling.steps
 
@@ -497,15 +366,17 @@ class BranchAndBound:
             return entry
         return replace(entry, settle_stop=settling.stopped, settled_time=settling.steps * TIME_STEP)
 
-    def _record(self, entry: TraceEntry) -> None:
+    def record(self, entry: TraceEntry) -> None:
+        """Keep a visited node's trace entry (up to ``trace_limit``) and :meth:`count` it (extension point)."""
         limit = self.params.trace_limit
         if limit is None or len(self._trace) < limit:
             self._trace.append(entry)
         else:
             self.stats.untraced += 1
-        self._count(entry)
+        self.count(entry)
 
-    def _count(self, entry: TraceEntry) -> None:
+    def count(self, entry: TraceEntry) -> None:
+        """Add a visited node's outcome to :attr:`stats`."""
         stats = self.stats
         stats.visited += 1
         stats.bounded += entry.bounded

@@ -1,4 +1,4 @@
-"""The paper's Algorithm 1 per interaction group, under one shared deadline (issue 8, SPEC section 8).
+"""The paper's Algorithm 1 per interaction group, under one shared deadline.
 
 Objects of different interaction groups (:mod:`physics_mapper.search.groups`) never influence each
 other's Rule 1 or Rule 2 outcomes, so each group is searched on its own, by :class:`GroupSearch`:
@@ -46,18 +46,9 @@ from physics_mapper.physics.checker import PhysicsChecker
 from physics_mapper.physics.collision_table import CollisionTable
 from physics_mapper.physics.refine import RefinedMap
 from physics_mapper.physics.settling import PartialSettling, SettleStop, Settling
-from physics_mapper.search.branch_and_bound import (
-    BranchAndBound,
-    Code,
-    Search,
-    SearchEnd,
-    SearchResult,
-    SearchStats,
-    TraceEntry,
-    continuable,
-    resumable,
-)
+from physics_mapper.search.branch_and_bound import BranchAndBound, Search, continuable, resumable
 from physics_mapper.search.groups import Grouping, interaction_groups
+from physics_mapper.search.results import Code, SearchEnd, SearchResult, SearchStats, TraceEntry
 
 #: Settlings a grouped search remembers (each group an equal share), a few hundred bytes each.
 SETTLE_MEMO_LIMIT = 5_000
@@ -133,7 +124,7 @@ class SettleMemo:
 class GroupSearch(BranchAndBound):
     """Algorithm 1 on one interaction group of a :class:`GroupedSearch` (codes rank its objects only)."""
 
-    _track_reach = True
+    tracks_reach = True
 
     def __init__(self, owner: GroupedSearch, group_id: int, objects: tuple[int, ...], memo: SettleMemo) -> None:
         hypotheses = tuple(owner.hypotheses[i] for i in objects)
@@ -145,15 +136,15 @@ class GroupSearch(BranchAndBound):
         # Trace entries name the group unless it holds every object (then its codes are whole codes).
         self.trace_group = None if objects == owner.checker.all_objects else group_id
 
-    def _settle(self, code: Code, poses: tuple[Pose, ...], stop_at: float | None) -> Settling | PartialSettling:
-        memoised = self.memo.get(code, complete=self._settling_completely)
+    def settle_node(self, code: Code, poses: tuple[Pose, ...], stop_at: float | None) -> Settling | PartialSettling:
+        memoised = self.memo.get(code, complete=self.settling_completely)
         if memoised is not None:
             self.stats.memo_hits += 1
             return memoised
-        return super()._settle(code, poses, stop_at)
+        return super().settle_node(code, poses, stop_at)
 
-    def _settled(self, code: Code, settling: Settling) -> None:
-        super()._settled(code, settling)
+    def on_settled(self, code: Code, settling: Settling) -> None:
+        super().on_settled(code, settling)
         self._guard(code, settling)
         self.memo.put(code, settling)
 
@@ -175,9 +166,9 @@ class GroupSearch(BranchAndBound):
         if intruded:
             raise Escape(tuple(sorted(intruded)))
 
-    def _record(self, entry: TraceEntry) -> None:
+    def record(self, entry: TraceEntry) -> None:
         self.owner.record(entry)
-        self._count(entry)
+        self.count(entry)
 
 
 class GroupedSearch:
@@ -212,7 +203,7 @@ class GroupedSearch:
             [] if previous is None else [link for link in previous.links if all(unchanged[i] for i in link)]
         )
         self.grouping: Grouping = interaction_groups(checker.scene, hypotheses, params.interaction_margin, self.links)
-        self._next_id: int = 0 if previous is None else previous._next_id
+        self._next_id: int = 0 if previous is None else previous.next_group_id
         self._groups: dict[int, GroupSearch] = {}
         self._trace: list[TraceEntry] = []
         self._untraced = 0
@@ -221,7 +212,7 @@ class GroupedSearch:
         self._stopped_at_deadline = False
         self._schedule: list[tuple[tuple[int, int, float, int], int]] = []
         self._keys: dict[int, tuple[int, int, float, int]] = {}
-        earlier = {} if previous is None else {group.objects: group for group in previous._groups.values()}
+        earlier = {} if previous is None else {group.objects: group for group in previous.groups()}
         for objects in self.grouping.groups:
             old = earlier.get(objects)
             same = old is not None and all(unchanged[i] for i in objects)
@@ -232,7 +223,7 @@ class GroupedSearch:
                 self._add(objects, memo)
         if previous is not None:
             kept = {group.trace_group for group in self._groups.values() if group.kept}
-            self._trace = [entry for entry in previous._trace if entry.group in kept]
+            self._trace = [entry for entry in previous.trace if entry.group in kept]
         self._share_limits()
 
     @classmethod
@@ -250,7 +241,7 @@ class GroupedSearch:
             return cls(checker, hypotheses, params)
         if resumable(previous, checker, hypotheses, params):
             previous.params = params
-            for group in previous._groups.values():
+            for group in previous.groups():
                 group.params = params
                 group.kept = True
             return previous
@@ -388,6 +379,16 @@ class GroupedSearch:
         return self.result()
 
     # --- results --------------------------------------------------------------------------------------
+
+    @property
+    def next_group_id(self) -> int:
+        """The id the next new group gets (ids are never reused, so trace entries stay unambiguous)."""
+        return self._next_id
+
+    @property
+    def trace(self) -> tuple[TraceEntry, ...]:
+        """Every group's trace entries, in visiting order."""
+        return tuple(self._trace)
 
     def groups(self) -> list[GroupSearch]:
         """The current groups, in order of their first object."""

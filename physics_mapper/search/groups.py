@@ -1,4 +1,4 @@
-"""Interaction groups: which objects can influence each other's Rule 1 and Rule 2 outcomes (issue 8).
+"""Interaction groups: which objects can influence each other's Rule 1 and Rule 2 outcomes.
 
 The rule. Object i's *volume* is the union, over its hypotheses h, of the axis-aligned cube centred on
 h's position with half-edge

@@ -8,7 +8,7 @@ from typing import Any
 from physics_mapper.model.geometry import Pose
 from physics_mapper.model.scene import Fallback
 from physics_mapper.physics.refine import OVERLAP_TOLERANCE, RefinedMap
-from physics_mapper.search.branch_and_bound import Code, GroupResult, SearchResult, SearchStats, TraceEntry
+from physics_mapper.search.results import Code, GroupResult, SearchResult, SearchStats, TraceEntry
 
 
 def code_text(code: Code | None) -> str:
@@ -78,7 +78,7 @@ def group_dict(group: GroupResult, names: tuple[str, ...]) -> dict[str, Any]:
 
 
 def result_dict(result: SearchResult, names: tuple[str, ...]) -> dict[str, Any]:
-    """Machine-readable result (SPEC section 5): poses keyed by object name."""
+    """Machine-readable result: poses keyed by object name."""
     return {
         "valid": result.valid,
         "code": None if result.code is None else list(result.code),

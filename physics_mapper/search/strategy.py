@@ -12,8 +12,9 @@ from physics_mapper.model.hypotheses import RankedHypotheses
 from physics_mapper.model.scene import SearchParams
 from physics_mapper.physics.checker import PhysicsChecker
 from physics_mapper.physics.refine import load_solver
-from physics_mapper.search.branch_and_bound import BranchAndBound, Search, SearchResult, resumable
+from physics_mapper.search.branch_and_bound import BranchAndBound, Search, resumable
 from physics_mapper.search.grouped import GroupedSearch
+from physics_mapper.search.results import SearchResult
 
 
 def make_search(

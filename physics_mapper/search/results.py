@@ -1,0 +1,158 @@
+"""What a search returns: configuration codes, trace entries (the paper's Fig. 4), statistics, results.
+
+A configuration picks one hypothesis per object and is written as its *code*, the 1-based ranks
+in object order: ``(2, 1, 1)`` is the paper's C211.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields
+from typing import Literal
+
+from physics_mapper.model.geometry import Pose
+from physics_mapper.model.scene import Fallback
+from physics_mapper.physics.refine import RefinedMap
+from physics_mapper.physics.settling import SettleStop, Settling
+
+Code = tuple[int, ...]
+Outcome = Literal["collision", "unstable", "valid"]
+#: How a search that emptied its queue ended: ``exhausted`` (every configuration visited), ``bounded``
+#: (configurations below the bound were never queued) or ``truncated`` (the queue limit dropped nodes).
+SearchEnd = Literal["exhausted", "bounded", "truncated"]
+
+
+@dataclass(frozen=True, slots=True)
+class TraceEntry:
+    """One visited node: its code, p(C), outcome and evidence (paper Fig. 4).
+
+    ``bounded`` is true when the node is below the bound, so it was checked but not expanded.
+    For ``collision``: ``pair`` and penetration ``depth`` (m). For ``unstable``:
+    ``moved`` (the object with the largest J_i) and ``jitter`` (J). For ``valid``: ``jitter``.
+    ``parent`` is the node whose expansion first queued this one (None for the root).
+    ``group`` is the interaction group's id when the code covers that group's objects only
+    (None: every object). ``settle_stop`` says why the settling stopped early (``rest`` or
+    ``beyond_threshold``: the jitter is then the one at that moment) after ``settled_time``
+    simulated seconds (both None for a settling of the whole ``settle_time``).
+    """
+
+    code: Code
+    probability: float
+    outcome: Outcome
+    bounded: bool
+    pair: tuple[str, str] | None = None
+    depth: float | None = None
+    moved: str | None = None
+    jitter: float | None = None
+    parent: Code | None = None
+    group: int | None = None
+    settle_stop: SettleStop | None = None
+    settled_time: float | None = None
+
+
+@dataclass
+class SearchStats:
+    """Counters and timing of a search, accumulated over resumed runs.
+
+    ``end`` is None while nodes are queued (``queued`` of them when the result was made);
+    ``dropped`` counts queued nodes the queue limit threw away, ``untraced`` visits the trace
+    limit left out. ``settle_steps`` are the simulation steps run, ``settle_steps_saved`` those
+    early exits spared, ``memo_hits`` settlings reused, ``merges`` escape-guard merges.
+    """
+
+    visited: int = 0
+    expanded: int = 0
+    bounded: int = 0
+    collisions: int = 0
+    unstable: int = 0
+    valid: int = 0
+    search_time: float = 0.0  # seconds of wall-clock time spent searching
+    stopped_at_deadline: bool = False
+    end: SearchEnd | None = None
+    queued: int = 0
+    dropped: int = 0
+    untraced: int = 0
+    settle_steps: int = 0
+    settle_steps_saved: int = 0
+    memo_hits: int = 0
+    merges: int = 0
+
+    @property
+    def exhausted(self) -> bool:
+        """Every configuration was visited: the result is the best of all of them."""
+        return self.end == "exhausted"
+
+    @property
+    def finished(self) -> bool:
+        """The queue emptied (``end`` is set): running longer would change nothing."""
+        return self.end is not None
+
+    @property
+    def configurations_per_second(self) -> float:
+        return self.visited / self.search_time if self.search_time > 0.0 else 0.0
+
+    def add(self, other: SearchStats) -> None:
+        """Add ``other``'s counters (not its time nor how it ended) to these."""
+        for name in _COUNTERS:
+            setattr(self, name, getattr(self, name) + getattr(other, name))
+
+
+#: The fields of :class:`SearchStats` that count something (added up over groups).
+_COUNTERS = tuple(f.name for f in fields(SearchStats) if f.type == "int")
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """A checked, collision-free configuration with its settling."""
+
+    code: Code
+    probability: float
+    settling: Settling
+
+
+@dataclass(frozen=True)
+class GroupResult:
+    """One interaction group's part of a result: its objects (scene indices), best so far and progress.
+
+    ``id`` is the group's id in the trace (None for a search over every object), ``code`` the
+    group's ranks (its objects' order), ``valid`` whether that sub-configuration passed both rules.
+    ``kept`` says the group's search was carried over unchanged from the previous search.
+    """
+
+    id: int | None
+    objects: tuple[int, ...]
+    valid: bool
+    code: Code | None
+    probability: float | None
+    jitter: float | None
+    visited: int
+    end: SearchEnd | None
+    kept: bool = False
+
+
+@dataclass(frozen=True)
+class SearchResult:
+    """Best configuration found so far.
+
+    ``valid`` says whether ``code`` passed both rules. When no configuration is valid,
+    ``code`` is the fallback's (the collision-free one of highest p(C), when the fallback
+    is ``settled``; the root, when it is ``refine``) or None; ``poses`` are the chosen
+    hypotheses, ``settled_poses`` the same objects after settling (for ``refine``: the refined
+    map), ``object_jitters`` each object's J_i (their sum is ``jitter``). ``fallback`` names the
+    fallback that gave the map (None for a valid one or none), and ``refinement`` tells how the
+    refined map was made. ``groups`` are the interaction groups searched (one, with every
+    object, for a joint search).
+    """
+
+    valid: bool
+    code: Code | None
+    probability: float | None
+    jitter: float | None
+    poses: tuple[Pose, ...] | None
+    settled_poses: tuple[Pose, ...] | None
+    object_jitters: tuple[float, ...] | None
+    fallback_used: bool
+    stats: SearchStats
+    trace: tuple[TraceEntry, ...]
+    fallback: Fallback | None = None
+    refinement: RefinedMap | None = None
+    groups: tuple[GroupResult, ...] = ()
