@@ -399,7 +399,7 @@ def test_offline_output_path_is_checked_before_searching(tmp_path: Path, capsys:
         (["--offline", "--all-topics"], "--topics and --all-topics are for a live replay"),
         (["--offline", "--topics", "/clock"], "--topics and --all-topics are for a live replay"),
         (["--rate", "0"], "--rate must be positive"),
-        (["--offline", "--deadline", "0"], "--deadline must be positive"),
+        (["--offline", "--deadline", "0"], "--deadline: deadline must be positive"),
         (["--namespace", "no_slash"], "--namespace: Invalid namespace: namespace must be absolute"),
     ],
 )

@@ -141,7 +141,7 @@ def test_tiny_deadline_stops_the_search_and_says_so() -> None:
     ("args", "message"),
     [
         (("--deadline", "0"), "error: --deadline: deadline must be positive, got 0"),
-        (("--deadline", "-1"), "error: --deadline: deadline must be positive, got -1"),
+        (("--deadline", "-1"), "error: --deadline: deadline: must be at least 0, got -1"),
         (("--deadline", "soon"), "error: argument --deadline: invalid float value: 'soon'"),
     ],
 )

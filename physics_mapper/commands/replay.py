@@ -121,13 +121,13 @@ def run(args: argparse.Namespace) -> int:
 def _offline(args: argparse.Namespace, scene: Scene, snapshots: Sequence[BagSnapshot]) -> list[SnapshotResult]:
     from physics_mapper.bags.storage import BagWriter
     from physics_mapper.evaluation.snapshot_results import search_offline, write_results
+    from physics_mapper.model.scene_files import search_with_overrides
     from physics_mapper.search.report import code_text
     from physics_mapper.search.results import SearchResult
 
     if args.deadline is not None:
-        if not args.deadline > 0.0:
-            raise InputError(f"--deadline must be positive, got {args.deadline}")
-        scene = replace(scene, search=replace(scene.search, deadline=args.deadline))
+        search = search_with_overrides(scene.search, {"deadline": args.deadline}, "--deadline", key="")
+        scene = replace(scene, search=search)
     budget = None if args.exhaustive else scene.search.deadline
 
     def progress(index: int, result: SearchResult) -> None:

@@ -8,8 +8,7 @@ from dataclasses import replace
 from pathlib import Path
 
 from physics_mapper.commands.files import check_output_folder, load_problem_file, write_output
-from physics_mapper.model.errors import InputError
-from physics_mapper.model.scene import search_params_problem
+from physics_mapper.model.scene_files import search_with_overrides
 from physics_mapper.physics.checker import PhysicsChecker
 from physics_mapper.search.report import result_dict, result_summary, trace_entry_dict, trace_tree
 from physics_mapper.search.strategy import solve
@@ -33,10 +32,7 @@ def run(args: argparse.Namespace) -> int:
     problem = load_problem_file(args.problem, "solve")
     params = problem.scene.search
     if args.deadline is not None:
-        params = replace(params, deadline=args.deadline)
-        problem_text = search_params_problem(params)
-        if problem_text is not None:
-            raise InputError(f"--deadline: {problem_text}")
+        params = search_with_overrides(params, {"deadline": args.deadline}, "--deadline", key="")
     with PhysicsChecker(problem.scene) as checker:
         result = solve(checker, problem.hypotheses, replace(params, trace_limit=None))  # the whole trace
     if args.trace is not None:

@@ -10,9 +10,10 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from functools import cached_property
 from pathlib import Path
+from types import MappingProxyType
 from typing import Literal, assert_never
 
 from physics_mapper.model.geometry import ORIGIN, Pose, Vector3
@@ -192,44 +193,74 @@ class ObjectModel:
     rolling_friction: float = 0.0
 
 
+def _doc(text: str) -> MappingProxyType[str, str]:
+    """A dataclass field's metadata holding its description."""
+    return MappingProxyType({"doc": text})
+
+
 @dataclass(frozen=True)
 class SearchParams:
-    """Thresholds and budgets of the search.
+    """Thresholds and budgets of the search; each field's meaning and unit is :func:`search_parameter_doc`'s.
 
-    probability_threshold: T; nodes with p(C) < T are not expanded.
-    penetration_threshold: deepest allowed overlap between two bodies, metres.
-    jitter_threshold: largest allowed per-object jitter J_i (metres + weighted radians).
-    angular_weight: metres per radian of rotation in J_i.
-    settle_time: simulated seconds under gravity for the stability test.
-    deadline: wall-clock seconds a search may run.
-    fallback: what to report when no configuration is valid.
-    refine_max_speed: ``fallback: refine``'s speed cap, m/s: depenetration moves an object at most
-        ``refine_max_speed * TIME_STEP`` metres per iteration, and its settling caps linear speeds.
-    refine_mean_radius: ``fallback: refine`` starts each object at the weighted mean position of its
-        hypotheses within this many metres of its most likely one (0: at the most likely one).
-    strategy: one search over all objects (``joint``) or one per interaction group (``grouped``).
-    bound: whether T bounds p(C) itself (``absolute``) or p(C) / p(root) of the group (``relative``).
-    settle_exit: whether a settling may stop early (``early``) or always runs settle_time (``full``).
-    interaction_margin: metres added around every object's bounding ball when grouping objects.
-    queue_limit: nodes the search's queues hold at most (each group an equal share).
-    trace_limit: trace entries kept at most (None: all); later visits are counted, not recorded.
+    Scene files set them under ``search:``, the node declares each as a ROS parameter, and
+    ``--set``/``--grid`` and ``solve --deadline`` override them, all through
+    :func:`~physics_mapper.model.scene_files.search_with_overrides` within :data:`SEARCH_LIMITS`.
     """
 
-    probability_threshold: float = 0.0002
-    penetration_threshold: float = 0.005
-    jitter_threshold: float = 0.01
-    angular_weight: float = 0.1
-    settle_time: float = 0.5
-    deadline: float = 0.2
-    fallback: Fallback = "none"
-    refine_max_speed: float = 1.0
-    refine_mean_radius: float = 0.1
-    strategy: Strategy = "grouped"
-    bound: Bound = "relative"
-    settle_exit: SettleExit = "early"
-    interaction_margin: float = 0.02
-    queue_limit: int = 20_000
-    trace_limit: int | None = 5_000
+    probability_threshold: float = field(
+        default=0.0002, metadata=_doc("T: nodes with p(C) < T are checked, not expanded")
+    )
+    penetration_threshold: float = field(default=0.005, metadata=_doc("deepest allowed overlap of two bodies, metres"))
+    jitter_threshold: float = field(
+        default=0.01, metadata=_doc("largest per-object jitter J_i of a stable object, metres + weighted radians")
+    )
+    angular_weight: float = field(default=0.1, metadata=_doc("metres per radian of rotation in the jitter J_i"))
+    settle_time: float = field(default=0.5, metadata=_doc("simulated seconds under gravity for the stability test"))
+    deadline: float = field(
+        default=0.2, metadata=_doc("wall-clock seconds a search may run (the node: per tick, below 1/rate_hz)")
+    )
+    fallback: Fallback = field(
+        default="none", metadata=_doc(f"what is reported when no configuration is valid: {', '.join(FALLBACKS)}")
+    )
+    refine_max_speed: float = field(
+        default=1.0,
+        metadata=_doc(
+            "fallback refine's speed cap, m/s: depenetration moves an object at most refine_max_speed * TIME_STEP "
+            "metres per iteration, and its settling caps linear speeds"
+        ),
+    )
+    refine_mean_radius: float = field(
+        default=0.1,
+        metadata=_doc(
+            "fallback refine starts each object at the weighted mean position of its hypotheses within this many "
+            "metres of its most likely one (0: at the most likely one)"
+        ),
+    )
+    strategy: Strategy = field(
+        default="grouped",
+        metadata=_doc(f"{' or '.join(STRATEGIES)}: one search per interaction group, or the paper's single search"),
+    )
+    bound: Bound = field(
+        default="relative", metadata=_doc(f"{' or '.join(BOUNDS)}: T bounds p(C) / p(group root), or p(C) itself")
+    )
+    settle_exit: SettleExit = field(
+        default="early",
+        metadata=_doc(f"{' or '.join(SETTLE_EXITS)}: settlings may stop at rest or once unstable, or never early"),
+    )
+    interaction_margin: float = field(
+        default=0.02, metadata=_doc("metres added around every object's bounding ball when grouping objects")
+    )
+    queue_limit: int = field(
+        default=20_000, metadata=_doc("nodes the search's queues hold at most (each group an equal share)")
+    )
+    trace_limit: int | None = field(
+        default=5_000, metadata=_doc("trace entries kept at most (None: all); later visits are counted, not recorded")
+    )
+
+
+def search_parameter_doc(name: str) -> str:
+    """What search parameter ``name`` means, with its unit (a field of :class:`SearchParams`)."""
+    return str(next(f for f in fields(SearchParams) if f.name == name).metadata["doc"])
 
 
 @dataclass(frozen=True)

@@ -327,16 +327,17 @@ def _read_search(reader: _Reader, value: Any, key: str) -> SearchParams:
     for name in names:
         if name not in data:
             continue
+        at = f"{key}.{name}" if key else name
         if name in SEARCH_CHOICES:
             if data[name] not in SEARCH_CHOICES[name]:
                 choices = ", ".join(SEARCH_CHOICES[name])
-                raise reader.fail(f"{key}.{name}", f"must be one of {choices}, got {_show(data[name])}")
+                raise reader.fail(at, f"must be one of {choices}, got {_show(data[name])}")
             values[name] = data[name]
         else:
-            values[name] = reader.number(data[name], f"{key}.{name}", minimum=0.0)
+            values[name] = reader.number(data[name], at, minimum=0.0)
             if name in SEARCH_INTEGERS:
                 if not values[name].is_integer():
-                    raise reader.fail(f"{key}.{name}", f"must be a whole number, got {values[name]:g}")
+                    raise reader.fail(at, f"must be a whole number, got {values[name]:g}")
                 values[name] = int(values[name])
     params = replace(SearchParams(), **values)
     problem = search_params_problem(params)
@@ -362,7 +363,12 @@ def search_with_overrides(
     params: SearchParams, overrides: Mapping[str, Any], source: str, key: str = "search"
 ) -> SearchParams:
     """``params`` with ``overrides`` (name -> value as YAML gives it) merged over them, validated as a
-    scene file's ``search:`` section is; raises :class:`SceneError` naming ``source`` and ``key.name``."""
+    scene file's ``search:`` section is; raises :class:`SceneError` naming ``source`` and ``key.name``
+    (``name`` alone for an empty ``key``).
+
+    The one way search parameters are overridden: by a problem file's ``search:``, ``solve
+    --deadline``, ``evaluate``/``sweep --set/--grid`` and the node's parameters.
+    """
     merged = {f.name: getattr(params, f.name) for f in fields(SearchParams)} | dict(overrides)
     return _read_search(_Reader(source), merged, key)
 

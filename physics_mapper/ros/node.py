@@ -28,7 +28,7 @@ from __future__ import annotations
 import sys
 import time
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from pathlib import Path
 from typing import Any, cast
 
@@ -71,19 +71,8 @@ from physics_mapper.mapping.topics import (
 )
 from physics_mapper.model.errors import EXIT_BAD_INPUT, InputError
 from physics_mapper.model.resources import ResourceError, resolve_resource
-from physics_mapper.model.scene import (
-    BOUNDS,
-    FALLBACKS,
-    SEARCH_LIMITS,
-    SETTLE_EXITS,
-    STRATEGIES,
-    Bound,
-    Fallback,
-    SearchParams,
-    SettleExit,
-    Strategy,
-)
-from physics_mapper.model.scene_files import SceneError, load_scene
+from physics_mapper.model.scene import SEARCH_LIMITS, SearchParams, search_parameter_doc
+from physics_mapper.model.scene_files import SceneError, load_scene, search_with_overrides
 from physics_mapper.ros.qos import DIAGNOSTICS_QOS, MAP_QOS, input_qos
 from physics_mapper.ros.spinning import STOP_POLL, SignalStop, shutdown_ros
 from physics_mapper.search.results import SearchResult
@@ -107,27 +96,17 @@ class ParameterSpec:
     read_only: bool = False
 
 
+#: The search parameters, each a node parameter of the same name.
+SEARCH_PARAMETER_NAMES = tuple(f.name for f in fields(SearchParams))
+
 #: Every parameter but ``scene_file``, in the order ``ros2 param list`` shows them. Add new ones here;
 #: :meth:`PhysicsMapperNode.parameter_values` reads them all, :meth:`PhysicsMapperNode.settings` uses them.
 PARAMETERS = (
     ParameterSpec(
         "rate_hz", "ticks per second; each tick snapshots the inputs and searches", DEFAULT_RATE_HZ, (0.01, 100.0)
     ),
-    ParameterSpec("deadline", "wall-clock seconds of search per tick; must be < 1/rate_hz", None),
-    ParameterSpec("probability_threshold", "T: nodes with p(C) < T are checked but not expanded"),
-    ParameterSpec("penetration_threshold", "deepest allowed overlap between two bodies, metres"),
-    ParameterSpec("jitter_threshold", "largest per-object jitter J_i of a stable object (m + weighted rad)"),
-    ParameterSpec("angular_weight", "metres per radian of rotation in the jitter J_i"),
-    ParameterSpec("settle_time", "simulated seconds under gravity for the stability test"),
-    ParameterSpec("fallback", f"when no configuration is valid: {', '.join(FALLBACKS)}", None),
-    ParameterSpec("refine_max_speed", "fallback refine: fastest an object moves while refined, m/s"),
-    ParameterSpec("refine_mean_radius", "fallback refine: start at the weighted mean of hypotheses this near, m"),
-    ParameterSpec("strategy", f"{' or '.join(STRATEGIES)}: one search per interaction group, or the paper's one"),
-    ParameterSpec("bound", f"{' or '.join(BOUNDS)}: T bounds p(C) / p(group root), or p(C) itself"),
-    ParameterSpec("settle_exit", f"{' or '.join(SETTLE_EXITS)}: settlings may stop at rest or once unstable"),
-    ParameterSpec("interaction_margin", "metres around each object's bounding ball when grouping objects"),
-    ParameterSpec("queue_limit", "nodes the search's queues hold at most (each group an equal share)"),
-    ParameterSpec("trace_limit", "trace entries the search keeps at most"),
+    # Every search parameter, described and bounded by the scene model; defaults from the scene file.
+    *(ParameterSpec(name, search_parameter_doc(name)) for name in SEARCH_PARAMETER_NAMES),
     ParameterSpec("max_hypotheses_per_object", "hypotheses kept per object (the heaviest)", 100, (1, 100000)),
     ParameterSpec("max_age", "seconds after which received hypotheses are stale", 10.0, (0.01, 86400.0)),
     ParameterSpec("require_weights", "refuse PoseArrays without a weights message instead of uniform weights", False),
@@ -264,24 +243,10 @@ class PhysicsMapperNode(Node):
 
     @staticmethod
     def settings(values: Mapping[str, Any]) -> MapperSettings:
-        """The mapper's settings from parameter values (:meth:`parameter_values`)."""
-        search = SearchParams(
-            probability_threshold=float(values["probability_threshold"]),
-            penetration_threshold=float(values["penetration_threshold"]),
-            jitter_threshold=float(values["jitter_threshold"]),
-            angular_weight=float(values["angular_weight"]),
-            settle_time=float(values["settle_time"]),
-            deadline=float(values["deadline"]),
-            fallback=cast(Fallback, str(values["fallback"])),
-            refine_max_speed=float(values["refine_max_speed"]),
-            refine_mean_radius=float(values["refine_mean_radius"]),
-            strategy=cast(Strategy, str(values["strategy"])),
-            bound=cast(Bound, str(values["bound"])),
-            settle_exit=cast(SettleExit, str(values["settle_exit"])),
-            interaction_margin=float(values["interaction_margin"]),
-            queue_limit=int(values["queue_limit"]),
-            trace_limit=int(values["trace_limit"]),
-        )
+        """The mapper's settings from parameter values (:meth:`parameter_values`); raises
+        :class:`SceneError` for search parameters a scene file could not hold either."""
+        overrides = {name: values[name] for name in SEARCH_PARAMETER_NAMES}
+        search = search_with_overrides(SearchParams(), overrides, "parameters", key="")
         inputs = InputSettings(
             max_age=float(values["max_age"]),
             max_hypotheses=int(values["max_hypotheses_per_object"]),
@@ -294,7 +259,11 @@ class PhysicsMapperNode(Node):
         reliability = values["input_reliability"]
         if reliability not in INPUT_RELIABILITIES:
             return f"input_reliability must be one of {', '.join(INPUT_RELIABILITIES)}, got {reliability!r}"
-        return mapper_settings_problem(self.settings(values))
+        try:
+            settings = self.settings(values)
+        except SceneError as error:
+            return f"{error.key} {error.problem}" if error.key else error.problem
+        return mapper_settings_problem(settings)
 
     def _on_set_parameters(self, parameters: list[Parameter]) -> SetParametersResult:
         """Refuse a change that leaves the combination of values invalid; accepted ones apply at the next tick."""
