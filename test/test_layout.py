@@ -20,7 +20,8 @@ from typing import Any
 import pytest
 from conftest import PROBLEMS, REPO
 
-#: Room -> the other rooms it may import from (``cli``: the top-level modules of ``physics_mapper``).
+#: Room -> the other rooms it may import from (``cli``: the top-level modules of ``physics_mapper``;
+#: ``api``: its ``__init__``, the public Python names).
 ALLOWED: dict[str, set[str]] = {
     "model": set(),
     "physics": {"model"},
@@ -47,6 +48,7 @@ ALLOWED: dict[str, set[str]] = {
         "ros",
     },
     "cli": {"model", "commands"},
+    "api": {"model", "physics", "search"},
 }
 #: Rooms that may import ROS: rclpy, message packages and the other ROS 2 Python packages.
 ROS_ROOMS = {"ros", "msg_adapters", "commands"}
@@ -64,6 +66,8 @@ def room_of(path: Path) -> str:
     parts = path.relative_to(REPO).parts
     if parts[0] == "msg_adapters":
         return "msg_adapters"
+    if parts[1:] == ("__init__.py",):
+        return "api"
     return parts[1] if len(parts) > 2 else "cli"
 
 
@@ -160,3 +164,20 @@ def test_ros_free_modules_and_solve_load_no_ros_module() -> None:
 def test_the_probe_sees_ros_modules_when_they_are_imported() -> None:
     report = probe((*ROS_FREE_MODULES, "rclpy", "geometry_msgs.msg"))
     assert {"rclpy", "geometry_msgs"} <= set(report["ros"])
+
+
+def test_the_allowed_room_graph_has_no_cycle() -> None:
+    """Data flows one way: no room may (through others) import a room that imports it."""
+    state: dict[str, str] = {}
+
+    def visit(room: str, path: tuple[str, ...]) -> None:
+        assert state.get(room) != "open", f"cycle: {' -> '.join((*path, room))}"
+        if state.get(room) == "done":
+            return
+        state[room] = "open"
+        for other in sorted(ALLOWED[room]):
+            visit(other, (*path, room))
+        state[room] = "done"
+
+    for room in sorted(ALLOWED):
+        visit(room, ())
