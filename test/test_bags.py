@@ -375,9 +375,9 @@ def test_a_corrupted_position_far_outside_the_workspace_is_not_searched(tmp_path
 def test_a_json_file_in_a_missing_folder_is_refused_before_replaying(capsys: pytest.CaptureFixture[str]) -> None:
     capsys.readouterr()
     arguments = ["replay", str(DATA / "pyramid"), "--scene", str(SCENES / "pyramid.yaml"), "--offline"]
-    assert main([*arguments, "--json", "/nonexistent/dir/x.json"]) == EXIT_BAD_INPUT
+    assert main([*arguments, "--json", "/dev/null/dir/x.json"]) == EXIT_BAD_INPUT
     captured = capsys.readouterr()
-    missing = "/nonexistent/dir/x.json: folder /nonexistent/dir does not exist"
+    missing = "/dev/null/dir/x.json: folder /dev/null/dir does not exist"
     assert captured.err == f"physics-mapper replay: error: cannot write {missing}\n"
 
 

@@ -155,7 +155,7 @@ def test_bad_deadline_exits_2_with_one_line(args: tuple[str, ...], message: str)
 @pytest.mark.parametrize(
     ("trace", "problem"),
     [
-        ("/nonexistent/dir/trace.json", "folder /nonexistent/dir does not exist"),  # refused before the search
+        ("/dev/null/dir/trace.json", "folder /dev/null/dir does not exist"),  # refused before the search
         (str(PROBLEMS), "Is a directory"),  # found when writing, after the search
     ],
 )

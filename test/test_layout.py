@@ -52,7 +52,9 @@ ALLOWED: dict[str, set[str]] = {
 }
 #: Rooms that may import ROS: rclpy, message packages and the other ROS 2 Python packages.
 ROS_ROOMS = {"ros", "msg_adapters", "commands"}
-ROS_PACKAGES = {"rclpy", "rmw", "rcl_interfaces", "builtin_interfaces", "ament_index_python"}
+#: ``ament_index_python`` is a pure-Python file lookup (no messages, no middleware): the model finds
+#: ``package://`` files with it, so it is not among them.
+ROS_PACKAGES = {"rclpy", "rmw", "rcl_interfaces", "builtin_interfaces"}
 SOURCES = sorted([*(REPO / "physics_mapper").rglob("*.py"), *(REPO / "msg_adapters").rglob("*.py")])
 
 

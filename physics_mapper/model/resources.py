@@ -1,10 +1,9 @@
-"""Files named by ``package://<package>/<path>`` URLs, found without ROS.
+"""Files named by ``package://<package>/<path>`` URLs, found with or without a ROS installation.
 
 ``package://<package>/<path>`` is ``<path>`` inside, in this order:
 
-1. the package's share directory in the ament index (each prefix of ``AMENT_PREFIX_PATH`` that
-   has ``share/ament_index/resource_index/packages/<package>``: what ``ament_index_python`` and
-   RViz's resource retriever look up);
+1. the package's share directory in the ament index (``ament_index_python``, over
+   ``AMENT_PREFIX_PATH``: what RViz's resource retriever looks up too);
 2. for ``physics_mapper`` itself, without an ament index (pip wheels only), this installation's
    shipped files (:func:`~physics_mapper.model.shipped.share_directory`: a source checkout, or
    ``<prefix>/share/physics_mapper`` of the prefix the package is installed in), which hold the
@@ -20,25 +19,16 @@ resolved absolute path otherwise (:func:`resource_uri`).
 from __future__ import annotations
 
 import importlib.util
-import os
 from pathlib import Path
 
 from physics_mapper.model.errors import InputError
-from physics_mapper.model.shipped import PACKAGE, shipped_path
+from physics_mapper.model.shipped import PACKAGE, ament_share_directory, shipped_path
 
 PACKAGE_URL = "package://"
 
 
 class ResourceError(ValueError):
     """A ``package://`` URL names a package that cannot be found, or is malformed."""
-
-
-def ament_share_directory(package: str) -> Path | None:
-    """The package's share directory in the ament index (``AMENT_PREFIX_PATH``), or None."""
-    for prefix in os.environ.get("AMENT_PREFIX_PATH", "").split(os.pathsep):
-        if prefix and (Path(prefix) / "share" / "ament_index" / "resource_index" / "packages" / package).is_file():
-            return Path(prefix) / "share" / package
-    return None
 
 
 def split_package_url(url: str) -> tuple[str, str]:
