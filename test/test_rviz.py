@@ -49,7 +49,7 @@ def test_each_map_topic_has_its_display_subscribed_as_the_node_publishes() -> No
         assert topic["Depth"] >= MAP_TOPIC_QOS.depth
 
 
-def test_every_marker_namespace_is_shown_and_the_readme_names_the_layout() -> None:
+def test_every_marker_namespace_is_shown_and_the_node_docs_name_the_layout() -> None:
     (markers,) = [d for d in displays() if d["Class"] == "rviz_default_plugins/MarkerArray"]
     assert markers["Namespaces"] == {}  # empty: RViz shows every namespace the node publishes
-    assert "config/rviz/physics_mapper.rviz" in (REPO / "README.md").read_text()
+    assert "config/rviz/physics_mapper.rviz" in (REPO / "docs" / "node.md").read_text()

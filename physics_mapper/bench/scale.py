@@ -51,7 +51,7 @@ JOINT_FINISH_MAX_OBJECTS = 6
 JOINT_FINISH_CAP = 10.0
 #: Seconds of search over which peak memory is measured.
 MEMORY_RUN = 1.0
-#: The scene whose interaction groups the README shows.
+#: The scene whose interaction groups docs/search.md shows.
 GROUPS_PICTURE = ScaleCase("mixed", 20, 5, 3)
 #: The node's default deadline and one second: the two budgets the table reports.
 BUDGETS = (0.2, 1.0)

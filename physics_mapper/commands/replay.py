@@ -37,7 +37,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--storage", choices=("mcap", "sqlite3"), default="mcap", help="output bag format")
     parser.add_argument("--rate", type=float, default=1.0, help="playback speed factor (default: 1.0)")
-    parser.add_argument("--offline", action="store_true", help="search each snapshot with the core, no ROS graph")
+    parser.add_argument("--offline", action="store_true", help="search each snapshot as the node would, no ROS graph")
     parser.add_argument("--start-node", action="store_true", help="start the node on --scene for the replay")
     parser.add_argument("--namespace", default="/", help="ROS namespace of the node (default: /)")
     parser.add_argument(

@@ -1,6 +1,6 @@
 """Size caps on what comes from outside: input files, their numbers, and text quoted back to users.
 
-Each cap has a row in the README's "Limits and failure behaviour" table. Caps keep a bad or
+Each cap has a row in the table of docs/limits.md. Caps keep a bad or
 hostile input from costing unbounded time or memory, or from being copied into every message.
 """
 
