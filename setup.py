@@ -33,6 +33,7 @@ setup(
     data_files=[
         ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE}"]),
         (f"share/{PACKAGE}", ["package.xml"]),
+        (f"share/{PACKAGE}/launch", [str(path) for path in sorted(Path("launch").glob("*.launch.py"))]),
         *shipped_files(),
     ],
     install_requires=["setuptools"],
@@ -43,11 +44,11 @@ setup(
     maintainer_email="physics-mapper@example.com",
     description="Physically consistent multi-object 3D maps from weighted pose hypotheses.",
     license="Apache-2.0",
-    tests_require=["pytest"],
     entry_points={
         "console_scripts": [
             # `ros2 run physics_mapper node` runs lib/physics_mapper/node (setup.cfg puts scripts there).
             "node = physics_mapper.commands.node:main",
+            "managed_node = physics_mapper.commands.node:main_managed",
             "physics-mapper = physics_mapper.cli:main",
         ],
     },

@@ -82,8 +82,8 @@ def _search_level_and_message(report: TickReport) -> tuple[Level, str]:
         return Level.ERROR, report.engine_fault
     if result is None and not report.snapshot.missing:
         return Level.OK, "hypotheses of every object received; the next tick searches"
-    if result is None:
-        return Level.ERROR, f"waiting for hypotheses of: {', '.join(report.snapshot.missing)}"
+    if result is None:  # waiting is the normal state before an estimator starts: not an error
+        return Level.WARN, f"waiting for hypotheses of: {', '.join(report.snapshot.missing)}"
     if result.valid:
         return Level.OK, f"valid {code_text(result.code)}, p(C)={result.probability:.4g}, J={result.jitter:.4g}"
     if result.refinement is not None:

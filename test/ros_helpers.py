@@ -63,11 +63,20 @@ class NodeProcess:
     """The node running as a child process; its output is kept in a file for assertions."""
 
     def __init__(
-        self, scene_file: str | Path, parameters: Mapping[str, object], log_path: Path, namespace: str
+        self,
+        scene_file: str | Path,
+        parameters: Mapping[str, object],
+        log_path: Path,
+        namespace: str,
+        *,
+        managed: bool = False,
+        remaps: Mapping[str, str] | None = None,
     ) -> None:
         self.log_path = log_path
         self._log: IO[str] = log_path.open("w")
-        self.process = start_node(scene_file, parameters, namespace=namespace, output=self._log)
+        self.process = start_node(
+            scene_file, parameters, namespace=namespace, output=self._log, managed=managed, remaps=remaps
+        )
 
     @property
     def alive(self) -> bool:

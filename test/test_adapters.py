@@ -342,7 +342,7 @@ def test_diagnostics_hold_the_spec_keys_and_one_status_per_object() -> None:
         waiting = diagnostics_msg(
             mapper.tick(0.0, settings), node_name="physics_mapper", hardware_id="/ns/physics_mapper", stamp_ns=0
         )
-        assert waiting.status[0].level == DiagnosticStatus.ERROR
+        assert waiting.status[0].level == DiagnosticStatus.WARN
         assert waiting.status[0].message == "waiting for hypotheses of: cube_left, cube_right, cube_top"
         for name, x, z in (("cube_left", -0.105, 0.1), ("cube_right", 0.105, 0.1), ("cube_top", 0.0, 0.3)):
             msg = pose_array_msg([Pose((x, 0.0, z))], frame_id="world", stamp_ns=1_000_000_000)

@@ -53,6 +53,12 @@ def test_a_pose_array_in_another_frame_is_refused_as_a_whole() -> None:
     assert received.refusal == "frame_id 'camera' is not the scene frame 'world'"
 
 
+def test_a_pose_array_without_a_frame_is_taken_in_the_scene_frame() -> None:
+    received = poses([0.0], received=1.0, frame="")
+    assert received.refusal is None and received.frame_assumed
+    assert not poses([0.0], received=1.0, frame="world").frame_assumed
+
+
 def test_a_huge_frame_id_is_quoted_clipped() -> None:
     frame = "camera_" + "x" * 200_000
     refusal = poses([0.0], received=1.0, frame=frame).refusal
@@ -291,7 +297,7 @@ def test_weights_that_are_refused_refuse_the_poses_they_belong_to() -> None:
 
 def test_an_object_without_messages_is_missing() -> None:
     status = ObjectInputs("cube").status(5.0, SETTINGS)
-    assert (status.level, status.message, status.hypotheses) == (Level.ERROR, "no PoseArray received yet", None)
+    assert (status.level, status.message, status.hypotheses) == (Level.WARN, "no PoseArray received yet", None)
 
 
 def test_hypotheses_older_than_max_age_are_stale_until_fresh_ones_arrive() -> None:

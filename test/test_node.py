@@ -143,6 +143,7 @@ def test_nothing_is_published_until_every_object_has_hypotheses(fresh_pyramid: R
     search = search_status(diagnostics)
     assert search is not None
     assert search.message == "waiting for hypotheses of: cube_left, cube_right, cube_top"
+    assert search.level == DiagnosticStatus.WARN  # waiting is not a failure
     assert object_status(diagnostics, "cube_top").message == "no PoseArray received yet"
     problem = load_problem(PYRAMID_PROBLEM)
     waiting = publish_until_diagnosed(
@@ -153,7 +154,7 @@ def test_nothing_is_published_until_every_object_has_hypotheses(fresh_pyramid: R
     )
     search = search_status(waiting)
     assert search is not None and search.message == "waiting for hypotheses of: cube_top"
-    assert object_status(waiting, "cube_top").level == DiagnosticStatus.ERROR
+    assert object_status(waiting, "cube_top").level == DiagnosticStatus.WARN
     assert client.configurations == []
 
 
@@ -368,25 +369,26 @@ def test_diagnostics_keep_their_own_period_and_a_new_rate_applies_at_once(fed_py
         client.set_parameters({"rate_hz": 4.0, "diagnostics_period": FAST_DIAGNOSTICS})
 
 
-def test_rate_and_deadline_are_judged_together_whatever_their_order(pyramid: Running) -> None:
-    """ros2 param load sends one SetParameters request; its parameters are set one by one."""
+def test_rate_and_deadline_are_judged_one_by_one_or_together(pyramid: Running) -> None:
+    """SetParameters (``ros2 param load``) sets a request's parameters one at a time, in its order, each
+    judged on its own (rclpy); SetParametersAtomically judges the combination."""
     client = pyramid.client
     try:
-        # Faster and shorter: rate first used to be refused (deadline 0.2 s >= 1/10 Hz).
-        assert client.set_parameters({"rate_hz": 10.0, "deadline": 0.05}) == [(True, ""), (True, "")]
-        # Back, deadline first: it used to be refused (0.2 s >= 1/10 Hz).
-        assert client.set_parameters({"deadline": 0.2, "rate_hz": 4.0}) == [(True, ""), (True, "")]
-        assert client.get_parameters("rate_hz", "deadline") == [4.0, 0.2]
+        # Faster and shorter, rate first: 0.2 s >= 1/10 Hz is refused, then the deadline applies.
+        rate_result, deadline_result = client.set_parameters({"rate_hz": 10.0, "deadline": 0.05})
+        assert not rate_result[0] and "shorter than the tick period" in rate_result[1]
+        assert deadline_result == (True, "")
+        assert client.get_parameters("rate_hz", "deadline") == [4.0, 0.05]
+        # The same, deadline first (already 0.05 s), succeeds.
+        assert client.set_parameters({"deadline": 0.05, "rate_hz": 10.0}) == [(True, ""), (True, "")]
+        assert client.set_parameters({"rate_hz": 4.0, "deadline": 0.2}) == [(True, ""), (True, "")]
+        # Together, in any order, atomically.
         assert client.set_parameters_atomically({"rate_hz": 10.0, "deadline": 0.05}) == (True, "")
         assert client.set_parameters_atomically({"deadline": 0.2, "rate_hz": 4.0}) == (True, "")
         # A combination that is invalid as a whole is refused as a whole.
         successful, reason = client.set_parameters_atomically({"rate_hz": 10.0, "deadline": 0.15})
         assert not successful and reason == "deadline 0.15 s must be shorter than the tick period 1/rate_hz = 0.1 s"
         assert client.get_parameters("rate_hz", "deadline") == [4.0, 0.2]
-        # Set one by one, an invalid end state keeps a valid one: the deadline applies, the rate does not.
-        (deadline_result, rate_result) = client.set_parameters({"deadline": 0.15, "rate_hz": 10.0})
-        assert deadline_result == (True, "") and not rate_result[0]
-        assert client.get_parameters("rate_hz", "deadline") == [4.0, 0.15]
     finally:
         client.set_parameters({"deadline": 0.2, "rate_hz": 4.0})
 

@@ -1,4 +1,9 @@
-"""``physics-mapper node``: the ROS 2 node, for machines without ``ros2 run``; and ``ros2 run``'s ``node`` script."""
+"""``physics-mapper node``: the ROS 2 node, for machines without ``ros2 run``; and ``ros2 run``'s scripts.
+
+``ros2 run physics_mapper node`` starts the node, ticking from its start;
+``ros2 run physics_mapper managed_node`` (``physics-mapper node --managed`` here) the lifecycle node,
+which waits unconfigured for ``ros2 lifecycle set <node> configure`` and ``activate``.
+"""
 
 from __future__ import annotations
 
@@ -10,6 +15,11 @@ HELP = "run the ROS 2 node (what `ros2 run physics_mapper node` runs); ROS argum
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--managed",
+        action="store_true",
+        help="run the lifecycle node (what `ros2 run physics_mapper managed_node` runs): unconfigured until told",
+    )
     parser.add_argument(
         "--ros-args",
         dest="ros_args",
@@ -33,7 +43,7 @@ def hold_stop_signals() -> None:
 def run(args: argparse.Namespace) -> int:
     from physics_mapper.ros.node import main
 
-    return main([sys.argv[0], "--ros-args", *args.ros_args])
+    return main([sys.argv[0], "--ros-args", *args.ros_args], managed=args.managed)
 
 
 def main() -> int:
@@ -42,3 +52,11 @@ def main() -> int:
     from physics_mapper.ros.node import main as run_node
 
     return run_node(sys.argv)
+
+
+def main_managed() -> int:
+    """``ros2 run physics_mapper managed_node`` (setup.py's ``managed_node`` script): the lifecycle node."""
+    hold_stop_signals()
+    from physics_mapper.ros.node import main as run_node
+
+    return run_node(sys.argv, managed=True)

@@ -88,7 +88,8 @@ class ReceivedPoses:
     ``poses`` holds every pose of the message, unchecked (:func:`rank` checks those it keeps,
     against ``workspace``, the scene's); ``count`` is their number (weights must have this
     length); ``refusal`` is set when the whole message is unusable. ``stamp_ns``: header stamp,
-    nanoseconds; ``received``: node clock, seconds.
+    nanoseconds; ``received``: node clock, seconds. ``frame_assumed``: the message named no frame
+    (an empty frame_id) and was taken in the scene's.
     """
 
     stamp_ns: int
@@ -96,6 +97,7 @@ class ReceivedPoses:
     poses: PoseBlock
     workspace: Workspace
     refusal: str | None = None
+    frame_assumed: bool = False
 
     @property
     def count(self) -> int:
@@ -136,17 +138,20 @@ def check_poses(
 ) -> ReceivedPoses:
     """A PoseArray's contents as received, refused as a whole for another frame or no pose at all.
 
-    The poses themselves (finite, unit quaternion, inside ``workspace``) are checked when they
+    An empty frame_id (a message published without a header, as ``ros2 topic pub`` does unless told)
+    is taken as the scene's frame: naming no frame is not naming another one. The poses themselves
+    (finite, unit quaternion, inside ``workspace``) are checked when they
     are adopted (:func:`rank`). A frame_id quoted in the refusal is clipped to
     :data:`~physics_mapper.model.limits.MAX_QUOTED_TEXT` characters.
     """
     poses = pose_block(raw_poses)
-    if frame_id != expected_frame:
+    assumed = frame_id == ""
+    if frame_id != expected_frame and not assumed:
         refusal = f"frame_id {clipped(frame_id, MAX_QUOTED_TEXT)!r} is not the scene frame {expected_frame!r}"
         return ReceivedPoses(stamp_ns, received, poses, workspace, refusal)
     if len(poses) == 0:
-        return ReceivedPoses(stamp_ns, received, poses, workspace, "empty PoseArray")
-    return ReceivedPoses(stamp_ns, received, poses, workspace)
+        return ReceivedPoses(stamp_ns, received, poses, workspace, "empty PoseArray", assumed)
+    return ReceivedPoses(stamp_ns, received, poses, workspace, frame_assumed=assumed)
 
 
 def check_weights(values: Sequence[float] | NDArray[np.float64], *, received: float) -> ReceivedWeights:
@@ -362,7 +367,9 @@ class ObjectInputs:
         details += [(f"last {why.split(':')[0]}", f"{now - when:.1f} s ago: {why}") for when, why in refusals]
         in_use = self._in_use
         if in_use is None:
-            why = pending or "; ".join(why for _, why in refusals) or "no PoseArray received yet"
+            why = pending or "; ".join(why for _, why in refusals)
+            if not why:  # nothing received yet: waiting, not failing
+                return ObjectStatus(self.name, Level.WARN, "no PoseArray received yet", None, None, tuple(details))
             return ObjectStatus(self.name, Level.ERROR, why, None, None, tuple(details))
         age = now - in_use.poses.received
         details += [("hypotheses in use", str(len(in_use.hypotheses))), ("age [s]", f"{age:.2f}")]

@@ -14,13 +14,21 @@ STOP_TIMEOUT = 5.0
 
 
 def node_command(
-    scene_file: str | Path, parameters: Mapping[str, object] | None = None, namespace: str = ""
+    scene_file: str | Path,
+    parameters: Mapping[str, object] | None = None,
+    namespace: str = "",
+    *,
+    managed: bool = False,
+    remaps: Mapping[str, str] | None = None,
 ) -> list[str]:
-    """The command line running the node with ``scene_file``, further ``-p name:=value`` parameters
-    and, if given, in ``namespace``."""
-    command = [sys.executable, "-m", "physics_mapper", "node", "--ros-args", "-p", f"scene_file:={scene_file}"]
+    """The command line running the node (``managed``: the lifecycle node) with ``scene_file``,
+    further ``-p name:=value`` parameters, ``-r from:=to`` remaps and, if given, in ``namespace``."""
+    command = [sys.executable, "-m", "physics_mapper", "node", *(["--managed"] if managed else [])]
+    command += ["--ros-args", "-p", f"scene_file:={scene_file}"]
     if namespace:
         command += ["-r", f"__ns:={namespace}"]
+    for source, target in (remaps or {}).items():
+        command += ["-r", f"{source}:={target}"]
     for name, value in (parameters or {}).items():
         text = str(value).lower() if isinstance(value, bool) else str(value)
         command += ["-p", f"{name}:={text}"]
@@ -33,9 +41,11 @@ def start_node(
     *,
     namespace: str = "",
     output: IO[str] | None = None,
+    managed: bool = False,
+    remaps: Mapping[str, str] | None = None,
 ) -> subprocess.Popen[str]:
-    """Start the node; its standard output and error go to ``output`` (default: inherited)."""
-    command = node_command(scene_file, parameters, namespace)
+    """Start the node (``managed``: the lifecycle node); its output goes to ``output`` (default: inherited)."""
+    command = node_command(scene_file, parameters, namespace, managed=managed, remaps=remaps)
     return subprocess.Popen(command, stdout=output, stderr=subprocess.STDOUT if output else None, text=True)
 
 

@@ -36,15 +36,19 @@ import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseArray, PoseStamped
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
-from rcl_interfaces.srv import SetParameters
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.event_handler import QoSMessageLostInfo, SubscriptionEventCallbacks
-from rclpy.exceptions import InvalidTopicNameException, ParameterException, ParameterNotDeclaredException
+from rclpy.exceptions import InvalidTopicNameException, ParameterException
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
+from rclpy.lifecycle.publisher import LifecyclePublisher
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.publisher import Publisher
+from rclpy.qos import QoSProfile
 from rclpy.signals import SignalHandlerOptions
+from rclpy.subscription import Subscription
+from rclpy.time_source import USE_SIM_TIME_NAME
 from rclpy.timer import Timer
 from std_msgs.msg import Float64MultiArray
 from visualization_msgs.msg import MarkerArray
@@ -95,6 +99,16 @@ class ParameterSpec:
     limits: tuple[float, float] | None = None
     read_only: bool = False
 
+
+#: Parameters rclpy declares on every node itself.
+RCLPY_PARAMETERS = (USE_SIM_TIME_NAME, "start_type_description_service")
+#: rclpy's QoS override parameters (``qos_overrides./topic.publisher.depth``), never unknown.
+QOS_OVERRIDES_PREFIX = "qos_overrides."
+#: Distinct input notes (object, text) logged in full before they are throttled.
+MAX_LOGGED_INPUT_NOTES = 1000
+SCENE_FILE_DESCRIPTOR = ParameterDescriptor(
+    description="scene YAML (path or package://pkg/path); read once", read_only=True
+)
 
 #: The search parameters, each a node parameter of the same name.
 SEARCH_PARAMETER_NAMES = tuple(f.name for f in fields(SearchParams))
@@ -154,82 +168,136 @@ def resolve_scene_path(text: str) -> Path:
         raise InputError(f"scene_file {error}") from None
 
 
-def deadline_first(current_deadline: float, parameters: Sequence[Parameter]) -> list[Parameter]:
-    """``parameters`` in an order in which setting them one by one keeps ``deadline < 1/rate_hz`` at every step.
+class MapperNodeBase(Node):
+    """The node's work, shared by :class:`PhysicsMapperNode` and :class:`ManagedPhysicsMapperNode`.
 
-    If the end state satisfies it, so does every step: a deadline that shrinks is set before
-    ``rate_hz``, one that grows after it (the other parameters keep their order).
-    """
-    new_deadline = next((p.value for p in parameters if p.name == "deadline"), None)
-    shrinks = isinstance(new_deadline, float) and new_deadline <= current_deadline
-    first = "deadline" if shrinks else "rate_hz"
-    return sorted(parameters, key=lambda p: p.name != first)
-
-
-class PhysicsMapperNode(Node):
-    """Subscribes to every scene object's hypotheses and publishes the best physically valid map.
-
-    ``stop``: the process's signal handling; a signal interrupts the tick's search at once.
+    :meth:`configure` declares the parameters, loads the scene and creates the subscriptions and
+    publishers; :meth:`start_ticking` and :meth:`stop_ticking` start and stop the tick and
+    diagnostics timers; :meth:`release` destroys what :meth:`configure` made. ``stop``: the
+    process's signal handling; a signal interrupts the tick's search at once.
     """
 
     def __init__(self, *, stop: SignalStop | None = None, **kwargs: Any) -> None:
-        super().__init__(NODE_NAME, **kwargs)
+        # Every override (params file, -p) becomes a parameter first, so that the ones this node
+        # has none for can be named (rclpy offers no other public view of them).
+        super().__init__(NODE_NAME, automatically_declare_parameters_from_overrides=True, **kwargs)
         self._stop = stop or SignalStop()
         self._logger: Any = self.get_logger()  # type: ignore[no-untyped-call]  # rclpy 7 leaves it unannotated
-        try:
-            self._start()
-        except BaseException:
-            self.destroy_node()  # also when a signal interrupts the start-up: no handle outlives the node
-            raise
+        self._declared: set[str] = set()
+        self._mapper: Mapper | None = None
+        self._entities: list[Subscription | Publisher] = []
+        self._timers: list[Timer] = []
+        self._refusals_logged: set[tuple[str, str]] = set()
+        self.add_on_set_parameters_callback(self._on_set_parameters)
+        self.add_post_set_parameters_callback(self._on_parameters_set)
 
-    def _start(self) -> None:
-        scene_file = self.declare_parameter(
-            "scene_file",
-            "",
-            ParameterDescriptor(description="scene YAML (path or package://pkg/path); read once", read_only=True),
-        ).value
-        scene_path = resolve_scene_path(str(scene_file))
+    def configure(self) -> None:
+        """Read the parameters and the scene; subscribe to the inputs and create the publishers."""
+        unknown = self._unknown_parameters()
+        scene_path = resolve_scene_path(str(self._declare("scene_file", "", SCENE_FILE_DESCRIPTOR)))
         scene = load_scene(scene_path)
         for spec in PARAMETERS:
             default = getattr(scene.search, spec.name) if spec.default is None else spec.default
-            self.declare_parameter(spec.name, default, _descriptor(spec, default))
+            self._declare(spec.name, default, _descriptor(spec, default))
         values = self.parameter_values()
         problem = self._problem(values)
         if problem is not None:
             raise InputError(f"invalid parameters: {problem}")
-        self._warn_about_unknown_parameters()
-        self.mapper = Mapper(scene)
+        self._drop_unknown_parameters(unknown)
+        self._mapper = Mapper(scene)
         self._report: TickReport | None = None  # the last tick's
         self._fault: TickReport | None = None  # the first tick of this diagnostics period that the engine failed
         self._ticks = TickStatistics()
         self._inputs_group = MutuallyExclusiveCallbackGroup()  # type: ignore[no-untyped-call]
         reliability = cast(InputReliability, values["input_reliability"])
-        for name in scene.object_names:
-            self._subscribe(name, reliability)
-        self._configuration_pub = self.create_publisher(PoseArray, CONFIGURATION_TOPIC, MAP_QOS)
-        self._settled_pub = self.create_publisher(PoseArray, SETTLED_TOPIC, MAP_QOS)
-        self._markers_pub = self.create_publisher(MarkerArray, MARKERS_TOPIC, MAP_QOS)
-        # Latched: RViz shows the fixed bodies before the first map (each map repeats them).
-        self._markers_pub.publish(static_markers_msg(scene, stamp_ns=self._now_ns()))
+        topics = [topic for name in scene.object_names for topic in self._subscribe(name, reliability)]
+        self._configuration_pub = self._map_publisher(PoseArray, CONFIGURATION_TOPIC)
+        self._settled_pub = self._map_publisher(PoseArray, SETTLED_TOPIC)
+        self._markers_pub = self._map_publisher(MarkerArray, MARKERS_TOPIC)
         self._object_pubs: list[tuple[Publisher, Publisher]] = [
             (
-                self.create_publisher(PoseStamped, object_pose_topic(name), MAP_QOS),
-                self.create_publisher(PoseStamped, object_settled_pose_topic(name), MAP_QOS),
+                self._map_publisher(PoseStamped, object_pose_topic(name)),
+                self._map_publisher(PoseStamped, object_settled_pose_topic(name)),
             )
             for name in scene.object_names
         ]
         self._published_objects: tuple[int, SearchResult] | None = None
-        self._diagnostics_pub = self.create_publisher(DiagnosticArray, DIAGNOSTICS_TOPIC, DIAGNOSTICS_QOS)
-        self.add_on_set_parameters_callback(self._on_set_parameters)
-        self.add_post_set_parameters_callback(self._on_parameters_set)
-        self._order_set_parameters_requests()
-        self._tick_timer = self.create_timer(1.0 / float(values["rate_hz"]), self._tick)
-        self._diagnostics_timer = self.create_timer(float(values["diagnostics_period"]), self._publish_diagnostics)
+        self._diagnostics_pub = self._map_publisher(DiagnosticArray, DIAGNOSTICS_TOPIC, DIAGNOSTICS_QOS)
         self._last_message = ""
         self._logger.info(
             f"scene {scene_path}: objects {', '.join(scene.object_names)} in frame {scene.frame_id!r}; "
-            f"listening on {self.get_namespace().rstrip('/')}/hypotheses/<object>[/weights] ({reliability})"
+            f"listening on {', '.join(topics)} ({reliability})"
         )
+
+    @property
+    def mapper(self) -> Mapper:
+        """The ROS-free mapper of the configured node."""
+        if self._mapper is None:
+            raise RuntimeError("the node is not configured")
+        return self._mapper
+
+    def start_ticking(self) -> None:
+        """Start the tick timer (``rate_hz``) and the diagnostics timer (``diagnostics_period``)."""
+        values = self.parameter_values()
+        # Latched: RViz shows the fixed bodies before the first map (each map repeats them).
+        self._markers_pub.publish(static_markers_msg(self.mapper.scene, stamp_ns=self._now_ns()))
+        self._tick_timer = self.create_timer(1.0 / float(values["rate_hz"]), self._tick)
+        self._diagnostics_timer = self.create_timer(float(values["diagnostics_period"]), self._publish_diagnostics)
+        self._timers = [self._tick_timer, self._diagnostics_timer]
+
+    def stop_ticking(self) -> None:
+        """Stop both timers (the subscriptions go on collecting hypotheses)."""
+        for timer in self._timers:
+            self.destroy_timer(timer)
+        self._timers = []
+
+    def release(self) -> None:
+        """Destroy the subscriptions and publishers and close the physics world (:meth:`configure` undone)."""
+        self.stop_ticking()
+        for entity in self._entities:
+            if isinstance(entity, Subscription):
+                self.destroy_subscription(entity)
+            else:
+                self._destroy_publisher(entity)
+        self._entities = []
+        if self._mapper is not None:
+            self._mapper.close()
+            self._mapper = None
+
+    def _map_publisher(self, msg_type: type, topic: str, qos: QoSProfile = MAP_QOS) -> Publisher:
+        """An output publisher (the managed node's publish only while it is active)."""
+        publisher = self.create_publisher(msg_type, topic, qos)
+        self._entities.append(publisher)
+        return publisher
+
+    def _destroy_publisher(self, publisher: Publisher) -> None:
+        self.destroy_publisher(publisher)
+
+    def _declare(self, name: str, default: object, descriptor: ParameterDescriptor) -> object:
+        """Declare a parameter of this node once (a params file's value wins over ``default``); its value."""
+        if name not in self._declared:
+            if self.has_parameter(name):  # declared from an override: declared again, typed
+                self.undeclare_parameter(name)
+            self.declare_parameter(name, default, descriptor)
+            self._declared.add(name)
+        return self.get_parameter(name).value
+
+    def _unknown_parameters(self) -> list[str]:
+        """The overrides meant for this node that name no parameter of it (nor of rclpy)."""
+        known = {"scene_file", *(spec.name for spec in PARAMETERS), *RCLPY_PARAMETERS}
+        names = self.list_parameters([], 0).names
+        return sorted(n for n in names if n not in known and not n.startswith(QOS_OVERRIDES_PREFIX))
+
+    def _drop_unknown_parameters(self, unknown: Sequence[str]) -> None:
+        """Undeclare and name the overrides this node has no parameter for (they are ignored)."""
+        for name in unknown:
+            self.undeclare_parameter(name)
+        if unknown:
+            known = ", ".join(["scene_file", *(spec.name for spec in PARAMETERS)])
+            self._logger.warning(
+                f"unknown parameters ignored (from --params-file or -p): {', '.join(unknown)}; "
+                f"this node's parameters are: {known}"
+            )
 
     # --- parameters -----------------------------------------------------------------------------
 
@@ -266,12 +334,22 @@ class PhysicsMapperNode(Node):
         return mapper_settings_problem(settings)
 
     def _on_set_parameters(self, parameters: list[Parameter]) -> SetParametersResult:
-        """Refuse a change that leaves the combination of values invalid; accepted ones apply at the next tick."""
+        """Refuse a change that leaves the combination of values invalid; accepted ones apply at the next tick.
+
+        rclpy sets a SetParameters request's parameters one at a time, in its order, each judged on
+        its own: to raise ``rate_hz`` and shorten ``deadline`` together, send the deadline first, or
+        both in one SetParametersAtomically request, which is judged as a whole. While the node is
+        still declaring its parameters (:meth:`configure`) there is no combination to judge yet.
+        """
+        if self._mapper is None:
+            return SetParametersResult(successful=True)
         problem = self._problem(self.parameter_values({p.name: p.value for p in parameters}))
         return SetParametersResult(successful=problem is None, reason=problem or "")
 
     def _on_parameters_set(self, parameters: list[Parameter]) -> None:
         """A new tick rate or diagnostics period applies at once: its timer is re-armed, not left to run out."""
+        if not self._timers:
+            return  # not ticking: start_ticking() reads the new values
         for parameter in parameters:
             if parameter.name == "rate_hz":
                 self._rearm(self._tick_timer, 1.0 / float(parameter.value))
@@ -283,63 +361,51 @@ class PhysicsMapperNode(Node):
         timer.timer_period_ns = round(period * NANOSECONDS_PER_SECOND)
         timer.reset()  # type: ignore[no-untyped-call]
 
-    def _order_set_parameters_requests(self) -> None:
-        """SetParameters (``ros2 param set``, ``ros2 param load``) sets a request's parameters one at a time.
-
-        rclpy would set them in the request's order, so raising ``rate_hz`` and lowering
-        ``deadline`` together succeeded or failed with their order. The request is set in
-        :func:`deadline_first` order instead: it succeeds whenever its end state is valid.
-        SetParametersAtomically is judged as a whole by :meth:`_on_set_parameters`.
-        """
-        service = next(s for s in self.services if s.srv_name.endswith("/set_parameters"))
-
-        def set_parameters(request: SetParameters.Request, response: SetParameters.Response) -> Any:
-            parameters = [Parameter.from_parameter_msg(p) for p in request.parameters]  # type: ignore[no-untyped-call]
-            results: dict[int, SetParametersResult] = {}
-            for parameter in deadline_first(float(self.get_parameter("deadline").value), parameters):
-                try:
-                    result = self.set_parameters_atomically([parameter])
-                except ParameterNotDeclaredException as error:
-                    result = SetParametersResult(successful=False, reason=str(error))
-                results[id(parameter)] = result
-            response.results = [results[id(p)] for p in parameters]
-            return response
-
-        service.callback = set_parameters
-
-    def _warn_about_unknown_parameters(self) -> None:
-        """Name the ``--params-file`` and ``-p`` values meant for this node that it has no parameter for (ignored)."""
-        # rclpy keeps the overrides rcl matched to this node (params files and -p) in a private attribute only.
-        overrides: Mapping[str, Any] = getattr(self, "_parameter_overrides", {})
-        unknown = sorted(name for name in overrides if not self.has_parameter(name))
-        if unknown:
-            known = ", ".join(["scene_file", *(spec.name for spec in PARAMETERS)])
-            self._logger.warning(
-                f"unknown parameters ignored (from --params-file or -p): {', '.join(unknown)}; "
-                f"this node's parameters are: {known}"
-            )
-
     # --- inputs ---------------------------------------------------------------------------------
 
-    def _subscribe(self, name: str, reliability: InputReliability) -> None:
-        scene = self.mapper.scene
+    def _subscribe(self, name: str, reliability: InputReliability) -> list[str]:
+        """Subscribe to object ``name``'s hypotheses; the topics' names as resolved (namespace, remaps)."""
+        scene, inputs = self.mapper.scene, self.mapper.inputs
         frame, workspace = scene.frame_id, scene.workspace
-        inputs = self.mapper.inputs
 
         def on_poses(raw: bytes, info: Mapping[str, Any]) -> None:
-            received = self._received(info)
-            inputs.add_poses(
-                name, received_pose_array(raw, expected_frame=frame, workspace=workspace, received=received)
+            received = received_pose_array(
+                raw, expected_frame=frame, workspace=workspace, received=self._received(info)
             )
+            inputs.add_poses(name, received)
+            if received.frame_assumed:
+                self._log_input_once(name, f"a PoseArray without a frame_id is taken in the scene frame {frame!r}")
+            if received.refusal is not None:
+                self._log_input_once(name, f"PoseArray refused: {received.refusal}")
 
         def on_weights(msg: Float64MultiArray, info: Mapping[str, Any]) -> None:
-            inputs.add_weights(name, received_weights(msg, received=self._received(info)))
+            received = received_weights(msg, received=self._received(info))
+            inputs.add_weights(name, received)
+            if received.refusal is not None:
+                self._log_input_once(name, f"weights refused: {received.refusal}")
 
         try:
-            self._input_subscription(PoseArray, poses_topic(name), on_poses, name, "poses", reliability, raw=True)
-            self._input_subscription(Float64MultiArray, weights_topic(name), on_weights, name, "weights", reliability)
+            return [
+                self._input_subscription(PoseArray, poses_topic(name), on_poses, name, "poses", reliability, raw=True),
+                self._input_subscription(
+                    Float64MultiArray, weights_topic(name), on_weights, name, "weights", reliability
+                ),
+            ]
         except InvalidTopicNameException:
             raise InputError(f"object name {name!r} cannot be part of a ROS topic name") from None
+
+    def _log_input_once(self, name: str, what: str) -> None:
+        """Log what became of an object's input, once per object and text: a stream of bad messages
+        logs one line (the diagnostics count them all); past :data:`MAX_LOGGED_INPUT_NOTES` notes,
+        at most one line per second."""
+        key = (name, what)
+        if key in self._refusals_logged:
+            return
+        if len(self._refusals_logged) < MAX_LOGGED_INPUT_NOTES:
+            self._refusals_logged.add(key)
+            self._logger.warning(f"{name}: {what}")
+        else:
+            self._logger.warning(f"{name}: {what}", throttle_duration_sec=1.0)
 
     def _input_subscription(
         self,
@@ -351,9 +417,10 @@ class PhysicsMapperNode(Node):
         reliability: InputReliability,
         *,
         raw: bool = False,
-    ) -> None:
-        """A hypothesis subscription: its callback gets the message info, lost messages are counted."""
-        self.create_subscription(
+    ) -> str:
+        """A hypothesis subscription: its callback gets the message info, lost messages are counted;
+        returns the topic's resolved name."""
+        subscription = self.create_subscription(
             msg_type,
             topic,
             cast(Callable[[Any], None], callback),  # rclpy passes two-parameter callbacks the message info
@@ -362,6 +429,8 @@ class PhysicsMapperNode(Node):
             event_callbacks=SubscriptionEventCallbacks(message_lost=self._on_lost(name, kind)),
             raw=raw,
         )
+        self._entities.append(subscription)
+        return str(subscription.topic_name)
 
     def _on_lost(self, name: str, kind: MessageKind) -> Callable[[QoSMessageLostInfo], None]:
         def lost(info: QoSMessageLostInfo) -> None:
@@ -467,14 +536,70 @@ class PhysicsMapperNode(Node):
             self._logger.info(message)
 
     def destroy_node(self) -> None:
-        mapper = getattr(self, "mapper", None)
-        if mapper is not None:
-            mapper.close()
+        self.release()
         super().destroy_node()  # type: ignore[no-untyped-call]
 
 
-def main(args: Sequence[str] | None = None) -> int:
-    """Run the node until SIGINT or SIGTERM (exit 0); bad scene or parameters: one error line, exit 2."""
+class PhysicsMapperNode(MapperNodeBase):
+    """Subscribes to every scene object's hypotheses and publishes the best physically valid map, from its start."""
+
+    def __init__(self, *, stop: SignalStop | None = None, **kwargs: Any) -> None:
+        super().__init__(stop=stop, **kwargs)
+        try:
+            self.configure()
+            self.start_ticking()
+        except BaseException:
+            self.destroy_node()  # also when a signal interrupts the start-up: no handle outlives the node
+            raise
+
+
+class ManagedPhysicsMapperNode(MapperNodeBase, LifecycleNode):
+    """The same node as a managed (lifecycle) node: it starts unconfigured and follows its transitions.
+
+    ``configure`` reads the parameters and the scene and creates the subscriptions and (inactive)
+    publishers; ``activate`` starts ticking and publishing; ``deactivate`` stops both (inputs are
+    still collected); ``cleanup`` destroys what ``configure`` made; ``shutdown`` stops everything.
+    A scene or parameters that cannot be used fail ``configure`` with the reason in the log, and
+    the node stays unconfigured.
+    """
+
+    def _map_publisher(self, msg_type: type, topic: str, qos: QoSProfile = MAP_QOS) -> Publisher:
+        publisher = self.create_lifecycle_publisher(msg_type, topic, qos)  # type: ignore[no-untyped-call]
+        self._entities.append(publisher)
+        return cast(Publisher, publisher)
+
+    def _destroy_publisher(self, publisher: Publisher) -> None:
+        self.destroy_lifecycle_publisher(cast(LifecyclePublisher, publisher))
+
+    def on_configure(self, state: LifecycleState) -> TransitionCallbackReturn:
+        try:
+            self.configure()
+        except (SceneError, InputError, ParameterException) as error:
+            self._logger.error(f"configure failed: {error}")
+            self.release()
+            return TransitionCallbackReturn.FAILURE
+        return TransitionCallbackReturn.SUCCESS
+
+    def on_activate(self, state: LifecycleState) -> TransitionCallbackReturn:
+        self.start_ticking()
+        return super().on_activate(state)  # activates the publishers
+
+    def on_deactivate(self, state: LifecycleState) -> TransitionCallbackReturn:
+        self.stop_ticking()
+        return super().on_deactivate(state)
+
+    def on_cleanup(self, state: LifecycleState) -> TransitionCallbackReturn:
+        self.release()
+        return TransitionCallbackReturn.SUCCESS
+
+    def on_shutdown(self, state: LifecycleState) -> TransitionCallbackReturn:
+        self.release()
+        return TransitionCallbackReturn.SUCCESS
+
+
+def main(args: Sequence[str] | None = None, *, managed: bool = False) -> int:
+    """Run the node (``managed``: the lifecycle node) until SIGINT or SIGTERM (exit 0); bad scene or
+    parameters: one error line, exit 2."""
     stop = SignalStop()
     stop.install()  # rclpy installs none: see physics_mapper.ros.spinning
     try:
@@ -487,7 +612,7 @@ def main(args: Sequence[str] | None = None) -> int:
     try:
         if stop.requested:  # a signal during start-up: no node to start
             return 0
-        node = PhysicsMapperNode(stop=stop)
+        node = ManagedPhysicsMapperNode(stop=stop) if managed else PhysicsMapperNode(stop=stop)
         executor = SingleThreadedExecutor()
         executor.add_node(node)
         while not stop.requested:

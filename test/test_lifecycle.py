@@ -1,0 +1,127 @@
+"""The managed (lifecycle) node over real DDS: transitions driven through lifecycle_msgs services."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+from conftest import PROBLEMS, SCENES
+from lifecycle_msgs.msg import State, Transition
+from lifecycle_msgs.srv import ChangeState, GetState
+from ros_helpers import REPLY_TIMEOUT, STARTUP_TIMEOUT, NodeProcess, RosClient, node_full_name, stamp_ns_of
+
+from msg_adapters.hypotheses import hypotheses_msgs
+from physics_mapper.mapping.topics import CONFIGURATION_TOPIC, output_topic
+from physics_mapper.model.scene_files import load_problem
+
+NAMESPACE = "/managed"
+#: Ticks a second: the deactivated node is watched for a few of its tick periods.
+RATE_HZ = 4.0
+
+
+class Lifecycle:
+    """A client of one lifecycle node's get_state and change_state services."""
+
+    def __init__(self, client: RosClient, namespace: str) -> None:
+        self.client = client
+        node = node_full_name(namespace)
+        self._get = client.node.create_client(GetState, f"{node}/get_state")
+        self._change = client.node.create_client(ChangeState, f"{node}/change_state")
+        client.wait_for(
+            lambda: self._get.service_is_ready() and self._change.service_is_ready(),
+            STARTUP_TIMEOUT,
+            "the lifecycle services",
+        )
+
+    def state(self) -> int:
+        future = self._get.call_async(GetState.Request())
+        self.client.wait_for(future.done, REPLY_TIMEOUT, "get_state")
+        return int(future.result().current_state.id)  # type: ignore[no-untyped-call]
+
+    def change(self, transition: int) -> bool:
+        future = self._change.call_async(ChangeState.Request(transition=Transition(id=transition)))
+        self.client.wait_for(future.done, REPLY_TIMEOUT, f"change_state {transition}")
+        return bool(future.result().success)  # type: ignore[no-untyped-call]
+
+
+@pytest.fixture
+def managed(tmp_path: Path) -> Iterator[tuple[NodeProcess, RosClient, Lifecycle]]:
+    parameters = {"rate_hz": RATE_HZ, "deadline": 0.2, "max_age": 60.0, "diagnostics_period": 0.25}
+    node = NodeProcess(SCENES / "pyramid.yaml", parameters, tmp_path / "node.log", NAMESPACE, managed=True)
+    client = RosClient(NAMESPACE)
+    try:
+        yield node, client, Lifecycle(client, NAMESPACE)
+    finally:
+        client.close()
+        assert node.stop() == 0, node.output()
+
+
+def publish_until_mapped(client: RosClient, stamp_ns: int) -> None:
+    problem = load_problem(PROBLEMS / "pyramid.yaml")
+
+    def publish() -> None:
+        for name, hypotheses in zip(problem.scene.object_names, problem.hypotheses, strict=True):
+            client.publish(name, *hypotheses_msgs(hypotheses, frame_id=problem.scene.frame_id, stamp_ns=stamp_ns))
+
+    client.keep_publishing(
+        publish, lambda: any(stamp_ns_of(c) == stamp_ns for c in client.configurations), f"a map stamped {stamp_ns}"
+    )
+
+
+def configuration_publishers(client: RosClient) -> int:
+    return client.node.count_publishers(output_topic(CONFIGURATION_TOPIC, NAMESPACE))
+
+
+def test_the_managed_node_follows_its_transitions(managed: tuple[NodeProcess, RosClient, Lifecycle]) -> None:
+    node, client, lifecycle = managed
+    assert lifecycle.state() == State.PRIMARY_STATE_UNCONFIGURED
+    assert configuration_publishers(client) == 0  # nothing made before configure
+
+    assert lifecycle.change(Transition.TRANSITION_CONFIGURE)
+    assert lifecycle.state() == State.PRIMARY_STATE_INACTIVE
+    client.wait_for(lambda: configuration_publishers(client) == 1, what="the configured node's publisher")
+
+    assert lifecycle.change(Transition.TRANSITION_ACTIVATE)
+    assert lifecycle.state() == State.PRIMARY_STATE_ACTIVE
+    publish_until_mapped(client, stamp_ns=1_000)
+
+    assert lifecycle.change(Transition.TRANSITION_DEACTIVATE)
+    assert lifecycle.state() == State.PRIMARY_STATE_INACTIVE
+    published = len(client.configurations)
+    problem = load_problem(PROBLEMS / "pyramid.yaml")
+    for name, hypotheses in zip(problem.scene.object_names, problem.hypotheses, strict=True):
+        client.publish(name, *hypotheses_msgs(hypotheses, frame_id=problem.scene.frame_id, stamp_ns=2_000))
+    client.spin_until(lambda: False, timeout=4 / RATE_HZ)  # four tick periods
+    assert len(client.configurations) == published  # inactive: no tick, nothing published
+
+    assert lifecycle.change(Transition.TRANSITION_ACTIVATE)  # the inputs kept arriving meanwhile
+    client.wait_for(lambda: any(stamp_ns_of(c) == 2_000 for c in client.configurations), what="the map stamped 2000")
+
+    assert lifecycle.change(Transition.TRANSITION_DEACTIVATE)
+    assert lifecycle.change(Transition.TRANSITION_CLEANUP)
+    assert lifecycle.state() == State.PRIMARY_STATE_UNCONFIGURED
+    client.wait_for(lambda: configuration_publishers(client) == 0, what="the publisher gone after cleanup")
+
+    assert lifecycle.change(Transition.TRANSITION_CONFIGURE)  # configured again after a cleanup
+    assert lifecycle.state() == State.PRIMARY_STATE_INACTIVE
+    assert lifecycle.change(Transition.TRANSITION_INACTIVE_SHUTDOWN)
+    assert lifecycle.state() == State.PRIMARY_STATE_FINALIZED
+    assert node.alive
+
+
+def test_a_scene_that_cannot_be_loaded_fails_configure_and_keeps_the_node(tmp_path: Path) -> None:
+    node = NodeProcess(tmp_path / "missing.yaml", {}, tmp_path / "node.log", "/bad_scene", managed=True)
+    client = RosClient("/bad_scene")
+    try:
+        lifecycle = Lifecycle(client, "/bad_scene")
+        assert not lifecycle.change(Transition.TRANSITION_CONFIGURE)
+        assert lifecycle.state() == State.PRIMARY_STATE_UNCONFIGURED
+        assert node.alive
+    finally:
+        client.close()
+        code = node.stop()
+    output = node.output()
+    assert code == 0, output
+    assert "configure failed:" in output and "missing.yaml" in output
+    assert "Traceback" not in output
