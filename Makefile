@@ -22,8 +22,10 @@ lint: venv
 	$(BIN)/ruff format --check physics_mapper msg_adapters test benchmarks
 	$(BIN)/mypy
 
+# UTF-8 mode: the tests read and compare the UTF-8 text the package writes (reports, solve --tree),
+# whatever the machine's locale (LC_ALL=C turns it on by itself; a Latin-1 locale does not).
 test: venv lint
-	$(BIN)/pytest
+	PYTHONUTF8=1 $(BIN)/pytest
 
 # Starts the node on the pyramid scene, replays the shipped pyramid bag into it, prints the error
 # with and without physics and the node's last map and diagnostics (physics_mapper/commands/demo.py).
