@@ -18,8 +18,8 @@ $(STAMP): requirements.txt requirements-dev.txt requirements-ray.txt setup.py
 	touch $(STAMP)
 
 lint: venv
-	$(BIN)/ruff check physics_mapper msg_adapters test benchmarks
-	$(BIN)/ruff format --check physics_mapper msg_adapters test benchmarks
+	$(BIN)/ruff check physics_mapper msg_adapters test benchmarks .ci
+	$(BIN)/ruff format --check physics_mapper msg_adapters test benchmarks .ci
 	$(BIN)/mypy
 
 # UTF-8 mode: the tests read and compare the UTF-8 text the package writes (reports, solve --tree),
