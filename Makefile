@@ -18,12 +18,14 @@ $(STAMP): requirements.txt requirements-dev.txt requirements-ray.txt setup.py
 	touch $(STAMP)
 
 lint: venv
-	$(BIN)/ruff check physics_mapper msg_adapters test benchmarks
-	$(BIN)/ruff format --check physics_mapper msg_adapters test benchmarks
+	$(BIN)/ruff check physics_mapper msg_adapters test benchmarks .ci
+	$(BIN)/ruff format --check physics_mapper msg_adapters test benchmarks .ci
 	$(BIN)/mypy
 
+# UTF-8 mode: the tests read and compare the UTF-8 text the package writes (reports, solve --tree),
+# whatever the machine's locale (LC_ALL=C turns it on by itself; a Latin-1 locale does not).
 test: venv lint
-	$(BIN)/pytest
+	PYTHONUTF8=1 $(BIN)/pytest
 
 # Starts the node on the pyramid scene, replays the shipped pyramid bag into it, prints the error
 # with and without physics and the node's last map and diagnostics (physics_mapper/commands/demo.py).

@@ -6,6 +6,7 @@ import os
 import shutil
 import subprocess
 import sys
+import tempfile
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -28,6 +29,18 @@ NOT_SOURCES = {".venv", ".git", "build", "install", "log", "reports", ".mypy_cac
 settings.register_profile("ci", max_examples=100, derandomize=True, database=None, deadline=None)
 settings.register_profile("fuzz", max_examples=5_000, deadline=None)
 settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    """Matplotlib's settings and font cache of this run's own (inherited by child processes), set before
+    any test module imports matplotlib: a user's matplotlibrc (``text.usetex: True`` on a machine without
+    LaTeX, another style) would otherwise break or change the figures that experiments and sweeps draw."""
+    os.environ["MPLCONFIGDIR"] = tempfile.mkdtemp(prefix="physics_mapper_matplotlib_")
+    os.environ.pop("MATPLOTLIBRC", None)
+
+
+def pytest_unconfigure(config: pytest.Config) -> None:
+    shutil.rmtree(os.environ["MPLCONFIGDIR"], ignore_errors=True)
 
 
 def _domain_id() -> int:
