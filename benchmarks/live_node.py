@@ -38,9 +38,9 @@ def busy_problem(per_object: int = 60) -> Problem:
     return floating_problem(load_scene(PYRAMID_SCENE), per_object)
 
 
-def memory_mb(pid: int, field: str = "VmRSS") -> float:
-    """A process's resident memory (``VmRSS`` now, ``VmHWM`` its peak), in MiB."""
-    return resident_set_size(pid, field) / 2**20
+def memory_mb(pid: int) -> float:
+    """A process's resident memory now, in MiB."""
+    return resident_set_size(pid) / 2**20
 
 
 def percentile(values: Sequence[float], fraction: float) -> float:
@@ -56,4 +56,4 @@ def spread(values: Sequence[float]) -> str:
 
 
 def load_average() -> str:
-    return " ".join(Path("/proc/loadavg").read_text().split()[:3])
+    return " ".join(f"{load:.2f}" for load in os.getloadavg())

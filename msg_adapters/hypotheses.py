@@ -1,7 +1,7 @@
 """Hypothesis messages <-> core types: PoseArray and Float64MultiArray weights.
 
-Incoming messages become :class:`~physics_mapper.inputs.ReceivedPoses` and
-:class:`~physics_mapper.inputs.ReceivedWeights`, validated by the core (every problem
+Incoming messages become :class:`~physics_mapper.mapping.inputs.ReceivedPoses` and
+:class:`~physics_mapper.mapping.inputs.ReceivedWeights`, validated by the core (every problem
 collected, none raised); the node receives PoseArrays serialised (:func:`received_pose_array`,
 see :mod:`msg_adapters.pose_array_cdr`); outgoing hypotheses become the same two message types. Header
 stamps are integer nanoseconds (``stamp_ns``), exact both ways: a float of seconds since the
@@ -12,29 +12,28 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-from builtin_interfaces.msg import Time
+from builtin_interfaces.msg import Time as TimeMsg
 from geometry_msgs.msg import Point, PoseArray, Quaternion
 from geometry_msgs.msg import Pose as PoseMsg
 from rclpy.serialization import deserialize_message
+from rclpy.time import Time
 from std_msgs.msg import Float64MultiArray, Header
 
 from msg_adapters.pose_array_cdr import pose_array_view
 from physics_mapper.mapping.inputs import RawPose, ReceivedPoses, ReceivedWeights, check_poses, check_weights
-from physics_mapper.mapping.stamps import time_parts, to_nanoseconds
 from physics_mapper.model.geometry import Pose
 from physics_mapper.model.hypotheses import RankedHypotheses
 from physics_mapper.model.scene import Workspace
 
 
-def nanoseconds_from_stamp(stamp: Time) -> int:
-    """A ``builtin_interfaces/Time`` as integer nanoseconds."""
-    return to_nanoseconds(stamp.sec, stamp.nanosec)
+def nanoseconds_from_stamp(stamp: TimeMsg) -> int:
+    """A ``builtin_interfaces/Time`` as integer nanoseconds (rclpy's :class:`~rclpy.time.Time`)."""
+    return int(Time.from_msg(stamp).nanoseconds)
 
 
-def stamp_from_nanoseconds(stamp_ns: int) -> Time:
-    """Integer nanoseconds as a ``builtin_interfaces/Time``."""
-    sec, nanosec = time_parts(stamp_ns)
-    return Time(sec=sec, nanosec=nanosec)
+def stamp_from_nanoseconds(stamp_ns: int) -> TimeMsg:
+    """Integer nanoseconds as a ``builtin_interfaces/Time`` (rclpy's :class:`~rclpy.time.Time`)."""
+    return Time(nanoseconds=stamp_ns).to_msg()
 
 
 def raw_pose(msg: PoseMsg) -> RawPose:

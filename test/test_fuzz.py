@@ -160,8 +160,9 @@ def check_received(received: ReceivedPoses, count: int) -> None:
 def test_any_pose_array_is_checked_without_an_exception(poses: list[RawPose], frame_id: str) -> None:
     received = received_poses(pose_array(poses, frame_id), expected_frame=FRAME, workspace=WORKSPACE, received=0)
     check_received(received, len(poses))
-    if frame_id != FRAME:
+    if frame_id not in (FRAME, ""):  # no frame at all is taken as the scene's
         assert received.refusal is not None and received.refusal.startswith("frame_id ")
+    assert received.frame_assumed == (frame_id == "")
 
 
 # --- weights ----------------------------------------------------------------------------------------
@@ -212,7 +213,11 @@ def test_any_sequence_of_messages_gives_a_usable_snapshot_and_bounded_diagnostic
     snapshot = tracker.snapshot(now, settings_)
     for status in snapshot.objects:
         assert status.message and "\n" not in status.message
-        assert (status.level == Level.ERROR) == (status.hypotheses is None)
+        # No hypotheses in use: an error, or a warning while nothing has come yet.
+        assert (status.level == Level.OK) <= (status.hypotheses is not None)
+        assert (status.hypotheses is None) == (
+            status.level == Level.ERROR or status.message == "no PoseArray received yet"
+        )
         if status.hypotheses is not None:
             weights = [h.weight for h in status.hypotheses.hypotheses]
             assert 1 <= len(weights) <= max_hypotheses

@@ -37,6 +37,7 @@ PROVIDERS: dict[str, str | None] = {
     "mcap": "mcap-ros2-support",  # no key of its own; this pip package requires mcap>=1.6.0
     "trimesh": "python3-trimesh-pip",
     "platformdirs": "python3-platformdirs",
+    "psutil": "python3-psutil",
     "hypothesis": "python3-hypothesis",
     "pytest": "python3-pytest",
     "coacd": None,

@@ -2,7 +2,7 @@
 
 The node runs as a child process (:mod:`physics_mapper.ros.child_process`) and gets a problem's
 hypotheses a few times from ``physics-mapper publish``, then nothing new: it keeps searching the same
-inputs, resuming at every tick. Its RSS is read from ``/proc/<pid>/status`` (Linux).
+inputs, resuming at every tick. Its RSS is read with psutil.
 """
 
 from __future__ import annotations
@@ -13,6 +13,8 @@ import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
+
+import psutil
 
 from physics_mapper.ros.child_process import start_node, stop_node
 
@@ -29,12 +31,9 @@ class MemorySample:
     rss: int
 
 
-def resident_set_size(pid: int, field: str = "VmRSS") -> int:
-    """Bytes of a process's resident set from ``/proc/<pid>/status``: ``VmRSS`` now, ``VmHWM`` its peak."""
-    for line in Path(f"/proc/{pid}/status").read_text().splitlines():
-        if line.startswith(f"{field}:"):
-            return int(line.split()[1]) * 1024
-    raise RuntimeError(f"no {field} for process {pid}")
+def resident_set_size(pid: int) -> int:
+    """Bytes of a process's resident set now."""
+    return int(psutil.Process(pid).memory_info().rss)
 
 
 def sample_node_memory(
