@@ -276,7 +276,47 @@ def test_replay_without_a_node_says_so(handmade_bag: Path, tmp_path: Path) -> No
         check=False,
     )
     assert completed.returncode == 1
-    assert "physics-mapper replay: error: no node is listening on /hypotheses/cube_left" in completed.stderr
+    assert "physics-mapper replay: error: no node listens on /hypotheses/cube_left" in completed.stderr
+    assert "; no node publishes /physics_mapper/configuration" in completed.stderr
+    assert "Traceback" not in completed.stderr
+
+
+def test_live_replay_reaches_a_renamed_node(handmade_bag: Path, tmp_path: Path) -> None:
+    """A launch file's ``name=`` renames the node (``-r __node:=mapper``): --node-name finds it."""
+    node = NodeProcess(SCENE, {}, tmp_path / "node.log", "/renamed", remaps={"__node": "mapper"})
+    try:
+        completed = run_cli(
+            "replay",
+            str(handmade_bag),
+            "--scene",
+            str(SCENE),
+            "-o",
+            str(tmp_path / "out"),
+            "--namespace",
+            "/renamed",
+            "--node-name",
+            "mapper",
+            "--wait",
+            "60",
+            "--exhaustive",
+            timeout=180,
+        )
+    finally:
+        node.stop()
+    assert completed.returncode == 0, completed.stderr
+    messages = recorded(tmp_path / "out")
+    assert messages[topics.RECORDED_CONFIGURATION_TOPIC]  # the renamed node's outputs, recorded
+    assert any(status.name.startswith("mapper: ") for m in messages["/diagnostics"] for status in m.status)
+
+
+def test_a_bad_node_name_is_one_error_line(handmade_bag: Path) -> None:
+    completed = run_cli("replay", str(handmade_bag), "--scene", str(SCENE), "--node-name", "my node")
+    assert completed.returncode == 2
+    errors = [line for line in completed.stderr.splitlines() if "error" in line]
+    assert errors == [
+        "physics-mapper replay: error: --node-name: Invalid node name: node name must not contain "
+        "characters other than alphanumerics or '_': 'my node'"
+    ]
     assert "Traceback" not in completed.stderr
 
 

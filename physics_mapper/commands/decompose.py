@@ -4,13 +4,14 @@ from __future__ import annotations
 
 import argparse
 import sys
-from pathlib import Path
+
+from physics_mapper.commands.files import input_file
 
 HELP = "compute the convex decompositions of a scene's meshes into the cache now (the first load can take minutes)"
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("scenes", type=Path, nargs="+", metavar="SCENE", help="scene or problem YAML files")
+    parser.add_argument("scenes", type=input_file, nargs="+", metavar="SCENE", help="scene or problem YAML files")
 
 
 def run(args: argparse.Namespace) -> int:

@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from physics_mapper.commands import replay
+from physics_mapper.commands.files import input_file
 from physics_mapper.model.errors import EXIT_FAILURE
 
 if TYPE_CHECKING:
@@ -29,7 +30,7 @@ DEMO_NODE = "/physics_mapper"
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
-        "--scene", type=Path, help="scene the node loads (default: the shipped config/scenes/pyramid.yaml)"
+        "--scene", type=input_file, help="scene the node loads (default: the shipped config/scenes/pyramid.yaml)"
     )
     parser.add_argument(
         "--bag",

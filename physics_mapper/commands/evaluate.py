@@ -17,6 +17,7 @@ from pathlib import Path
 from types import FrameType
 from typing import TYPE_CHECKING
 
+from physics_mapper.commands.files import input_file
 from physics_mapper.model.errors import EXIT_FAILURE, EXIT_INCOMPLETE, EXIT_INTERRUPTED, InputError
 
 if TYPE_CHECKING:
@@ -42,7 +43,7 @@ def add_batch_arguments(parser: argparse.ArgumentParser, name: str) -> None:
     parser.add_argument(
         "bags", nargs="+", type=Path, metavar="BAG_OR_DIR", help="bags (mcap or sqlite3), or folders searched for bags"
     )
-    parser.add_argument("--scene", type=Path, required=True, help="scene YAML the hypotheses are for")
+    parser.add_argument("--scene", type=input_file, required=True, help="scene YAML the hypotheses are for")
     parser.add_argument(
         "--set",
         action="append",

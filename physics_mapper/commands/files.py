@@ -1,13 +1,25 @@
-"""What the subcommands share: a problem file loaded with its warnings, and the output files users name."""
+"""What the subcommands share: input files named by path or URL, a problem file loaded with its warnings,
+and the output files users name."""
 
 from __future__ import annotations
 
+import argparse
 import sys
 from pathlib import Path
 
 from physics_mapper.model.errors import InputError
+from physics_mapper.model.resources import ResourceError, resolve_resource
 from physics_mapper.model.scene import Problem
 from physics_mapper.model.scene_files import load_problem
+
+
+def input_file(text: str) -> Path:
+    """An argparse type: a scene or problem file by path or ``package://<package>/<path>`` URL, as the
+    node's ``scene_file`` takes it (argparse's ``Path`` would fold the URL's ``//``)."""
+    try:
+        return resolve_resource(text, None)
+    except ResourceError as error:
+        raise argparse.ArgumentTypeError(str(error)) from None
 
 
 def load_problem_file(path: Path, command: str) -> Problem:

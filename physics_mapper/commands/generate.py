@@ -9,6 +9,7 @@ from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from physics_mapper.commands.files import input_file
 from physics_mapper.model.errors import InputError
 
 if TYPE_CHECKING:
@@ -27,7 +28,7 @@ START_TIME_NS = 1_000_000_000
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     # Tracker defaults live in TrackerSettings; an option left out (None) keeps them.
-    parser.add_argument("scene", type=Path, help="scene YAML with a ground_truth: section")
+    parser.add_argument("scene", type=input_file, help="scene YAML with a ground_truth: section")
     parser.add_argument("-o", "--output", type=Path, required=True, metavar="BAG", help="bag directory to create")
     parser.add_argument("--runs", type=int, default=1, help="independent particle-filter runs (default: 1)")
     parser.add_argument(

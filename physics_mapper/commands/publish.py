@@ -3,9 +3,8 @@
 from __future__ import annotations
 
 import argparse
-from pathlib import Path
 
-from physics_mapper.commands.files import load_problem_file
+from physics_mapper.commands.files import input_file, load_problem_file
 from physics_mapper.model.errors import InputError
 
 #: Seconds to keep the process alive after the last round, so that it is delivered.
@@ -17,7 +16,7 @@ HELP = "publish a problem file's hypotheses and weights on the node's input topi
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("problem", type=Path, help="problem YAML: a scene plus hypotheses per object")
+    parser.add_argument("problem", type=input_file, help="problem YAML: a scene plus hypotheses per object")
     parser.add_argument("--rate", type=float, default=1.0, metavar="HZ", help="rounds per second (default 1)")
     parser.add_argument("--count", type=int, default=0, metavar="N", help="rounds to publish; 0 = until Ctrl-C")
     parser.add_argument("--namespace", default="", metavar="NS", help="namespace of the node's topics (default: /)")

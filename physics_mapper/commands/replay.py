@@ -13,7 +13,7 @@ from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from physics_mapper.commands.files import check_output_folder, write_output
+from physics_mapper.commands.files import check_output_folder, input_file, write_output
 from physics_mapper.model.errors import EXIT_FAILURE, InputError
 
 if TYPE_CHECKING:
@@ -27,7 +27,7 @@ HELP = "play a bag's hypotheses into the running node and record its outputs, or
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("bag", type=Path, help="rosbag2 bag (mcap or sqlite3 directory) with hypotheses topics")
-    parser.add_argument("--scene", type=Path, required=True, help="scene YAML the hypotheses are for")
+    parser.add_argument("--scene", type=input_file, required=True, help="scene YAML the hypotheses are for")
     parser.add_argument(
         "-o",
         "--output",
@@ -40,6 +40,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--offline", action="store_true", help="search each snapshot as the node would, no ROS graph")
     parser.add_argument("--start-node", action="store_true", help="start the node on --scene for the replay")
     parser.add_argument("--namespace", default="/", help="ROS namespace of the node (default: /)")
+    parser.add_argument(
+        "--node-name",
+        default="physics_mapper",
+        metavar="NAME",
+        help="name of the node (a launch file's name=, -r __node:=NAME; default: physics_mapper)",
+    )
     parser.add_argument(
         "--wait",
         type=float,
@@ -150,12 +156,14 @@ def _offline(args: argparse.Namespace, scene: Scene, snapshots: Sequence[BagSnap
 def _live(
     args: argparse.Namespace, scene: Scene, bag: Bag, snapshots: Sequence[BagSnapshot]
 ) -> list[SnapshotResult] | None:
-    from rclpy.exceptions import InvalidNamespaceException
+    from rclpy.exceptions import InvalidNamespaceException, InvalidNodeNameException
     from rclpy.validate_namespace import validate_namespace
+    from rclpy.validate_node_name import validate_node_name
 
     from physics_mapper.bags.storage import BagWriter, bag_info, read_bag
     from physics_mapper.evaluation.snapshot_results import recorded_results
     from physics_mapper.mapping.topics import (
+        NODE_NAME,
         RECORDED_CONFIGURATION_TOPIC,
         RECORDED_SETTLED_TOPIC,
         recorded_poses_topic,
@@ -168,6 +176,10 @@ def _live(
         validate_namespace(args.namespace)
     except InvalidNamespaceException as error:
         raise InputError(f"--namespace: {' '.join(str(error).split()).rstrip(' ^')}") from None
+    try:
+        validate_node_name(args.node_name)
+    except InvalidNodeNameException as error:
+        raise InputError(f"--node-name: {' '.join(str(error).split()).rstrip(' ^')}") from None
     output = args.output or Path(f"{args.bag.resolve().name}_replay_{time.strftime('%Y_%m_%d-%H_%M_%S')}")
     playback = Playback(
         rate=args.rate,
@@ -177,6 +189,7 @@ def _live(
         topics=tuple("/" + topic.lstrip("/") for topic in args.topics),
         all_topics=args.all_topics,
         exhaustive=args.exhaustive,
+        node_name=args.node_name,
     )
     names = scene.object_names
     inputs = [topic for name in names for topic in (recorded_poses_topic(name), recorded_weights_topic(name))]
@@ -186,7 +199,8 @@ def _live(
         log = stack.enter_context(tempfile.TemporaryFile(mode="w+"))
         process = None
         if args.start_node:
-            process = start_node(args.scene.resolve(), namespace=args.namespace, output=log)
+            renamed = {"__node": args.node_name} if args.node_name != NODE_NAME else None
+            process = start_node(args.scene.resolve(), namespace=args.namespace, output=log, remaps=renamed)
             stack.callback(stop_node, process)
             _progress(f"started the node on {args.scene}")
 

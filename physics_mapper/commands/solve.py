@@ -7,7 +7,7 @@ import json
 from dataclasses import replace
 from pathlib import Path
 
-from physics_mapper.commands.files import check_output_folder, load_problem_file, write_output
+from physics_mapper.commands.files import check_output_folder, input_file, load_problem_file, write_output
 from physics_mapper.model.scene_files import search_with_overrides
 from physics_mapper.physics.checker import PhysicsChecker
 from physics_mapper.search.report import result_dict, result_summary, trace_entry_dict, trace_tree
@@ -17,7 +17,7 @@ HELP = "search a problem file (scene + hypotheses) for the best physically valid
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("problem", type=Path, help="problem YAML: a scene plus hypotheses per object")
+    parser.add_argument("problem", type=input_file, help="problem YAML: a scene plus hypotheses per object")
     parser.add_argument("--trace", type=Path, metavar="FILE.json", help="write the visited nodes, in order, as JSON")
     parser.add_argument("--json", action="store_true", help="print the whole result as JSON instead of text")
     parser.add_argument("--tree", action="store_true", help="also print the search tree (paper Fig. 4)")

@@ -83,7 +83,8 @@ class Playback:
     in ``exhaustive`` replays for each search; tail: seconds to keep recording after the last
     message; namespace: the node's ROS namespace; topics: topics played besides those the node
     consumes; all_topics: play every topic (but :data:`NEVER_BY_DEFAULT` unless in ``topics``);
-    exhaustive: after each snapshot, wait for the node's finished search on it.
+    exhaustive: after each snapshot, wait for the node's finished search on it; node_name: the
+    node's name (a launch file's ``name=``, ``-r __node:=...``), whose outputs are recorded.
     """
 
     rate: float = 1.0
@@ -93,11 +94,17 @@ class Playback:
     topics: tuple[str, ...] = ()
     all_topics: bool = False
     exhaustive: bool = False
+    node_name: str = NODE_NAME
 
 
-def _in_namespace(topic: str) -> str:
-    """A recorded topic name as seen by a node in a namespace: relative, except the global /diagnostics."""
-    return topic if topic == DIAGNOSTICS_TOPIC else topic.lstrip("/")
+def _in_namespace(topic: str, node_name: str = NODE_NAME) -> str:
+    """A recorded topic name as seen by a node in a namespace: relative, except the global /diagnostics;
+    the node's own outputs (``/physics_mapper/...`` in a bag) under its actual ``node_name``."""
+    if topic == DIAGNOSTICS_TOPIC:
+        return topic
+    relative = topic.lstrip("/")
+    own = f"{NODE_NAME}/"
+    return node_name + "/" + relative.removeprefix(own) if relative.startswith(own) else relative
 
 
 def message_class(msgtype: str) -> Any:
@@ -136,7 +143,7 @@ class _Recorder:
     Recording starts with :meth:`add_topics`, once the node's publishers are known.
     """
 
-    def __init__(self, node: Node, writer: BagWriter, on_diagnostics: Callable[[bytes], None]) -> None:
+    def __init__(self, node: Node, writer: BagWriter, on_diagnostics: Callable[[bytes], None], node_name: str) -> None:
         self._node = node
         self._writer = writer
         self._on_diagnostics = on_diagnostics
@@ -144,7 +151,11 @@ class _Recorder:
         self.counts = {topic: 0 for topic, _ in RECORDED}
         self.subscriptions: list[Subscription] = [
             node.create_subscription(
-                message_class(msgtype), _in_namespace(topic), self._callback(topic, msgtype), RECORDER_QOS, raw=True
+                message_class(msgtype),
+                _in_namespace(topic, node_name),
+                self._callback(topic, msgtype),
+                RECORDER_QOS,
+                raw=True,
             )
             for topic, msgtype in RECORDED
         ]
@@ -171,7 +182,8 @@ class _Recorder:
 class _Searches:
     """The node's searches as its diagnostics report them: finished or not, on which PoseArrays (stamps)."""
 
-    def __init__(self, node_name: str, object_names: Sequence[str]) -> None:
+    def __init__(self, namespace: str, node_name: str, object_names: Sequence[str]) -> None:
+        self._hardware_id = f"{namespace.rstrip('/')}/{node_name}"
         self._node_name = node_name
         self._object_names = object_names
         self.latest: tuple[bool, tuple[int, ...]] | None = None
@@ -179,13 +191,13 @@ class _Searches:
 
     def on_diagnostics(self, raw: bytes) -> None:
         array = deserialize_message(raw, DiagnosticArray)
-        statuses = {s.name: s for s in array.status if s.hardware_id == self._node_name}
-        search = statuses.get(f"{NODE_NAME}: search")
+        statuses = {s.name: s for s in array.status if s.hardware_id == self._hardware_id}
+        search = statuses.get(f"{self._node_name}: search")
         if search is None:
             return
         stamps = []
         for name in self._object_names:
-            status = statuses.get(f"{NODE_NAME}: hypotheses/{name}")
+            status = statuses.get(f"{self._node_name}: hypotheses/{name}")
             values = {kv.key: kv.value for kv in status.values} if status is not None else {}
             stamps.append(int(values.get("stamp [ns]", "-1")))
         finished = {kv.key: kv.value for kv in search.values}.get("finished") == "true"
@@ -218,10 +230,12 @@ def _wait_for_graph(
         if not unheard and not silent:
             break
         if time.monotonic() >= end or not alive():
+            missing = ([f"no node listens on {', '.join(unheard)}"] if unheard else []) + (
+                [f"no node publishes {', '.join(silent)}"] if silent else []
+            )
             raise ReplayError(
-                f"no node is listening on {', '.join(unheard) or '-'} / publishing {', '.join(silent) or '-'} "
-                f"after {timeout:g} s: start it first (physics-mapper node --ros-args -p scene_file:=SCENE) "
-                "or pass --start-node"
+                f"{'; '.join(missing)} after {timeout:g} s: start it first (physics-mapper node --ros-args -p "
+                "scene_file:=SCENE), pass --start-node, or name it with --namespace and --node-name"
             )
         executor.spin_once(timeout_sec=0.05)
     _spin_until(executor, time.monotonic() + SETTLE_AFTER_DISCOVERY)
@@ -259,9 +273,8 @@ def play_and_record(
         if skipped:
             progress(f"not played: {', '.join(skipped)}")
         publishers = _publishers(node, info, played)
-        node_name = f"{playback.namespace.rstrip('/')}/{NODE_NAME}"
-        searches = _Searches(node_name, object_names)
-        recorder = _Recorder(node, writer, searches.on_diagnostics)
+        searches = _Searches(playback.namespace, playback.node_name, object_names)
+        recorder = _Recorder(node, writer, searches.on_diagnostics, playback.node_name)
         inputs = [publishers[t] for t in consumed if t in publishers]
         _wait_for_graph(executor, inputs, recorder.subscriptions, playback.wait, alive)
         recorder.add_topics()
