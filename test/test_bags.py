@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import random
+import shutil
 import subprocess
 import sys
 from dataclasses import dataclass, replace
@@ -649,3 +650,35 @@ def test_generate_draws_each_run_as_the_experiments_do(tmp_path: Path) -> None:
         [100.0 * e for e in position_errors(rank_one_poses(s.hypotheses), s.ground_truth or ())] for s in snapshots
     ]
     assert np.array_equal(np.array(top_errors_cm), experiment.without_physics_errors.reshape(RUNS * ITERATIONS, 3))
+
+
+ONE_HYPOTHESIS = RankedHypotheses.from_weighted([Hypothesis(make_pose((0.0, 0.0, 0.1)), 1.0)])
+
+
+@pytest.mark.parametrize("storage", ["mcap", "sqlite3"])
+def test_written_bags_name_jazzy_as_their_ros_distro(storage: str, tmp_path: Path) -> None:
+    """As ``ros2 bag record`` on Jazzy does: ``ros2 bag info`` and rosbag2's reader see the distribution."""
+    with BagWriter(tmp_path / "bag", "mcap" if storage == "mcap" else "sqlite3") as writer:
+        writer.write_hypotheses(1, 1, "world", "cube", ONE_HYPOTHESIS)
+    with Reader(tmp_path / "bag") as reader:
+        assert reader.ros_distro == "jazzy"
+    if storage == "mcap":
+        assert verify_checksums(next((tmp_path / "bag").glob("*.mcap"))).summary  # the record rewritten, CRCs intact
+
+
+def test_a_bag_in_another_serialisation_is_named_as_such(tmp_path: Path) -> None:
+    bag = tmp_path / "json_bag"
+    with BagWriter(bag) as writer:
+        writer.write_hypotheses(1, 1, "world", "cube", ONE_HYPOTHESIS)
+    metadata = bag / "metadata.yaml"
+    metadata.write_text(metadata.read_text().replace("serialization_format: cdr", "serialization_format: json"))
+    with pytest.raises(BagError, match=r"cannot read bag: Serialization format \{'json'\} is not supported"):
+        read_bag(bag)
+
+
+def test_a_folder_without_metadata_is_named_as_such(tmp_path: Path) -> None:
+    bag = tmp_path / "no_metadata"
+    shutil.copytree(DATA / "pyramid", bag)
+    (bag / "metadata.yaml").unlink()
+    with pytest.raises(BagError, match=r"no metadata\.yaml: not a rosbag2 bag"):
+        read_bag(bag)

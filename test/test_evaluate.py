@@ -175,21 +175,30 @@ def test_unreadable_bags_are_listed_and_the_others_evaluated(
         "b_pyramid_sqlite3": "evaluated",
         "c_truncated": "unreadable",
         "d_no_metadata": "unreadable",
-        "e_mistyped": "unreadable",
-        "f_truth_only": "unreadable",
+        "e_mistyped": "unusable",
+        "f_truth_only": "unusable",
     }
     assert errors["c_truncated"].startswith("cannot read bag (corrupt or truncated?)")
-    assert errors["d_no_metadata"].startswith("cannot read bag (corrupt or truncated?)")
+    assert errors["d_no_metadata"].startswith("no metadata.yaml: not a rosbag2 bag, or its recording did not end")
     assert errors["e_mistyped"] == (
         "topic /hypotheses/cube_top has type std_msgs/msg/Float64MultiArray, expected geometry_msgs/msg/PoseArray"
     )
     assert errors["f_truth_only"].startswith("no messages on /hypotheses/cube_left, /hypotheses/cube_right")
-    assert data["counts"] == {"bags": 6, "evaluated": 2, "unreadable": 4, "failed": 0, "not_evaluated": 0}
+    assert data["counts"] == {
+        "bags": 6,
+        "evaluated": 2,
+        "unreadable": 2,
+        "unusable": 2,
+        "failed": 0,
+        "not_evaluated": 0,
+    }
     assert data["overall"]["snapshots"] == 5
     markdown = (tmp_path / "report" / "report.md").read_text()
-    assert "## Bags not evaluated" in markdown and "| `" + str(root / "e_mistyped") + "` | unreadable |" in markdown
+    assert "## Bags not evaluated" in markdown and "| `" + str(root / "e_mistyped") + "` | unusable |" in markdown
     assert data["search_mode"] == "deadline" and "deadline 0.2 s per snapshot, as the node's tick" in markdown
-    assert captured.out.startswith("evaluated 2 of 6 bag(s) (4 unreadable, 0 failed, 0 not evaluated), 5 snapshots")
+    assert captured.out.startswith(
+        "evaluated 2 of 6 bag(s) (2 unreadable, 2 unusable, 0 failed, 0 not evaluated), 5 snapshots"
+    )
     # A bag found unusable only when read (its metadata opens) makes the run incomplete too.
     assert evaluate(tmp_path / "alone", str(root / "e_mistyped"), "--workers", "0")[0] == EXIT_INCOMPLETE
 

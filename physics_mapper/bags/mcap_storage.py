@@ -23,6 +23,7 @@ from importlib.metadata import version
 from pathlib import Path
 from typing import IO
 
+import yaml
 from mcap.records import Chunk, DataEnd, Footer
 from mcap.stream_reader import CRCValidationError, StreamReader, get_chunk_data_stream
 from mcap.writer import CompressionType
@@ -30,6 +31,8 @@ from mcap.writer import Writer as McapWriter
 from rosbags.interfaces import Connection, ConnectionExtRosbag2, MessageDefinitionFormat
 from rosbags.rosbag2 import CompressionMode
 
+#: The ROS distribution written bags name as their recorder's (rosbags would write "rosbags").
+ROS_DISTRO = "jazzy"
 #: Uncompressed bytes per chunk (rosbags' and the mcap library's choice too).
 CHUNK_SIZE = 1024 * 1024
 #: MCAP's magic bytes, which open and close a file.
@@ -76,12 +79,19 @@ class ChecksummedMcapStorage:
 
     def close(self, version: int, metadata: str) -> None:
         """Write the rosbag2 metadata record (as ``ros2 bag record`` does), the summary and the footer."""
-        self._writer.add_metadata("rosbag2", {"serialized_metadata": metadata})
+        self._writer.add_metadata("rosbag2", {"serialized_metadata": with_ros_distro(metadata)})
         self._writer.finish()  # type: ignore[no-untyped-call]  # unannotated in mcap 1.6
         self._file.close()
 
     def abort(self) -> None:
         self._file.close()
+
+
+def with_ros_distro(metadata: str) -> str:
+    """rosbag2 metadata YAML naming :data:`ROS_DISTRO` as the distribution that recorded it."""
+    data = yaml.safe_load(metadata)
+    data["ros_distro"] = ROS_DISTRO
+    return str(yaml.safe_dump(data, sort_keys=False))
 
 
 @dataclass(frozen=True)

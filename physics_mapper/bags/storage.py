@@ -26,6 +26,8 @@ is read, so a damaged bag is reported rather than read as other messages. SQLite
 
 from __future__ import annotations
 
+import contextlib
+import sqlite3
 from collections.abc import Collection, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -34,6 +36,7 @@ from types import MappingProxyType, TracebackType
 from typing import Any, Final, Literal
 
 import numpy as np
+import yaml
 from rosbags.interfaces import (
     Connection,
     ConnectionExtRosbag2,
@@ -44,10 +47,10 @@ from rosbags.interfaces import (
     QosReliability,
     QosTime,
 )
-from rosbags.rosbag2 import Reader, StoragePlugin, Writer, WriterError
+from rosbags.rosbag2 import Reader, ReaderError, StoragePlugin, Writer, WriterError
 from rosbags.typesys import Stores, get_typestore
 
-from physics_mapper.bags.mcap_storage import ChecksummedMcapStorage, verify_checksums
+from physics_mapper.bags.mcap_storage import ROS_DISTRO, ChecksummedMcapStorage, verify_checksums
 from physics_mapper.mapping.stamps import time_parts, to_nanoseconds
 from physics_mapper.mapping.topics import (
     GROUND_TRUTH_TOPIC,
@@ -201,6 +204,21 @@ class _ChecksummedWriter(Writer):
     STORAGE_PLUGINS = MappingProxyType({**Writer.STORAGE_PLUGINS, StoragePlugin.MCAP: ChecksummedMcapStorage})
 
 
+def _name_ros_distro(path: Path, storage: Storage) -> None:
+    """Name :data:`ROS_DISTRO` as the recorder's distribution, as ``ros2 bag record`` does: in
+    ``metadata.yaml`` and, for sqlite3, the schema table (the MCAP metadata record already names it)."""
+    metadata = path / "metadata.yaml"
+    document = yaml.safe_load(metadata.read_text(encoding="utf-8"))
+    document["rosbag2_bagfile_information"]["ros_distro"] = ROS_DISTRO
+    partial = metadata.with_suffix(".yaml.tmp")
+    partial.write_text(yaml.safe_dump(document, sort_keys=False), encoding="utf-8")
+    partial.replace(metadata)
+    if storage == "sqlite3":
+        for database in path.glob("*.db3"):
+            with contextlib.closing(sqlite3.connect(database)) as connection, connection:
+                connection.execute("UPDATE schema SET ros_distro = ?", (ROS_DISTRO,))
+
+
 class BagWriter:
     """Writes a new bag (mcap, with checksums, or sqlite3); topics are added on their first message.
 
@@ -210,6 +228,7 @@ class BagWriter:
     def __init__(self, path: str | Path, storage: Storage = "mcap") -> None:
         self.path = Path(path)
         try:
+            self._storage = storage
             self._writer = _ChecksummedWriter(self.path, version=BAG_VERSION, storage_plugin=_PLUGINS[storage])
             self._writer.open()
         except (WriterError, OSError) as error:
@@ -228,6 +247,7 @@ class BagWriter:
         """Write the metadata and close the storage file (idempotent)."""
         if self._writer.storage is not None:
             self._writer.close()
+            _name_ros_distro(self.path, self._storage)
 
     def add_topic(self, topic: str, msgtype: str, offered: Sequence[Qos] = ()) -> None:
         """Add a topic with the QoS profiles its publishers offered (rosbag2's ``offered_qos_profiles``)."""
@@ -264,6 +284,11 @@ def _reading(path: Path, verify: bool = True) -> Iterator[Reader]:
     """
     if not path.exists():
         raise BagError(f"{path}: no such bag")
+    if path.is_dir() and not (path / "metadata.yaml").is_file():
+        raise BagError(
+            f"{path}: no metadata.yaml: not a rosbag2 bag, or its recording did not end cleanly "
+            "(`ros2 bag reindex` rebuilds it)"
+        )
     try:
         if verify:
             for storage_file in sorted(path.glob("*.mcap")) if path.is_dir() else [path]:
@@ -281,7 +306,10 @@ def _reading(path: Path, verify: bool = True) -> Iterator[Reader]:
 
 def _unreadable(path: Path, error: Exception) -> BagError:
     """The error of a bag that cannot be read, on one line (YAML errors span several)."""
-    return BagError(f"{path}: cannot read bag (corrupt or truncated?): {' '.join(str(error).split())}")
+    text = " ".join(str(error).split())
+    if isinstance(error, ReaderError) and text.startswith("Serialization format"):
+        return BagError(f"{path}: cannot read bag: {text} (only cdr, rosbag2's default, is)")
+    return BagError(f"{path}: cannot read bag (corrupt or truncated?): {text}")
 
 
 def _wanted(reader: Reader, topics: Collection[str] | None) -> list[Connection]:
@@ -370,10 +398,14 @@ def decoding(bag: Bag, message: BagMessage) -> Iterator[None]:
         raise BagError(f"{bag.path}: {message.topic} at {message.time_ns} ns: {error}") from None
 
 
+class BagMismatch(BagError):
+    """A bag that reads fine but is not one of the scene's: its hypothesis topics are missing or mistyped."""
+
+
 def check_hypothesis_topics(bag: Bag, object_names: Sequence[str]) -> None:
     """Require a PoseArray topic with messages for every object; weights and ground truth, if there, typed right.
 
-    Raises BagError naming the bag, the topic and the problem.
+    Raises BagMismatch naming the bag, the topic and the problem.
     """
     expected = {GROUND_TRUTH_TOPIC: POSE_ARRAY}
     for name in object_names:
@@ -382,8 +414,8 @@ def check_hypothesis_topics(bag: Bag, object_names: Sequence[str]) -> None:
     for topic, msgtype in expected.items():
         found = bag.topics.get(topic)
         if found is not None and found != msgtype:
-            raise BagError(f"{bag.path}: topic {topic} has type {found}, expected {msgtype}")
+            raise BagMismatch(f"{bag.path}: topic {topic} has type {found}, expected {msgtype}")
     missing = [recorded_poses_topic(name) for name in object_names if not bag.on(recorded_poses_topic(name))]
     if missing:
         present = ", ".join(sorted(bag.topics)) or "none"
-        raise BagError(f"{bag.path}: no messages on {', '.join(missing)} (topics in the bag: {present})")
+        raise BagMismatch(f"{bag.path}: no messages on {', '.join(missing)} (topics in the bag: {present})")

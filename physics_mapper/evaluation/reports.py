@@ -96,7 +96,7 @@ def _counts(run: BatchRun, setting: int) -> dict[str, int]:
     statuses = [run.status((setting, b))[0] for b in range(len(run.bags))]
     return {"bags": len(statuses)} | {
         status.replace(" ", "_"): statuses.count(status)
-        for status in ("evaluated", "unreadable", "failed", "not evaluated")
+        for status in ("evaluated", "unreadable", "unusable", "failed", "not evaluated")
     }
 
 
@@ -282,7 +282,8 @@ def evaluation_markdown(data: dict[str, Any], png_name: str) -> str:
         f"- Searches: {_mode_text(data, stopped, searches, data['search']['deadline'])}.",
         *_note_lines(data, run["time_to_answer"]["overall"], data["search"]["deadline"]),
         f"- Run: {_run_text(run)}.",
-        f"- Bags: {counts['evaluated']} evaluated, {counts['unreadable']} unreadable, {counts['failed']} failed, "
+        f"- Bags: {counts['evaluated']} evaluated, {counts['unreadable']} unreadable, {counts['unusable']} unusable, "
+        f"{counts['failed']} failed, "
         f"{counts['not_evaluated']} not evaluated.",
         "",
         "## Overall",
@@ -326,6 +327,7 @@ def overall_lines(data: dict[str, Any]) -> list[str]:
     counts, overall = data["counts"], data["overall"]
     lines = [
         f"evaluated {counts['evaluated']} of {counts['bags']} bag(s) ({counts['unreadable']} unreadable, "
+        f"{counts['unusable']} unusable, "
         f"{counts['failed']} failed, {counts['not_evaluated']} not evaluated)"
         + ("; interrupted" if data["interrupted"] else "")
     ]

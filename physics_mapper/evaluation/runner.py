@@ -55,12 +55,15 @@ class BatchRun:
         return output if output is not None and output.error is None else None
 
     def status(self, key: TaskKey) -> tuple[str, str | None]:
-        """A task's status (``evaluated``, ``unreadable``, ``failed``, ``not evaluated``) and error, if any."""
+        """A task's status (``evaluated``, ``unreadable``, ``unusable``: read but not of the scene, ``failed``,
+        ``not evaluated``) and error, if any."""
         bag, output = self.bags[key[1]], self.outputs.get(key)
         if bag.error is not None:
             return "unreadable", bag.error
         if output is not None:
-            return ("evaluated", None) if output.error is None else ("unreadable", output.error)
+            if output.error is None:
+                return "evaluated", None
+            return ("unusable" if output.unusable else "unreadable"), output.error
         if key in self.failures:
             return "failed", self.failures[key].error
         return "not evaluated", "the run was interrupted first"
@@ -118,7 +121,8 @@ class _Collector:
         self.run.outputs[self.keys[index]] = output
         self._settle(index, len(output.records))
         if output.error is not None:
-            self.bar.task_done(f"{self._what(index)}: unreadable: {output.error}")
+            kind = "unusable" if output.unusable else "unreadable"
+            self.bar.task_done(f"{self._what(index)}: {kind}: {output.error}")
             return
         valid = sum(1 for record in output.records if record["valid"])
         self.bar.task_done(f"{self._what(index)}: {len(output.records)} snapshots, {valid} with a valid map")

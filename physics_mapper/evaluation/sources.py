@@ -19,7 +19,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from physics_mapper.bags.storage import Bag, BagError, check_hypothesis_topics, message_counts, read_bag
+from physics_mapper.bags.storage import Bag, BagError, BagMismatch, check_hypothesis_topics, message_counts, read_bag
 from physics_mapper.evaluation.snapshots import BagSnapshot, bag_snapshots, input_topics, no_snapshot_reason
 from physics_mapper.mapping.topics import recorded_poses_topic
 from physics_mapper.model.errors import InputError
@@ -117,7 +117,8 @@ def read_inputs(path: Path, scene: Scene) -> Bag | UnreadableBag:
 
 
 def load_snapshots(source: Path | Bag | UnreadableBag, scene: Scene) -> tuple[BagSnapshot, ...]:
-    """A bag's snapshots as the node would take them; BagError (without the path in front) if it is unusable."""
+    """A bag's snapshots as the node would take them; BagError (without the path in front) if it cannot be
+    read, BagMismatch if it reads but holds no usable hypotheses of the scene."""
     if isinstance(source, UnreadableBag):
         raise BagError(source.error)
     path = source if isinstance(source, Path) else source.path
@@ -126,7 +127,7 @@ def load_snapshots(source: Path | Bag | UnreadableBag, scene: Scene) -> tuple[Ba
         check_hypothesis_topics(bag, scene.object_names)
         snapshots = tuple(bag_snapshots(bag, scene))
     except BagError as error:
-        raise BagError(_error_text(path, error)) from None
+        raise type(error)(_error_text(path, error)) from None
     if not snapshots:
-        raise BagError(no_snapshot_reason(scene))
+        raise BagMismatch(no_snapshot_reason(scene))
     return snapshots

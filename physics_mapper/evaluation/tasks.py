@@ -16,7 +16,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from physics_mapper.bags.storage import Bag, BagError
+from physics_mapper.bags.storage import Bag, BagError, BagMismatch
 from physics_mapper.evaluation.snapshot_results import SnapshotResult, search_offline, snapshot_result_dict
 from physics_mapper.evaluation.sources import UnreadableBag, load_snapshots
 from physics_mapper.model.scene import Scene
@@ -28,13 +28,15 @@ class TaskOutput:
     """What a task found: ``error`` if the bag cannot be used, else per snapshot its
     :func:`snapshot_result_dict` (``records``, the same on any machine in an exhaustive search) and its
     search time in seconds (``search_times``, wall clock); the seconds the whole task took in its
-    worker (``busy_time``: bag read, world built, searched, scored), and the worker (``host:pid``)."""
+    worker (``busy_time``: bag read, world built, searched, scored), and the worker (``host:pid``).
+    ``unusable``: the bag read fine but holds no usable hypotheses of the scene (``error`` says why)."""
 
     records: tuple[dict[str, Any], ...]
     search_times: tuple[float, ...]
     busy_time: float
     worker: str
     error: str | None = None
+    unusable: bool = False
 
 
 def _search_time(result: SnapshotResult) -> float:
@@ -56,7 +58,8 @@ def evaluate_bag(
     try:
         snapshots = load_snapshots(source, scene)
     except BagError as error:
-        return TaskOutput((), (), time.monotonic() - started, worker, str(error))
+        unusable = isinstance(error, BagMismatch)
+        return TaskOutput((), (), time.monotonic() - started, worker, str(error), unusable)
 
     def searched(_: int, __: SearchResult) -> None:
         if progress is not None:
