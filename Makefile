@@ -13,13 +13,11 @@ $(STAMP): requirements.txt requirements-dev.txt requirements-ray.txt setup.py
 	$(BIN)/pip install --quiet --upgrade pip
 	$(BIN)/pip install --quiet -r requirements-dev.txt
 	$(BIN)/pip install --quiet --no-deps --no-build-isolation -e .
-	# The ament entry point `node` (for `ros2 run`) would shadow Node.js on PATH inside the venv.
-	rm -f $(BIN)/node
 	touch $(STAMP)
 
 lint: venv
-	$(BIN)/ruff check physics_mapper msg_adapters test benchmarks .ci
-	$(BIN)/ruff format --check physics_mapper msg_adapters test benchmarks .ci
+	$(BIN)/ruff check physics_mapper test benchmarks .ci
+	$(BIN)/ruff format --check physics_mapper test benchmarks .ci
 	$(BIN)/mypy
 
 # UTF-8 mode: the tests read and compare the UTF-8 text the package writes (reports, solve --tree),

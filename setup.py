@@ -1,5 +1,6 @@
 """ament_python package definition: `colcon build` on a ROS machine, `pip install -e .` here."""
 
+import sys
 from pathlib import Path
 
 from setuptools import find_packages, setup
@@ -20,6 +21,22 @@ def shipped_files() -> list[tuple[str, list[str]]]:
     return list(folders.items())
 
 
+def console_scripts():
+    """``physics-mapper`` always; ``ros2 run``'s ``node`` and ``managed_node`` only for colcon.
+
+    ``ros2 run physics_mapper node`` runs ``<prefix>/lib/physics_mapper/node``, where setup.cfg puts
+    the scripts of colcon's ``setup.py install`` and ``develop``. A wheel (``pip install``) would put
+    them in ``bin/``, where a script named ``node`` shadows Node.js; there ``physics-mapper node`` runs it.
+    """
+    scripts = ["physics-mapper = physics_mapper.cli:main"]
+    if {"install", "develop"} & set(sys.argv[1:]):
+        scripts += [
+            "node = physics_mapper.commands.node:main",
+            "managed_node = physics_mapper.commands.node:main_managed",
+        ]
+    return scripts
+
+
 def requirements(file_name):
     """The pinned requirements of a requirements file next to this one (comments and blank lines left out)."""
     lines = (Path(__file__).resolve().parent / file_name).read_text().splitlines()
@@ -29,7 +46,7 @@ def requirements(file_name):
 setup(
     name=PACKAGE,
     version="0.1.0",
-    packages=find_packages(include=["physics_mapper", "physics_mapper.*", "msg_adapters", "msg_adapters.*"]),
+    packages=find_packages(include=["physics_mapper", "physics_mapper.*"]),
     data_files=[
         ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE}"]),
         (f"share/{PACKAGE}", ["package.xml"]),
@@ -44,12 +61,5 @@ setup(
     maintainer_email="physics-mapper@example.com",
     description="Physically consistent multi-object 3D maps from weighted pose hypotheses.",
     license="Apache-2.0",
-    entry_points={
-        "console_scripts": [
-            # `ros2 run physics_mapper node` runs lib/physics_mapper/node (setup.cfg puts scripts there).
-            "node = physics_mapper.commands.node:main",
-            "managed_node = physics_mapper.commands.node:main_managed",
-            "physics-mapper = physics_mapper.cli:main",
-        ],
-    },
+    entry_points={"console_scripts": console_scripts()},
 )

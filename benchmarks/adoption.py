@@ -3,7 +3,7 @@
 Before: rclpy turned the serialised message into a Python object per pose (about 80 ms for 9,000
 poses), the node then checked and converted every pose, and ranked them all to keep the
 ``max_hypotheses_per_object`` (100) heaviest. Now: the node subscribes raw, reads the header and
-views the poses as one numpy array (:mod:`msg_adapters.pose_array_cdr`), and converts poses
+views the poses as one numpy array (:mod:`physics_mapper.msg_adapters.pose_array_cdr`), and converts poses
 heaviest first until it has the 100 it keeps (:func:`physics_mapper.mapping.inputs.rank`). Both
 paths are timed here side by side on the same serialised messages, median of ``--repeats``, with
 the share of one core that three such arrays at 5 Hz (15 per second) take. Run:
@@ -24,11 +24,11 @@ from live_node import load_average
 from rclpy.serialization import deserialize_message, serialize_message
 from std_msgs.msg import Float64MultiArray
 
-from msg_adapters.hypotheses import pose_array_msg, raw_pose, received_pose_array, received_weights
 from physics_mapper.mapping.inputs import InUse, rank
 from physics_mapper.model.geometry import make_pose
 from physics_mapper.model.hypotheses import Hypothesis, RankedHypotheses
 from physics_mapper.model.scene import Workspace
+from physics_mapper.msg_adapters.hypotheses import pose_array_msg, raw_pose, received_pose_array, received_weights
 
 SIZES = (100, 1_000, 9_000, 30_000)
 KEPT = 100

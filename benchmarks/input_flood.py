@@ -35,8 +35,8 @@ from rclpy.parameter import Parameter
 from rclpy.signals import SignalHandlerOptions
 from std_msgs.msg import Float64MultiArray
 
-from msg_adapters.hypotheses import hypotheses_msgs
 from physics_mapper.mapping.topics import poses_topic, weights_topic
+from physics_mapper.msg_adapters.hypotheses import hypotheses_msgs
 from physics_mapper.ros.node import PhysicsMapperNode
 
 RATE_HZ, DEADLINE = 5.0, 0.15

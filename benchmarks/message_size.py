@@ -23,9 +23,9 @@ from live_node import isolate_ros, load_average
 from rclpy.event_handler import QoSMessageLostInfo, SubscriptionEventCallbacks
 from rclpy.qos import QoSProfile
 
-from msg_adapters.hypotheses import pose_array_msg
 from physics_mapper.mapping.topics import INPUT_RELIABILITIES, InputReliability
 from physics_mapper.model.geometry import Pose
+from physics_mapper.msg_adapters.hypotheses import pose_array_msg
 from physics_mapper.ros.qos import input_qos
 
 SIZES = (1_000, 2_000, 5_000, 10_000, 20_000, 50_000)

@@ -24,8 +24,8 @@ from geometry_msgs.msg import PoseArray
 from live_node import PYRAMID_SCENE, busy_problem, isolate_ros, load_average
 from std_msgs.msg import Float64MultiArray
 
-from msg_adapters.hypotheses import hypotheses_msgs
 from physics_mapper.mapping.topics import DIAGNOSTICS_TOPIC, NODE_NAME, poses_topic, weights_topic
+from physics_mapper.msg_adapters.hypotheses import hypotheses_msgs
 from physics_mapper.ros.child_process import start_node
 from physics_mapper.ros.qos import DIAGNOSTICS_QOS
 

@@ -24,7 +24,6 @@ from rclpy.parameter_client import AsyncParameterClient
 from std_msgs.msg import Float64MultiArray
 from visualization_msgs.msg import Marker, MarkerArray
 
-from msg_adapters.hypotheses import nanoseconds_from_stamp
 from physics_mapper.mapping.topics import (
     CONFIGURATION_TOPIC,
     DIAGNOSTICS_TOPIC,
@@ -35,6 +34,7 @@ from physics_mapper.mapping.topics import (
     poses_topic,
     weights_topic,
 )
+from physics_mapper.msg_adapters.hypotheses import nanoseconds_from_stamp
 from physics_mapper.ros.child_process import start_node, stop_node
 from physics_mapper.ros.qos import DIAGNOSTICS_QOS, MAP_QOS
 

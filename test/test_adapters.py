@@ -16,30 +16,6 @@ from rosbags.typesys import Stores, get_typestore
 from std_msgs.msg import Float64MultiArray
 from visualization_msgs.msg import Marker
 
-from msg_adapters.diagnostics import diagnostics_msg
-from msg_adapters.hypotheses import (
-    hypotheses_msgs,
-    nanoseconds_from_stamp,
-    pose_array_msg,
-    raw_pose,
-    received_pose_array,
-    received_poses,
-    received_weights,
-    stamp_from_nanoseconds,
-)
-from msg_adapters.pose_array_cdr import pose_array_view
-from msg_adapters.results import (
-    FALLBACK_COLOR,
-    LABEL_NAMESPACE,
-    PLANE_MARKER_SIZE,
-    SHAPE_NAMESPACE,
-    STATIC_COLOR,
-    STATIC_NAMESPACE,
-    configuration_msgs,
-    markers_msg,
-    object_pose_msgs,
-    static_markers_msg,
-)
 from physics_mapper.mapping.inputs import InputSettings, InputTracker, Level, ObjectInputs, rank
 from physics_mapper.mapping.mapper import Mapper, MapperSettings
 from physics_mapper.model.geometry import Pose, make_pose
@@ -57,6 +33,30 @@ from physics_mapper.model.scene import (
     Workspace,
 )
 from physics_mapper.model.scene_files import load_problem, load_scene
+from physics_mapper.msg_adapters.diagnostics import diagnostics_msg
+from physics_mapper.msg_adapters.hypotheses import (
+    hypotheses_msgs,
+    nanoseconds_from_stamp,
+    pose_array_msg,
+    raw_pose,
+    received_pose_array,
+    received_poses,
+    received_weights,
+    stamp_from_nanoseconds,
+)
+from physics_mapper.msg_adapters.pose_array_cdr import pose_array_view
+from physics_mapper.msg_adapters.results import (
+    FALLBACK_COLOR,
+    LABEL_NAMESPACE,
+    PLANE_MARKER_SIZE,
+    SHAPE_NAMESPACE,
+    STATIC_COLOR,
+    STATIC_NAMESPACE,
+    configuration_msgs,
+    markers_msg,
+    object_pose_msgs,
+    static_markers_msg,
+)
 from physics_mapper.physics.checker import PhysicsChecker
 from physics_mapper.search.branch_and_bound import BranchAndBound
 

@@ -20,9 +20,9 @@ script = sys.argv[1]
 sys.path[0] = os.path.dirname(script)  # as when the script itself runs
 entry = runpy.run_path(script)
 main = entry["load_entry_point"](entry["__requires__"], "console_scripts", "node")
-import msg_adapters, physics_mapper
+import physics_mapper, physics_mapper.msg_adapters
 files = {"entry point": sys.modules[main.__module__].__file__}
-files.update({m.__name__: m.__file__ for m in (physics_mapper, msg_adapters)})
+files.update({m.__name__: m.__file__ for m in (physics_mapper, physics_mapper.msg_adapters)})
 print(json.dumps(files))
 """
 
@@ -40,6 +40,8 @@ def test_colcon_lists_an_ament_python_package(workspace: Path) -> None:
 def test_colcon_build_installs_the_ros2_run_layout(workspace: Path) -> None:
     install = workspace / "install" / PACKAGE
     assert (install / "lib" / PACKAGE / "node").is_file()
+    assert (install / "lib" / PACKAGE / "managed_node").is_file()
+    assert (install / "share" / PACKAGE / "launch" / "physics_mapper.launch.py").is_file()
     assert (install / "share" / "ament_index" / "resource_index" / "packages" / PACKAGE).is_file()
     assert (install / "share" / PACKAGE / "package.xml").read_text() == (REPO / "package.xml").read_text()
     assert (install / "share" / PACKAGE / "config" / "scenes" / "pyramid.yaml").is_file()
@@ -91,8 +93,9 @@ def test_the_installed_node_imports_the_installed_packages(workspace: Path) -> N
     assert files == {
         "entry point": str(site_packages / PACKAGE / "commands" / "node.py"),
         PACKAGE: str(site_packages / PACKAGE / "__init__.py"),
-        "msg_adapters": str(site_packages / "msg_adapters" / "__init__.py"),
+        f"{PACKAGE}.msg_adapters": str(site_packages / PACKAGE / "msg_adapters" / "__init__.py"),
     }
+    assert not (site_packages / "msg_adapters").exists()  # nothing of a generic name at the top level
 
 
 def test_installed_shipped_files_mirror_the_checkout(workspace: Path) -> None:

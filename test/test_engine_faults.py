@@ -10,12 +10,12 @@ from __future__ import annotations
 from conftest import PROBLEMS
 from diagnostic_msgs.msg import DiagnosticStatus
 
-from msg_adapters.diagnostics import diagnostics_msg
 from physics_mapper.mapping.inputs import InputSettings, check_poses, check_weights
 from physics_mapper.mapping.mapper import Mapper, MapperSettings
 from physics_mapper.model.bullet import pybullet
 from physics_mapper.model.scene import SearchParams
 from physics_mapper.model.scene_files import load_problem
+from physics_mapper.msg_adapters.diagnostics import diagnostics_msg
 
 #: A tick period of 2 s leaves room for the whole pyramid search (125 configurations) in one tick.
 WHOLE = MapperSettings(SearchParams(deadline=1.5), InputSettings(), rate_hz=0.5)

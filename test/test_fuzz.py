@@ -28,14 +28,14 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from std_msgs.msg import Float64MultiArray, Header
 
-from msg_adapters.diagnostics import diagnostics_msg
-from msg_adapters.hypotheses import received_poses, received_weights
 from physics_mapper.mapping.inputs import InputSettings, InputTracker, InUse, Level, ReceivedPoses, rank
 from physics_mapper.mapping.mapper import Mapper, MapperSettings, TickReport
 from physics_mapper.model.limits import MAX_DIAGNOSTIC_TEXT
 from physics_mapper.model.scene import Box, ObjectModel, Plane, Scene, SearchParams, StaticBody, Workspace
 from physics_mapper.model.scene_files import SceneError, load_problem, problem_from_dict
 from physics_mapper.model.yaml_files import parse_yaml
+from physics_mapper.msg_adapters.diagnostics import diagnostics_msg
+from physics_mapper.msg_adapters.hypotheses import received_poses, received_weights
 from physics_mapper.physics.checker import PhysicsChecker
 
 FRAME = "world"

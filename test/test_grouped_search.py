@@ -15,7 +15,6 @@ import pytest
 from conftest import PROBLEMS
 from core_builders import ON_FLOOR, cube, far_apart_cubes, floor_hypotheses, floor_scene, ranked, unrotated
 
-from msg_adapters.diagnostics import search_values
 from physics_mapper.bench.scale_suite import ScaleCase, ScaleProblem, scale_problem
 from physics_mapper.mapping.inputs import InputSettings
 from physics_mapper.mapping.mapper import Mapper, MapperSettings, TickReport
@@ -23,6 +22,7 @@ from physics_mapper.model.geometry import pose_displacement
 from physics_mapper.model.hypotheses import RankedHypotheses
 from physics_mapper.model.scene import Scene, SearchParams
 from physics_mapper.model.scene_files import load_problem
+from physics_mapper.msg_adapters.diagnostics import search_values
 from physics_mapper.physics.checker import PhysicsChecker
 from physics_mapper.physics.collision import Collision
 from physics_mapper.physics.collision_table import CollisionTable

@@ -1,7 +1,7 @@
 """The tree is the architecture: which room may import what, checked statically and at run time.
 
-Rooms are the subpackages of ``physics_mapper`` plus ``msg_adapters``. Only ``ros/``,
-``msg_adapters/`` and ``commands/`` may import rclpy or a ROS package; ``model/`` imports no
+Rooms are the subpackages of ``physics_mapper``. Only ``ros/``, ``msg_adapters/`` and
+``commands/`` may import rclpy or a ROS package; ``model/`` imports no
 other room, ``physics/`` only the model, ``search/`` the model and the physics; every room imports
 only the rooms :data:`ALLOWED` names, so data flows one way: messages -> msg_adapters -> mapping ->
 model/physics/search -> mapping -> msg_adapters -> messages.
@@ -55,7 +55,7 @@ ROS_ROOMS = {"ros", "msg_adapters", "commands"}
 #: ``ament_index_python`` is a pure-Python file lookup (no messages, no middleware): the model finds
 #: ``package://`` files with it, so it is not among them.
 ROS_PACKAGES = {"rclpy", "rmw", "rcl_interfaces", "builtin_interfaces"}
-SOURCES = sorted([*(REPO / "physics_mapper").rglob("*.py"), *(REPO / "msg_adapters").rglob("*.py")])
+SOURCES = sorted((REPO / "physics_mapper").rglob("*.py"))
 
 
 def is_ros_package(module: str) -> bool:
@@ -64,10 +64,8 @@ def is_ros_package(module: str) -> bool:
 
 
 def room_of(path: Path) -> str:
-    """The room of a source file: its subpackage of physics_mapper, msg_adapters, or cli for top-level modules."""
+    """The room of a source file: its subpackage of physics_mapper, or cli for top-level modules."""
     parts = path.relative_to(REPO).parts
-    if parts[0] == "msg_adapters":
-        return "msg_adapters"
     if parts[1:] == ("__init__.py",):
         return "api"
     return parts[1] if len(parts) > 2 else "cli"
@@ -85,8 +83,6 @@ def imported_modules(path: Path) -> Iterator[str]:
 def room_imported(module: str) -> str | None:
     """The room an imported module belongs to, or None for a module outside the project."""
     parts = module.split(".")
-    if parts[0] == "msg_adapters":
-        return "msg_adapters"
     if parts[0] != "physics_mapper":
         return None
     return parts[1] if len(parts) > 1 and parts[1] in ALLOWED else "cli"

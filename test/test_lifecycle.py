@@ -11,9 +11,9 @@ from lifecycle_msgs.msg import State, Transition
 from lifecycle_msgs.srv import ChangeState, GetState
 from ros_helpers import REPLY_TIMEOUT, STARTUP_TIMEOUT, NodeProcess, RosClient, node_full_name, stamp_ns_of
 
-from msg_adapters.hypotheses import hypotheses_msgs
 from physics_mapper.mapping.topics import CONFIGURATION_TOPIC, output_topic
 from physics_mapper.model.scene_files import load_problem
+from physics_mapper.msg_adapters.hypotheses import hypotheses_msgs
 
 NAMESPACE = "/managed"
 #: Ticks a second: the deactivated node is watched for a few of its tick periods.

@@ -9,8 +9,8 @@ import pytest
 from conftest import PROBLEMS, SCENES
 from ros_helpers import NodeProcess, RosClient
 
-from msg_adapters.hypotheses import hypotheses_msgs
 from physics_mapper.model.scene_files import load_problem
+from physics_mapper.msg_adapters.hypotheses import hypotheses_msgs
 
 NAMESPACE = "/console"
 #: Where a remap sends one object's hypotheses, as a launch file's remappings would.

@@ -9,10 +9,10 @@ from conftest import SCENES
 from ros_helpers import NodeProcess, RosClient, stamp_ns_of
 from visualization_msgs.msg import Marker, MarkerArray
 
-from msg_adapters.hypotheses import hypotheses_msgs
-from msg_adapters.results import SHAPE_NAMESPACE, STATIC_NAMESPACE
 from physics_mapper.model.hypotheses import Hypothesis, RankedHypotheses
 from physics_mapper.model.scene_files import load_scene
+from physics_mapper.msg_adapters.hypotheses import hypotheses_msgs
+from physics_mapper.msg_adapters.results import SHAPE_NAMESPACE, STATIC_NAMESPACE
 
 TABLETOP = SCENES / "tabletop.yaml"
 

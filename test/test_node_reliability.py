@@ -19,13 +19,13 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from rclpy.parameter import Parameter
 from ros_helpers import PHYSICS_MAPPER, RosClient, object_status, search_status, stamp_ns_of, values
 
-from msg_adapters.hypotheses import hypotheses_msgs, pose_array_msg
 from physics_mapper.model.bullet import pybullet
 from physics_mapper.model.geometry import Pose
 from physics_mapper.model.hypotheses import Hypothesis, RankedHypotheses
 from physics_mapper.model.limits import MAX_QUOTED_TEXT
 from physics_mapper.model.scene import Problem
 from physics_mapper.model.scene_files import load_problem
+from physics_mapper.msg_adapters.hypotheses import hypotheses_msgs, pose_array_msg
 from physics_mapper.ros.node import PhysicsMapperNode
 
 PYRAMID_SCENE = SCENES / "pyramid.yaml"

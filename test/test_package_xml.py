@@ -2,7 +2,7 @@
 
 ``rosdep install --from-paths src --ignore-src`` installs what package.xml names; a missing or
 misspelt key leaves a ROS machine without a library the node imports. Every import of the
-installed Python packages (``physics_mapper``, ``msg_adapters``) maps to an ``<exec_depend>``,
+installed Python package (``physics_mapper``) maps to an ``<exec_depend>``,
 every import of the tests to an ``<exec_depend>`` or ``<test_depend>``, through :data:`PROVIDERS`;
 the standard library and our own packages are exempt. Adding a library: add its row below and the
 key to package.xml; the failure message says which.
@@ -45,7 +45,7 @@ PROVIDERS: dict[str, str | None] = {
 }
 ROS_PACKAGES = {"rclpy", "ament_index_python", "rosidl_runtime_py"}
 #: The Python packages setup.py installs.
-INSTALLED = ("physics_mapper", "msg_adapters")
+INSTALLED = ("physics_mapper",)
 TESTS = REPO / "test"
 
 

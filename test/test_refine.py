@@ -29,12 +29,12 @@ from core_builders import (
 from diagnostic_msgs.msg import DiagnosticStatus
 from ros_helpers import NodeProcess, RosClient, search_status, stamp_ns_of, values
 
-from msg_adapters.hypotheses import hypotheses_msgs
-from msg_adapters.results import FALLBACK_COLOR, SHAPE_NAMESPACE
 from physics_mapper.model.geometry import Pose, make_pose, quaternion_about_axis, translation_distance
 from physics_mapper.model.hypotheses import RankedHypotheses
 from physics_mapper.model.scene import Fallback, Scene, SearchParams
 from physics_mapper.model.scene_files import SceneError, load_problem, scene_from_dict
+from physics_mapper.msg_adapters.hypotheses import hypotheses_msgs
+from physics_mapper.msg_adapters.results import FALLBACK_COLOR, SHAPE_NAMESPACE
 from physics_mapper.physics.checker import PhysicsChecker
 from physics_mapper.physics.refine import OVERLAP_TOLERANCE, RefinedMap, Refinement, refine_objects, refinement_start
 from physics_mapper.physics.world import TIME_STEP

@@ -29,9 +29,9 @@ from ros_helpers import NodeProcess, RosClient, search_status, values
 from std_msgs.msg import Float64MultiArray
 from test_node import busy_problem, publish_problem
 
-from msg_adapters.hypotheses import hypotheses_msgs
 from physics_mapper.mapping.topics import poses_topic, weights_topic
 from physics_mapper.model.scene_files import load_problem
+from physics_mapper.msg_adapters.hypotheses import hypotheses_msgs
 
 #: (phase, signal) of every run; each phase with both signals.
 RUNS = [

@@ -16,9 +16,9 @@ from rclpy.node import Node
 from rclpy.utilities import ok
 from std_msgs.msg import Float64MultiArray
 
-from msg_adapters.hypotheses import hypotheses_msgs
 from physics_mapper.mapping.topics import poses_topic, weights_topic
 from physics_mapper.model.scene import Problem
+from physics_mapper.msg_adapters.hypotheses import hypotheses_msgs
 
 QUEUE_DEPTH = 10
 

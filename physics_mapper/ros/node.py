@@ -13,7 +13,7 @@ publishes the map, another at ``diagnostics_period`` publishes ``/diagnostics``.
   and its timers are in separate callback groups and the input tracker is locked, so a
   multi-threaded executor works too (BENCHMARKS.md, "Input flood", measured both).
 - **Large arrays.** PoseArrays are received serialised and read without a Python object per
-  pose (:mod:`msg_adapters.pose_array_cdr`); only the hypotheses kept are converted.
+  pose (:mod:`physics_mapper.msg_adapters.pose_array_cdr`); only the hypotheses kept are converted.
 - **Lost messages** (the middleware's message-lost event) are counted per input and shown in
   the diagnostics; ``input_reliability: reliable`` avoids them with reliable publishers.
 - **Parameters** are read in one place (:meth:`PhysicsMapperNode.parameter_values`); a change is
@@ -53,9 +53,6 @@ from rclpy.timer import Timer
 from std_msgs.msg import Float64MultiArray
 from visualization_msgs.msg import MarkerArray
 
-from msg_adapters.diagnostics import diagnostics_msg
-from msg_adapters.hypotheses import received_pose_array, received_weights
-from msg_adapters.results import configuration_msgs, markers_msg, object_pose_msgs, static_markers_msg
 from physics_mapper.mapping.inputs import InputSettings, MessageKind
 from physics_mapper.mapping.mapper import DEFAULT_RATE_HZ, Mapper, MapperSettings, TickReport, mapper_settings_problem
 from physics_mapper.mapping.stamps import NANOSECONDS_PER_SECOND
@@ -77,6 +74,9 @@ from physics_mapper.model.errors import EXIT_BAD_INPUT, InputError
 from physics_mapper.model.resources import ResourceError, resolve_resource
 from physics_mapper.model.scene import SEARCH_LIMITS, SearchParams, search_parameter_doc
 from physics_mapper.model.scene_files import SceneError, load_scene, search_with_overrides
+from physics_mapper.msg_adapters.diagnostics import diagnostics_msg
+from physics_mapper.msg_adapters.hypotheses import received_pose_array, received_weights
+from physics_mapper.msg_adapters.results import configuration_msgs, markers_msg, object_pose_msgs, static_markers_msg
 from physics_mapper.ros.qos import DIAGNOSTICS_QOS, MAP_QOS, input_qos
 from physics_mapper.ros.spinning import STOP_POLL, SignalStop, shutdown_ros
 from physics_mapper.search.results import SearchResult

@@ -16,9 +16,9 @@ from geometry_msgs.msg import PoseArray, PoseStamped, Vector3
 from std_msgs.msg import ColorRGBA, Header
 from visualization_msgs.msg import Marker, MarkerArray
 
-from msg_adapters.hypotheses import pose_array_msg, pose_msg, stamp_from_nanoseconds
 from physics_mapper.model.geometry import Pose, compose_poses
 from physics_mapper.model.scene import Box, Cylinder, Mesh, Plane, Scene, Shape, Sphere
+from physics_mapper.msg_adapters.hypotheses import pose_array_msg, pose_msg, stamp_from_nanoseconds
 from physics_mapper.search.results import SearchResult
 
 #: Marker namespaces (see the module docstring), ``id`` = the body's index in its scene list.

@@ -11,7 +11,7 @@ little-endian, then two option bytes); then, aligned relative to the end of that
 ``int32 sec``, ``uint32 nanosec``, the ``frame_id`` as a ``uint32`` length counting its NUL and
 its bytes, a 4-aligned ``uint32`` number of poses, and per pose seven 8-aligned ``float64``:
 position x, y, z and orientation x, y, z, w. Another encapsulation, or lengths that overrun the
-bytes, are left to rclpy's own deserialiser (:func:`msg_adapters.hypotheses.received_pose_array`).
+bytes, are left to rclpy's own deserialiser (:func:`physics_mapper.msg_adapters.hypotheses.received_pose_array`).
 """
 
 from __future__ import annotations

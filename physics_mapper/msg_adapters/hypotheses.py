@@ -3,7 +3,7 @@
 Incoming messages become :class:`~physics_mapper.mapping.inputs.ReceivedPoses` and
 :class:`~physics_mapper.mapping.inputs.ReceivedWeights`, validated by the core (every problem
 collected, none raised); the node receives PoseArrays serialised (:func:`received_pose_array`,
-see :mod:`msg_adapters.pose_array_cdr`); outgoing hypotheses become the same two message types. Header
+see :mod:`physics_mapper.msg_adapters.pose_array_cdr`); outgoing hypotheses become the same two message types. Header
 stamps are integer nanoseconds (``stamp_ns``), exact both ways: a float of seconds since the
 epoch resolves only about 0.2 microseconds, and outputs carry their input's stamp.
 """
@@ -19,11 +19,11 @@ from rclpy.serialization import deserialize_message
 from rclpy.time import Time
 from std_msgs.msg import Float64MultiArray, Header
 
-from msg_adapters.pose_array_cdr import pose_array_view
 from physics_mapper.mapping.inputs import RawPose, ReceivedPoses, ReceivedWeights, check_poses, check_weights
 from physics_mapper.model.geometry import Pose
 from physics_mapper.model.hypotheses import RankedHypotheses
 from physics_mapper.model.scene import Workspace
+from physics_mapper.msg_adapters.pose_array_cdr import pose_array_view
 
 
 def nanoseconds_from_stamp(stamp: TimeMsg) -> int:

@@ -15,11 +15,11 @@ from __future__ import annotations
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from std_msgs.msg import Header
 
-from msg_adapters.hypotheses import stamp_from_nanoseconds
 from physics_mapper.mapping.inputs import Level, ObjectStatus
 from physics_mapper.mapping.mapper import TickReport
 from physics_mapper.mapping.tick_statistics import TickPeriod
 from physics_mapper.model.limits import MAX_DIAGNOSTIC_TEXT, clipped
+from physics_mapper.msg_adapters.hypotheses import stamp_from_nanoseconds
 from physics_mapper.search.report import code_text, refinement_text
 from physics_mapper.search.results import GroupResult, SearchEnd, SearchResult, SearchStats
 

@@ -1,0 +1,105 @@
+"""The launch file names only what exists: executables of this package, its node's parameters, shipped files.
+
+``launch`` and ``launch_ros`` are not installable from PyPI, so the file is read, not run: every
+``Node``/``LifecycleNode`` executable must be a console script setup.py installs for ``ros2 run``,
+every parameter the node is given must be one it declares, and the default files must be shipped.
+"""
+
+from __future__ import annotations
+
+import ast
+import re
+import subprocess
+import sys
+import zipfile
+from pathlib import Path
+
+from conftest import REPO
+
+from physics_mapper.ros.node import PARAMETERS
+
+LAUNCH = REPO / "launch" / "physics_mapper.launch.py"
+
+
+def calls(name: str) -> list[ast.Call]:
+    tree = ast.parse(LAUNCH.read_text())
+    return [n for n in ast.walk(tree) if isinstance(n, ast.Call) and getattr(n.func, "id", None) == name]
+
+
+def keyword(call: ast.Call, name: str) -> ast.expr:
+    return next(k.value for k in call.keywords if k.arg == name)
+
+
+def constant(expr: ast.expr) -> object:
+    """A literal, or the value of a module-level NAME = literal of the launch file."""
+    if isinstance(expr, ast.Name):
+        tree = ast.parse(LAUNCH.read_text())
+        assigned = {
+            target.id: node.value
+            for node in tree.body
+            if isinstance(node, ast.Assign)
+            for target in node.targets
+            if isinstance(target, ast.Name)
+        }
+        return ast.literal_eval(assigned[expr.id])
+    return ast.literal_eval(expr)
+
+
+def ros_run_executables() -> set[str]:
+    """The scripts setup.py declares for colcon's ``setup.py install`` (in lib/physics_mapper, for ``ros2 run``)."""
+    declared = re.findall(r'"(\w+) = physics_mapper\.[\w.]+:\w+"', (REPO / "setup.py").read_text())
+    return set(declared) - {"physics"}
+
+
+def test_every_executable_it_starts_is_installed_for_ros2_run() -> None:
+    nodes = calls("Node") + calls("LifecycleNode")
+    executables = {constant(keyword(call, "executable")) for call in nodes}
+    assert executables == {"node", "managed_node"}
+    assert executables <= ros_run_executables()
+    assert {constant(keyword(call, "package")) for call in nodes} == {"physics_mapper"}
+
+
+def test_every_parameter_it_sets_is_one_the_node_declares() -> None:
+    declared = {"scene_file", *(spec.name for spec in PARAMETERS)}
+    for call in calls("Node") + calls("LifecycleNode"):
+        parameters = keyword(call, "parameters")
+        assert isinstance(parameters, ast.Name)  # the shared list: a params file and a dict
+    tree = ast.parse(LAUNCH.read_text())
+    dicts = [n for n in ast.walk(tree) if isinstance(n, ast.Dict)]
+    named = {ast.literal_eval(k) for d in dicts for k in d.keys if k is not None}
+    assert named and named <= declared
+
+
+def test_its_default_files_are_shipped() -> None:
+    defaults = {ast.literal_eval(call.args[0]): call for call in calls("DeclareLaunchArgument")}
+    scene = ast.literal_eval(keyword(defaults["scene_file"], "default_value"))
+    assert scene.startswith("package://physics_mapper/")
+    assert (REPO / scene.removeprefix("package://physics_mapper/")).is_file()
+    params = keyword(defaults["params_file"], "default_value")
+    assert isinstance(params, ast.Call) and isinstance(params.args[0], ast.List)  # PathJoinSubstitution([...])
+    parts = [ast.literal_eval(e) for e in params.args[0].elts[1:]]  # after FindPackageShare(PACKAGE)
+    assert (REPO.joinpath(*parts)).is_file()
+
+
+def test_every_launch_argument_is_used() -> None:
+    declared = {ast.literal_eval(call.args[0]) for call in calls("DeclareLaunchArgument")}
+    used = {ast.literal_eval(call.args[0]) for call in calls("LaunchConfiguration")}
+    assert declared == used
+
+
+def test_a_wheel_installs_no_ros2_run_script_and_no_top_level_package(tmp_path: Path) -> None:
+    """pip's ``bin/`` would get a ``node`` that shadows Node.js, and a generic top-level package."""
+    subprocess.run(
+        [sys.executable, "-m", "pip", "wheel", "-q", "--no-deps", "--no-build-isolation", "-w", str(tmp_path), "."],
+        cwd=REPO,
+        capture_output=True,
+        check=True,
+        timeout=300,
+    )
+    (wheel,) = tmp_path.glob("*.whl")
+    with zipfile.ZipFile(wheel) as archive:
+        names = archive.namelist()
+        entry_points = next(archive.read(n).decode() for n in names if n.endswith("entry_points.txt"))
+    assert entry_points.split() == ["[console_scripts]", "physics-mapper", "=", "physics_mapper.cli:main"]
+    packages = {name.split("/")[0] for name in names if name.endswith(".py") and ".data/" not in name}
+    assert packages == {"physics_mapper"}
