@@ -68,7 +68,7 @@ def decomposition_cache(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return folder / "decompositions"
 
 
-def _not_sources(directory: str, names: list[str]) -> set[str]:
+def not_sources(directory: str, names: list[str]) -> set[str]:
     ignored = {n for n in names if n == "__pycache__" or n.endswith(".egg-info")}
     if Path(directory) == REPO:
         ignored |= NOT_SOURCES & set(names)
@@ -79,7 +79,7 @@ def _not_sources(directory: str, names: list[str]) -> set[str]:
 def colcon_workspace(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Path]:
     """A colcon workspace holding a copy of the package sources, built (``install/`` as on a ROS machine)."""
     root = tmp_path_factory.mktemp("colcon_ws")
-    shutil.copytree(REPO, root / "src" / PACKAGE, ignore=_not_sources)
+    shutil.copytree(REPO, root / "src" / PACKAGE, ignore=not_sources)
     built = subprocess.run([str(COLCON), "build"], cwd=root, capture_output=True, text=True, timeout=300, check=False)
     assert built.returncode == 0, built.stdout + built.stderr
     yield root

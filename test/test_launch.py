@@ -9,12 +9,13 @@ from __future__ import annotations
 
 import ast
 import re
+import shutil
 import subprocess
 import sys
 import zipfile
 from pathlib import Path
 
-from conftest import REPO
+from conftest import REPO, not_sources
 
 from physics_mapper.ros.node import PARAMETERS
 
@@ -89,9 +90,11 @@ def test_every_launch_argument_is_used() -> None:
 
 def test_a_wheel_installs_no_ros2_run_script_and_no_top_level_package(tmp_path: Path) -> None:
     """pip's ``bin/`` would get a ``node`` that shadows Node.js, and a generic top-level package."""
+    sources = tmp_path / "src"  # a copy: building in place would leave build/ in the checkout
+    shutil.copytree(REPO, sources, ignore=not_sources)
     subprocess.run(
         [sys.executable, "-m", "pip", "wheel", "-q", "--no-deps", "--no-build-isolation", "-w", str(tmp_path), "."],
-        cwd=REPO,
+        cwd=sources,
         capture_output=True,
         check=True,
         timeout=300,

@@ -48,9 +48,11 @@ from rosbags.interfaces import (
     QosTime,
 )
 from rosbags.rosbag2 import Reader, ReaderError, StoragePlugin, Writer, WriterError
-from rosbags.typesys import Stores, get_typestore
+from rosbags.typesys.store import Typestore
 
 from physics_mapper.bags.mcap_storage import ROS_DISTRO, ChecksummedMcapStorage, verify_checksums
+from physics_mapper.bags.vision_msgs import bag_typestore, jazzy_typestore
+from physics_mapper.mapping.detections import DETECTION_ARRAY, RECORDED_DETECTIONS_TOPIC
 from physics_mapper.mapping.stamps import time_parts, to_nanoseconds
 from physics_mapper.mapping.topics import (
     GROUND_TRUTH_TOPIC,
@@ -60,7 +62,7 @@ from physics_mapper.mapping.topics import (
     recorded_weights_topic,
 )
 from physics_mapper.model.geometry import Pose, Quaternion, Vector3, make_pose
-from physics_mapper.model.hypotheses import RankedHypotheses
+from physics_mapper.model.hypotheses import Hypothesis, RankedHypotheses
 
 Storage = Literal["mcap", "sqlite3"]
 _PLUGINS = {"mcap": StoragePlugin.MCAP, "sqlite3": StoragePlugin.SQLITE3}
@@ -71,7 +73,7 @@ POSE_ARRAY = "geometry_msgs/msg/PoseArray"
 WEIGHTS = "std_msgs/msg/Float64MultiArray"
 DIAGNOSTIC_ARRAY = "diagnostic_msgs/msg/DiagnosticArray"
 
-TYPESTORE = get_typestore(Stores.ROS2_JAZZY)
+TYPESTORE = jazzy_typestore()
 _Time = TYPESTORE.types["builtin_interfaces/msg/Time"]
 _Header = TYPESTORE.types["std_msgs/msg/Header"]
 _Point = TYPESTORE.types["geometry_msgs/msg/Point"]
@@ -123,6 +125,8 @@ class Bag:
     path: Path
     topics: dict[str, str]
     messages: tuple[BagMessage, ...]
+    #: Decodes the bag's messages as the bag defines them (:func:`~physics_mapper.bags.vision_msgs.bag_typestore`).
+    typestore: Typestore = TYPESTORE
 
     def on(self, topic: str) -> tuple[BagMessage, ...]:
         """The messages of one topic, in time order."""
@@ -152,9 +156,9 @@ class PoseArrayData:
         return tuple(checked)
 
 
-def _deserialize(raw: bytes, msgtype: str) -> Any:
+def _deserialize(raw: bytes, msgtype: str, typestore: Typestore = TYPESTORE) -> Any:
     try:
-        return TYPESTORE.deserialize_cdr(raw, msgtype)
+        return typestore.deserialize_cdr(raw, msgtype)
     except Exception as error:
         # Garbage bytes fail in many ways inside the deserialiser (SerdeError, struct.error, IndexError, ...).
         raise BagError(f"a {msgtype} message is not valid CDR ({error})") from None
@@ -174,6 +178,11 @@ def pose_array_from_cdr(raw: bytes) -> PoseArrayData:
     return PoseArrayData(to_nanoseconds(stamp.sec, stamp.nanosec), message.header.frame_id, poses)
 
 
+def detections_from_cdr(raw: bytes, typestore: Typestore) -> Any:
+    """Deserialise a CDR ``vision_msgs/msg/Detection3DArray`` (as the bag defines it); BagError for bad bytes."""
+    return _deserialize(raw, DETECTION_ARRAY, typestore)
+
+
 def weights_from_cdr(raw: bytes) -> tuple[float, ...]:
     """Deserialise a CDR ``std_msgs/msg/Float64MultiArray`` into its data; raises BagError for bad bytes."""
     return tuple(float(w) for w in _deserialize(raw, WEIGHTS).data)
@@ -189,6 +198,41 @@ def pose_array_cdr(stamp_ns: int, frame_id: str, poses: Sequence[Pose]) -> bytes
         poses=[_Pose(position=_Point(*pose.position), orientation=_Quaternion(*pose.orientation)) for pose in poses],
     )
     return bytes(TYPESTORE.serialize_cdr(message, POSE_ARRAY))
+
+
+def detections_cdr(stamp_ns: int, frame_id: str, detections: Sequence[tuple[str, RankedHypotheses]]) -> bytes:
+    """A CDR ``vision_msgs/msg/Detection3DArray``: one Detection3D per (class id, hypotheses), as a pose
+    estimator would publish them (no covariance, the box centred on the most likely pose, of size 0)."""
+    types = TYPESTORE.types
+    sec, nanosec = time_parts(stamp_ns)
+    header = _Header(stamp=_Time(sec=sec, nanosec=nanosec), frame_id=frame_id)
+
+    def pose(value: Pose) -> Any:
+        return _Pose(position=_Point(*value.position), orientation=_Quaternion(*value.orientation))
+
+    def result(class_id: str, hypothesis: Hypothesis) -> Any:
+        return types["vision_msgs/msg/ObjectHypothesisWithPose"](
+            hypothesis=types["vision_msgs/msg/ObjectHypothesis"](class_id=class_id, score=hypothesis.weight),
+            pose=types["geometry_msgs/msg/PoseWithCovariance"](
+                pose=pose(hypothesis.pose), covariance=np.zeros(36, dtype=np.float64)
+            ),
+        )
+
+    box = types["vision_msgs/msg/BoundingBox3D"]
+    size = types["geometry_msgs/msg/Vector3"](x=0.0, y=0.0, z=0.0)
+    message = types[DETECTION_ARRAY](
+        header=header,
+        detections=[
+            types["vision_msgs/msg/Detection3D"](
+                header=header,
+                results=[result(class_id, h) for h in hypotheses.hypotheses],
+                bbox=box(center=pose(hypotheses.pose(1)), size=size),
+                id="",
+            )
+            for class_id, hypotheses in detections
+        ],
+    )
+    return bytes(TYPESTORE.serialize_cdr(message, DETECTION_ARRAY))
 
 
 def weights_cdr(weights: Sequence[float]) -> bytes:
@@ -266,6 +310,14 @@ class BagWriter:
             raise BagError(f"topic {topic} was written as {connection.msgtype}, not {msgtype}")
         self._writer.write(connection, time_ns, raw)
 
+    def write_detections(
+        self, time_ns: int, stamp_ns: int, frame_id: str, detections: Sequence[tuple[str, RankedHypotheses]]
+    ) -> None:
+        """At ``time_ns``, one ``vision_msgs/Detection3DArray`` stamped ``stamp_ns``: a Detection3D per
+        (class id, hypotheses), its results the hypotheses with their weights as scores."""
+        raw = detections_cdr(stamp_ns, frame_id, detections)
+        self.write(RECORDED_DETECTIONS_TOPIC, DETECTION_ARRAY, time_ns, raw)
+
     def write_hypotheses(
         self, time_ns: int, stamp_ns: int, frame_id: str, object_name: str, hypotheses: RankedHypotheses
     ) -> None:
@@ -325,6 +377,7 @@ def read_bag(path: str | Path, topics: Collection[str] | None = None) -> Bag:
     path = Path(path)
     with _reading(path) as reader:
         types = {recorded(c.topic): c.msgtype for c in reader.connections}
+        typestore = bag_typestore(list(reader.connections), TYPESTORE)
         wanted = _wanted(reader, topics)
         # rosbags reads every connection when given none; no wanted connection means no message.
         messages = (
@@ -336,7 +389,7 @@ def read_bag(path: str | Path, topics: Collection[str] | None = None) -> Bag:
             else []
         )
     messages.sort(key=lambda m: m.time_ns)
-    return Bag(path, types, tuple(messages))
+    return Bag(path, types, tuple(messages), typestore)
 
 
 def stream_messages(path: str | Path, topics: Collection[str], *, verify: bool = True) -> Iterator[BagMessage]:
@@ -415,6 +468,12 @@ def check_hypothesis_topics(bag: Bag, object_names: Sequence[str]) -> None:
         found = bag.topics.get(topic)
         if found is not None and found != msgtype:
             raise BagMismatch(f"{bag.path}: topic {topic} has type {found}, expected {msgtype}")
+    found = bag.topics.get(RECORDED_DETECTIONS_TOPIC)
+    if found is not None and found != DETECTION_ARRAY:
+        topic = RECORDED_DETECTIONS_TOPIC
+        raise BagMismatch(f"{bag.path}: topic {topic} has type {found}, expected {DETECTION_ARRAY}")
+    if bag.on(RECORDED_DETECTIONS_TOPIC):
+        return  # which objects the detections hold is known once they are decoded (the snapshots)
     missing = [recorded_poses_topic(name) for name in object_names if not bag.on(recorded_poses_topic(name))]
     if missing:
         present = ", ".join(sorted(bag.topics)) or "none"

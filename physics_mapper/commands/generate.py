@@ -50,6 +50,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--period", type=float, default=0.5, metavar="SECONDS", help="bag time between iterations (default: 0.5)"
     )
+    parser.add_argument(
+        "--format",
+        choices=("pose-arrays", "detections"),
+        default="pose-arrays",
+        help="hypotheses as a PoseArray and weights per object (default), or one vision_msgs/Detection3DArray "
+        "on /detections per iteration, scores as weights, as a pose estimator publishes them",
+    )
 
 
 _SETTING_OPTIONS = {
@@ -71,11 +78,12 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(f"{args.scene}: ground_truth: missing: generate needs every object's true pose")
     settings = _settings(args)
     period_ns = _period_ns(args.period, len(scene.objects))
+    detections = args.format == "detections"
     truth = settle_ground_truth(scene, scene.ground_truth)
     try:
         with BagWriter(args.output, args.storage) as writer:
             for run_index, rng in enumerate(run_generators(args.seed, args.runs)):
-                _write_run(writer, scene, truth, settings, rng, run_index, period_ns)
+                _write_run(writer, scene, truth, settings, rng, run_index, period_ns, detections)
                 print(f"generate: run {run_index + 1}/{args.runs} written", file=sys.stderr)
     except BagError as error:
         raise InputError(str(error)) from None
@@ -140,8 +148,10 @@ def _write_run(
     rng: np.random.Generator,
     run_index: int,
     period_ns: int,
+    detections: bool,
 ) -> None:
-    """One particle-filter run: per iteration, every object's hypotheses and weights, then the ground truth.
+    """One particle-filter run: per iteration, every object's hypotheses and weights (``detections``: one
+    Detection3DArray of them, each object's class id as the scene's ``class_map`` gives it), then the ground truth.
 
     Iteration k of run r is stamped START_TIME_NS + (r * iterations + k) * period_ns; within an
     iteration the messages get distinct, increasing bag times (1 ns apart) so their order is unambiguous.
@@ -152,7 +162,11 @@ def _write_run(
 
     for iteration, snapshot in enumerate(track(scene, truth, settings, rng)):
         stamp = START_TIME_NS + (run_index * settings.iterations + iteration) * period_ns
+        if detections:
+            detected = [(scene.class_of(model.name), h) for model, h in zip(scene.objects, snapshot, strict=True)]
+            writer.write_detections(stamp, stamp, scene.frame_id, detected)
         for index, (model, hypotheses) in enumerate(zip(scene.objects, snapshot, strict=True)):
-            writer.write_hypotheses(stamp + 2 * index, stamp, scene.frame_id, model.name, hypotheses)
+            if not detections:
+                writer.write_hypotheses(stamp + 2 * index, stamp, scene.frame_id, model.name, hypotheses)
         truth_raw = pose_array_cdr(stamp, scene.frame_id, truth)
         writer.write(GROUND_TRUTH_TOPIC, POSE_ARRAY, stamp + 2 * len(scene.objects), truth_raw)

@@ -13,7 +13,16 @@ from __future__ import annotations
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 
-from physics_mapper.bags.storage import Bag, BagError, BagMessage, decoding, pose_array_from_cdr, weights_from_cdr
+from physics_mapper.bags.storage import (
+    Bag,
+    BagError,
+    BagMessage,
+    decoding,
+    detections_from_cdr,
+    pose_array_from_cdr,
+    weights_from_cdr,
+)
+from physics_mapper.mapping.detections import RECORDED_DETECTIONS_TOPIC, detection_inputs
 from physics_mapper.mapping.inputs import InputSettings, InputTracker, check_poses, check_weights
 from physics_mapper.mapping.stamps import NANOSECONDS_PER_SECOND
 from physics_mapper.mapping.topics import GROUND_TRUTH_TOPIC, recorded_poses_topic, recorded_weights_topic
@@ -65,9 +74,10 @@ def _ground_truth(message: BagMessage, scene: Scene) -> tuple[Pose, ...]:
 
 
 def input_topics(scene: Scene) -> tuple[str, ...]:
-    """The topics a replay of ``scene`` reads from a bag: every object's hypotheses and weights, the ground truth."""
+    """The topics a replay of ``scene`` reads from a bag: every object's hypotheses and weights, the scored
+    detections (``vision_msgs/Detection3DArray``), the ground truth."""
     per_object = ((recorded_poses_topic(name), recorded_weights_topic(name)) for name in scene.object_names)
-    return (*(topic for pair in per_object for topic in pair), GROUND_TRUTH_TOPIC)
+    return (*(topic for pair in per_object for topic in pair), RECORDED_DETECTIONS_TOPIC, GROUND_TRUTH_TOPIC)
 
 
 def no_snapshot_reason(scene: Scene) -> str:
@@ -111,6 +121,12 @@ def bag_snapshots(bag: Bag, scene: Scene, settings: InputSettings | None = None)
                     tracker.add_weights(
                         weights_of[message.topic], check_weights(weights_from_cdr(message.raw), received=received)
                     )
+                elif message.topic == RECORDED_DETECTIONS_TOPIC:
+                    detected = detection_inputs(
+                        detections_from_cdr(message.raw, bag.typestore), scene, received=received
+                    )
+                    for name, poses in detected.objects.items():
+                        tracker.add_poses(name, poses)
                 else:
                     truth = _ground_truth(message, scene)
         snapshot = tracker.snapshot(burst[-1].time_ns / NANOSECONDS_PER_SECOND, settings)

@@ -32,7 +32,7 @@ from __future__ import annotations
 import threading
 from collections import deque
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from enum import IntEnum
 from typing import Literal
 
@@ -89,7 +89,8 @@ class ReceivedPoses:
     against ``workspace``, the scene's); ``count`` is their number (weights must have this
     length); ``refusal`` is set when the whole message is unusable. ``stamp_ns``: header stamp,
     nanoseconds; ``received``: node clock, seconds. ``frame_assumed``: the message named no frame
-    (an empty frame_id) and was taken in the scene's.
+    (an empty frame_id) and was taken in the scene's. ``weights``: weights that came in the same
+    message (a detection's scores), which no separate weights message then pairs with.
     """
 
     stamp_ns: int
@@ -98,10 +99,15 @@ class ReceivedPoses:
     workspace: Workspace
     refusal: str | None = None
     frame_assumed: bool = False
+    weights: ReceivedWeights | None = None
 
     @property
     def count(self) -> int:
         return len(self.poses)
+
+    def with_weights(self, weights: ReceivedWeights) -> ReceivedPoses:
+        """These poses with the weights of their own message."""
+        return replace(self, weights=weights)
 
 
 @dataclass(frozen=True, eq=False)
@@ -338,7 +344,8 @@ class ObjectInputs:
         poses = self._newest_usable
         if poses is None:
             return None
-        weights = self.paired_weights(poses, settings.max_age)
+        own = poses.weights
+        weights = own if own is not None else self.paired_weights(poses, settings.max_age)
         weights_active = any(now - w.received <= settings.max_age for w in self._weights)
         if weights is None and weights_active and now - poses.received < WEIGHTS_GRACE:
             return "newest PoseArray is waiting for its weights message"

@@ -275,10 +275,25 @@ class Scene:
     ground_truth: tuple[Pose, ...] | None = None
     #: The scene file's ``workspace:`` box; None: the default (:attr:`workspace`).
     explicit_workspace: Workspace | None = None
+    #: A pose estimator's class ids -> the objects they detect (``class_map:``; an object's own name
+    #: is its class id unless it is mapped). A class of several objects has instances.
+    class_map: tuple[tuple[str, tuple[str, ...]], ...] = ()
 
     @property
     def object_names(self) -> tuple[str, ...]:
         return tuple(o.name for o in self.objects)
+
+    def class_of(self, name: str) -> str:
+        """The class id a pose estimator gives object ``name`` (``class_map:``; else its name)."""
+        return next((class_id for class_id, names in self.class_map if name in names), name)
+
+    def objects_of_class(self, class_id: str) -> tuple[str, ...]:
+        """The objects a detection of ``class_id`` may be (its instances, in order); () for an unknown class."""
+        classes = dict(self.class_map)
+        if class_id in classes:
+            return classes[class_id]
+        mapped = {name for _, names in self.class_map for name in names}
+        return (class_id,) if class_id in self.object_names and class_id not in mapped else ()
 
     @cached_property
     def workspace(self) -> Workspace:

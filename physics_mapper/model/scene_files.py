@@ -373,7 +373,29 @@ def search_with_overrides(
     return _read_search(_Reader(source), merged, key)
 
 
-_SCENE_KEYS = ("frame_id", "static", "objects", "search", "ground_truth", "workspace")
+_SCENE_KEYS = ("frame_id", "static", "objects", "search", "ground_truth", "workspace", "class_map")
+
+
+def _read_class_map(
+    reader: _Reader, value: Any, key: str, names: Sequence[str]
+) -> tuple[tuple[str, tuple[str, ...]], ...]:
+    """``class_map:`` class id -> an object name or a list of them (instances); each object in one class."""
+    mapping: dict[str, tuple[str, ...]] = {}
+    owner: dict[str, str] = {}
+    for class_id, objects in reader.mapping(value, key).items():
+        at = f"{key}.{class_id}"
+        reader.name(class_id, key)
+        listed = [objects] if isinstance(objects, str) else list(reader.sequence(objects, at))
+        if not listed:
+            raise reader.fail(at, "needs at least one object")
+        for name in listed:
+            if name not in names:
+                raise reader.fail(at, f"{_show(name)} is not an object of the scene")
+            if name in owner:
+                raise reader.fail(at, f"{name!r} is already the object of class {owner[name]!r}")
+            owner[name] = class_id
+        mapping[class_id] = tuple(listed)
+    return tuple(mapping.items())
 
 
 def scene_from_dict(
@@ -406,7 +428,11 @@ def scene_from_dict(
     if "ground_truth" in top:
         truth = _read_per_object(reader, top["ground_truth"], "ground_truth", [o.name for o in objects], _read_pose)
     workspace = _read_workspace(reader, top["workspace"], "workspace") if "workspace" in top else None
-    scene = Scene(objects, static, search, frame_id, ground_truth=truth, explicit_workspace=workspace)
+    object_names = [o.name for o in objects]
+    class_map = _read_class_map(reader, top["class_map"], "class_map", object_names) if "class_map" in top else ()
+    scene = Scene(
+        objects, static, search, frame_id, ground_truth=truth, explicit_workspace=workspace, class_map=class_map
+    )
     for model, pose in zip(objects, truth or (), strict=False):
         _check_inside(reader, scene.workspace, pose, f"ground_truth.{model.name}")
     return scene

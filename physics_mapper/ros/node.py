@@ -53,6 +53,7 @@ from rclpy.timer import Timer
 from std_msgs.msg import Float64MultiArray
 from visualization_msgs.msg import MarkerArray
 
+from physics_mapper.mapping.detections import DETECTIONS_TOPIC, detection_inputs
 from physics_mapper.mapping.inputs import InputSettings, MessageKind
 from physics_mapper.mapping.mapper import DEFAULT_RATE_HZ, Mapper, MapperSettings, TickReport, mapper_settings_problem
 from physics_mapper.mapping.stamps import NANOSECONDS_PER_SECOND
@@ -211,6 +212,7 @@ class MapperNodeBase(Node):
         self._inputs_group = MutuallyExclusiveCallbackGroup()  # type: ignore[no-untyped-call]
         reliability = cast(InputReliability, values["input_reliability"])
         topics = [topic for name in scene.object_names for topic in self._subscribe(name, reliability)]
+        topics += self._subscribe_detections(reliability)
         self._configuration_pub = self._map_publisher(PoseArray, CONFIGURATION_TOPIC)
         self._settled_pub = self._map_publisher(PoseArray, SETTLED_TOPIC)
         self._markers_pub = self._map_publisher(MarkerArray, MARKERS_TOPIC)
@@ -393,6 +395,37 @@ class MapperNodeBase(Node):
             ]
         except InvalidTopicNameException:
             raise InputError(f"object name {name!r} cannot be part of a ROS topic name") from None
+
+    def _subscribe_detections(self, reliability: InputReliability) -> list[str]:
+        """Subscribe to ``detections`` (``vision_msgs/Detection3DArray``) where vision_msgs is installed.
+
+        Its results are the hypotheses of the objects their class ids name
+        (:mod:`physics_mapper.mapping.detections`), beside the per-object topics.
+        """
+        try:
+            from vision_msgs.msg import Detection3DArray
+        except ImportError:
+            return []
+        scene, inputs = self.mapper.scene, self.mapper.inputs
+
+        def on_detections(msg: Any, info: Mapping[str, Any]) -> None:
+            detected = detection_inputs(msg, scene, received=self._received(info))
+            for name, received in detected.objects.items():
+                inputs.add_poses(name, received)
+                if received.refusal is not None:
+                    self._log_input_once(name, f"detections refused: {received.refusal}")
+            for note in detected.unused:
+                self._log_input_once(DETECTIONS_TOPIC, note)
+
+        subscription = self.create_subscription(
+            Detection3DArray,
+            DETECTIONS_TOPIC,
+            cast(Callable[[Any], None], on_detections),  # rclpy passes two-parameter callbacks the message info
+            input_qos(reliability),
+            callback_group=self._inputs_group,
+        )
+        self._entities.append(subscription)
+        return [str(subscription.topic_name)]
 
     def _log_input_once(self, name: str, what: str) -> None:
         """Log what became of an object's input, once per object and text: a stream of bad messages

@@ -1,0 +1,53 @@
+"""The ``vision_msgs`` 4.x (ROS 2 Jazzy) message definitions, for bags on machines without the package.
+
+rosbags' Jazzy type store has no vision types. Bags recorded by rosbag2 carry their message
+definitions, and those are what a bag's messages are decoded with (:func:`bag_typestore`); these
+definitions serve bags without them (sqlite3 bags of older rosbag2) and the bags we write, which
+then carry them too, as ``ros2 bag record`` would.
+"""
+
+from __future__ import annotations
+
+from rosbags.interfaces import Connection, MessageDefinitionFormat
+from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+from rosbags.typesys.store import Typestore
+
+#: Message type -> its definition (``.msg``), dependencies before the types that use them.
+DEFINITIONS = {
+    "vision_msgs/msg/ObjectHypothesis": "string class_id\nfloat64 score\n",
+    "vision_msgs/msg/ObjectHypothesisWithPose": (
+        "vision_msgs/ObjectHypothesis hypothesis\ngeometry_msgs/PoseWithCovariance pose\n"
+    ),
+    "vision_msgs/msg/BoundingBox3D": "geometry_msgs/Pose center\ngeometry_msgs/Vector3 size\n",
+    "vision_msgs/msg/Detection3D": (
+        "std_msgs/Header header\nvision_msgs/ObjectHypothesisWithPose[] results\n"
+        "vision_msgs/BoundingBox3D bbox\nstring id\n"
+    ),
+    "vision_msgs/msg/Detection3DArray": "std_msgs/Header header\nvision_msgs/Detection3D[] detections\n",
+}
+
+
+def jazzy_typestore() -> Typestore:
+    """rosbags' ROS 2 Jazzy type store with the vision types registered."""
+    return _with_definitions(get_typestore(Stores.ROS2_JAZZY))
+
+
+def _with_definitions(typestore: Typestore) -> Typestore:
+    """``typestore`` with those of :data:`DEFINITIONS` it does not define yet."""
+    for name, text in DEFINITIONS.items():
+        if name not in typestore.types:
+            typestore.register(get_types_from_msg(text, name))
+    return typestore
+
+
+def bag_typestore(connections: list[Connection], standard: Typestore) -> Typestore:
+    """``standard`` if it defines every connection's type; else a store that decodes the others as the
+    bag defines them (``.msg`` definitions, as rosbag2 records them), or else as :data:`DEFINITIONS` do."""
+    typestore = get_typestore(Stores.ROS2_JAZZY)
+    foreign = [c for c in connections if c.msgtype not in typestore.types]
+    if not foreign:
+        return standard
+    for connection in foreign:
+        if connection.msgdef.format == MessageDefinitionFormat.MSG and connection.msgdef.data:
+            typestore.register(get_types_from_msg(connection.msgdef.data, connection.msgtype))
+    return _with_definitions(typestore)
