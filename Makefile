@@ -20,9 +20,15 @@ lint: venv
 	$(BIN)/ruff format --check physics_mapper test benchmarks .ci
 	$(BIN)/mypy
 
+# vision_msgs has no PyPI wheel: the tests build its Detection3DArray into the venv (test/vision_msgs/).
+VISION_MSGS := $(VENV)/.vision_msgs
+$(VISION_MSGS): $(STAMP) $(wildcard test/vision_msgs/*) $(wildcard test/vision_msgs/msg/*.msg)
+	test/vision_msgs/build.sh $(VENV) build/vision_msgs
+	touch $@
+
 # UTF-8 mode: the tests read and compare the UTF-8 text the package writes (reports, solve --tree),
 # whatever the machine's locale (LC_ALL=C turns it on by itself; a Latin-1 locale does not).
-test: venv lint
+test: venv lint $(VISION_MSGS)
 	PYTHONUTF8=1 $(BIN)/pytest
 
 # Starts the node on the pyramid scene, replays the shipped pyramid bag into it, prints the error

@@ -1,8 +1,7 @@
 """Scored detections (``vision_msgs/Detection3DArray``) as hypotheses: the rules, scene class maps, and bags.
 
-vision_msgs is not installable here, so the node's live subscription (created where it is) is not
-run in these tests; the rules it applies are :func:`detection_inputs`, tested on the messages
-rosbags decodes, and the bag path runs end to end (generate, replay, evaluate).
+The rules are :func:`detection_inputs`, tested here on the messages rosbags decodes; the bag path runs
+end to end (generate, replay, evaluate); the node's live subscription is test_node_detections.py's.
 """
 
 from __future__ import annotations
@@ -172,5 +171,5 @@ def test_a_bag_s_own_definition_of_the_detections_is_the_one_decoded(tmp_path: P
     bag = read_bag(tmp_path / "bag")
     (snapshot,) = bag_snapshots(bag, load_scene(PYRAMID))
     assert [len(h) for h in snapshot.hypotheses] == [1, 1, 1]
-    decoded = detections_from_cdr(bag.on(RECORDED_DETECTIONS_TOPIC)[0].raw, bag.typestore)
+    decoded = detections_from_cdr(bag.on(RECORDED_DETECTIONS_TOPIC)[0].raw, bag.definitions)
     assert decoded.detections[0].is_tracking  # the field only the bag's definition has

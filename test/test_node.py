@@ -149,7 +149,7 @@ def test_nothing_is_published_until_every_object_has_hypotheses(fresh_pyramid: R
     waiting = publish_until_diagnosed(
         client,
         lambda: publish_problem(client, problem, stamp_ns=100 * 10**9, only=("cube_left", "cube_right")),  # no cube_top
-        lambda d: all(level_of(d, name) != DiagnosticStatus.ERROR for name in ("cube_left", "cube_right")),
+        lambda d: all(level_of(d, name) == DiagnosticStatus.OK for name in ("cube_left", "cube_right")),
         "cube_left and cube_right in use",
     )
     search = search_status(waiting)

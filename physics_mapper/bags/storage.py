@@ -51,7 +51,7 @@ from rosbags.rosbag2 import Reader, ReaderError, StoragePlugin, Writer, WriterEr
 from rosbags.typesys.store import Typestore
 
 from physics_mapper.bags.mcap_storage import ROS_DISTRO, ChecksummedMcapStorage, verify_checksums
-from physics_mapper.bags.vision_msgs import bag_typestore, jazzy_typestore
+from physics_mapper.bags.vision_msgs import BagDefinitions, bag_definitions, bag_typestore, jazzy_typestore
 from physics_mapper.mapping.detections import DETECTION_ARRAY, RECORDED_DETECTIONS_TOPIC
 from physics_mapper.mapping.stamps import time_parts, to_nanoseconds
 from physics_mapper.mapping.topics import (
@@ -125,8 +125,9 @@ class Bag:
     path: Path
     topics: dict[str, str]
     messages: tuple[BagMessage, ...]
-    #: Decodes the bag's messages as the bag defines them (:func:`~physics_mapper.bags.vision_msgs.bag_typestore`).
-    typestore: Typestore = TYPESTORE
+    #: The bag's own definitions of types Jazzy's store lacks, which decode its messages
+    #: (:func:`~physics_mapper.bags.vision_msgs.bag_typestore`).
+    definitions: BagDefinitions = ()
 
     def on(self, topic: str) -> tuple[BagMessage, ...]:
         """The messages of one topic, in time order."""
@@ -178,9 +179,10 @@ def pose_array_from_cdr(raw: bytes) -> PoseArrayData:
     return PoseArrayData(to_nanoseconds(stamp.sec, stamp.nanosec), message.header.frame_id, poses)
 
 
-def detections_from_cdr(raw: bytes, typestore: Typestore) -> Any:
-    """Deserialise a CDR ``vision_msgs/msg/Detection3DArray`` (as the bag defines it); BagError for bad bytes."""
-    return _deserialize(raw, DETECTION_ARRAY, typestore)
+def detections_from_cdr(raw: bytes, definitions: BagDefinitions = ()) -> Any:
+    """Deserialise a CDR ``vision_msgs/msg/Detection3DArray`` as a bag's ``definitions`` define it (none: as
+    Jazzy's vision_msgs does); BagError for bad bytes."""
+    return _deserialize(raw, DETECTION_ARRAY, bag_typestore(definitions))
 
 
 def weights_from_cdr(raw: bytes) -> tuple[float, ...]:
@@ -377,7 +379,7 @@ def read_bag(path: str | Path, topics: Collection[str] | None = None) -> Bag:
     path = Path(path)
     with _reading(path) as reader:
         types = {recorded(c.topic): c.msgtype for c in reader.connections}
-        typestore = bag_typestore(list(reader.connections), TYPESTORE)
+        definitions = bag_definitions(list(reader.connections))
         wanted = _wanted(reader, topics)
         # rosbags reads every connection when given none; no wanted connection means no message.
         messages = (
@@ -389,7 +391,7 @@ def read_bag(path: str | Path, topics: Collection[str] | None = None) -> Bag:
             else []
         )
     messages.sort(key=lambda m: m.time_ns)
-    return Bag(path, types, tuple(messages), typestore)
+    return Bag(path, types, tuple(messages), definitions)
 
 
 def stream_messages(path: str | Path, topics: Collection[str], *, verify: bool = True) -> Iterator[BagMessage]:

@@ -8,6 +8,8 @@ then carry them too, as ``ros2 bag record`` would.
 
 from __future__ import annotations
 
+from functools import cache
+
 from rosbags.interfaces import Connection, MessageDefinitionFormat
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from rosbags.typesys.store import Typestore
@@ -40,14 +42,28 @@ def _with_definitions(typestore: Typestore) -> Typestore:
     return typestore
 
 
-def bag_typestore(connections: list[Connection], standard: Typestore) -> Typestore:
-    """``standard`` if it defines every connection's type; else a store that decodes the others as the
-    bag defines them (``.msg`` definitions, as rosbag2 records them), or else as :data:`DEFINITIONS` do."""
+#: A bag's own definitions of the types Jazzy's store lacks: (message type, ``.msg`` text) pairs.
+BagDefinitions = tuple[tuple[str, str], ...]
+
+
+def bag_definitions(connections: list[Connection]) -> BagDefinitions:
+    """The ``.msg`` definitions a bag carries (as rosbag2 records them) of types Jazzy's store lacks.
+
+    Plain text, so that a bag in memory can be sent to another process (a pool or Ray worker).
+    """
+    standard = get_typestore(Stores.ROS2_JAZZY).types
+    found = {
+        (c.msgtype, c.msgdef.data)
+        for c in connections
+        if c.msgtype not in standard and c.msgdef.format == MessageDefinitionFormat.MSG and c.msgdef.data
+    }
+    return tuple(sorted(found))
+
+
+@cache
+def bag_typestore(definitions: BagDefinitions) -> Typestore:
+    """A store decoding the types of ``definitions`` as they say, the others as Jazzy and :data:`DEFINITIONS` do."""
     typestore = get_typestore(Stores.ROS2_JAZZY)
-    foreign = [c for c in connections if c.msgtype not in typestore.types]
-    if not foreign:
-        return standard
-    for connection in foreign:
-        if connection.msgdef.format == MessageDefinitionFormat.MSG and connection.msgdef.data:
-            typestore.register(get_types_from_msg(connection.msgdef.data, connection.msgtype))
+    for msgtype, text in definitions:
+        typestore.register(get_types_from_msg(text, msgtype))
     return _with_definitions(typestore)

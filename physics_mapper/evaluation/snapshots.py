@@ -123,7 +123,7 @@ def bag_snapshots(bag: Bag, scene: Scene, settings: InputSettings | None = None)
                     )
                 elif message.topic == RECORDED_DETECTIONS_TOPIC:
                     detected = detection_inputs(
-                        detections_from_cdr(message.raw, bag.typestore), scene, received=received
+                        detections_from_cdr(message.raw, bag.definitions), scene, received=received
                     )
                     for name, poses in detected.objects.items():
                         tracker.add_poses(name, poses)

@@ -9,13 +9,12 @@ seconds, each object moves at most ``jitter_threshold``. The world they share
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Unpack, overload
 
 from physics_mapper.model.geometry import Pose
 from physics_mapper.model.scene import Scene
 from physics_mapper.physics import collision
 from physics_mapper.physics.collision import Collision, Proximity
-from physics_mapper.physics.settling import PartialSettling, SettleOptions, Settler, Settling, TrajectorySample
+from physics_mapper.physics.settling import Settler
 from physics_mapper.physics.world import PhysicsWorld
 
 
@@ -29,7 +28,13 @@ class PhysicsChecker:
     def __init__(self, scene: Scene) -> None:
         self.scene = scene
         self.world = PhysicsWorld(scene)
-        self._settler = Settler(self.world)
+        settler = Settler(self.world)
+        #: Rule 2 from rest at given poses, interrupted at ``stop_at`` (:meth:`Settler.settle`).
+        self.settle = settler.settle
+        #: Continue an interrupted settling (:meth:`Settler.resume_settling`).
+        self.resume_settling = settler.resume_settling
+        #: The objects' poses every ``sample_interval`` s of a simulation from rest (:meth:`Settler.trajectory`).
+        self.trajectory = settler.trajectory
 
     @property
     def client_id(self) -> int:
@@ -72,45 +77,3 @@ class PhysicsChecker:
     def static_overlap(self, index: int, pose: Pose) -> float:
         """Object ``index``'s deepest overlap (m) at ``pose`` with the static bodies."""
         return collision.static_overlap(self.world, index, pose)
-
-    @overload
-    def settle(
-        self, poses: Sequence[Pose], settle_time: float, angular_weight: float, **options: Unpack[SettleOptions]
-    ) -> Settling: ...
-
-    @overload
-    def settle(
-        self,
-        poses: Sequence[Pose],
-        settle_time: float,
-        angular_weight: float,
-        stop_at: float | None,
-        **options: Unpack[SettleOptions],
-    ) -> Settling | PartialSettling: ...
-
-    def settle(
-        self,
-        poses: Sequence[Pose],
-        settle_time: float,
-        angular_weight: float,
-        stop_at: float | None = None,
-        **options: Unpack[SettleOptions],
-    ) -> Settling | PartialSettling:
-        """Rule 2 from rest at ``poses``, interrupted at ``stop_at`` (:meth:`~settling.Settler.settle`)."""
-        return self._settler.settle(poses, settle_time, angular_weight, stop_at, **options)
-
-    @overload
-    def resume_settling(self, partial: PartialSettling) -> Settling: ...
-
-    @overload
-    def resume_settling(self, partial: PartialSettling, stop_at: float | None) -> Settling | PartialSettling: ...
-
-    def resume_settling(self, partial: PartialSettling, stop_at: float | None = None) -> Settling | PartialSettling:
-        """Continue an interrupted settling (:meth:`~settling.Settler.resume_settling`)."""
-        return self._settler.resume_settling(partial, stop_at)
-
-    def trajectory(
-        self, poses: Sequence[Pose], duration: float, sample_interval: float
-    ) -> tuple[TrajectorySample, ...]:
-        """The objects' poses every ``sample_interval`` s of ``duration`` s from rest."""
-        return self._settler.trajectory(poses, duration, sample_interval)
