@@ -236,3 +236,29 @@ def test_the_readme_python_example_runs(monkeypatch: pytest.MonkeyPatch, capsys:
     exec(compile(match.group(1), "<README.md python example>", "exec"), {"__name__": "readme_example"})
     printed = capsys.readouterr().out.split()
     assert printed[:2] == ["(5,", "4,"], printed  # the pyramid's answer, C544
+
+
+def _layout_lists(room: str, module: str, layout: str) -> bool:
+    """Whether docs/layout.md names ``room/module``: in its room's table, or as ``room/module``."""
+    if f"`{room}/{module}`" in layout or f"`{room}/{module}`," in layout:
+        return True
+    heading = f"`physics_mapper/{room}/`"
+    if heading not in layout:
+        return any(f"`{room}/" in line and module in line for line in layout.splitlines())
+    table = layout.split(heading, 1)[1].split("\n\n", 2)[1]
+    return f"| `{module}` |" in table
+
+
+def test_the_layout_page_names_every_module() -> None:
+    """A module nobody can find from the docs is one a newcomer cannot place (``commands/``: one module
+    per subcommand, named by it, but for their shared ``files``)."""
+    layout = (REPO / "docs" / "layout.md").read_text()
+    package = REPO / "physics_mapper"
+    missing = [
+        f"{path.parent.name}/{path.stem}"
+        for path in sorted(package.glob("*/*.py"))
+        if path.stem != "__init__"
+        and (path.parent.name != "commands" or path.stem == "files")
+        and not _layout_lists(path.parent.name, path.stem, layout)
+    ]
+    assert missing == []
