@@ -41,6 +41,9 @@ def test_colcon_build_installs_the_ros2_run_layout(workspace: Path) -> None:
     install = workspace / "install" / PACKAGE
     assert (install / "lib" / PACKAGE / "node").is_file()
     assert (install / "lib" / PACKAGE / "managed_node").is_file()
+    # The command line is ros2 run's too, not on PATH: the docs say so, and say how to run it.
+    assert (install / "lib" / PACKAGE / "physics-mapper").is_file() and not (install / "bin").exists()
+    assert "`ros2 run physics_mapper physics-mapper demo`" in (REPO / "docs" / "node.md").read_text()
     assert (install / "share" / PACKAGE / "launch" / "physics_mapper.launch.py").is_file()
     assert (install / "share" / "ament_index" / "resource_index" / "packages" / PACKAGE).is_file()
     assert (install / "share" / PACKAGE / "package.xml").read_text() == (REPO / "package.xml").read_text()
