@@ -18,11 +18,15 @@ Methods:
 
 A decomposition is computed on the mesh file as read (unscaled, in its own frame) and stored in
 the cache as an OBJ file, one ``o part_<i>`` group per convex part, which pybullet loads as a
-compound of convex hulls (scaled by the body's ``scale``). The file name is a SHA-256 key of
+compound of convex hulls (scaled by the body's ``scale``). Its first lines give the part count and a
+SHA-256 of the rest; a cache file is used only if both match and every part is finite and has a
+volume, and is otherwise computed again and replaced (a file truncated by a full disk, edited, or
+damaged in any way is never blamed on the mesh). The file name is a SHA-256 key of
 the mesh file's bytes, the method, its parameters and the library's version, so a changed file
 or parameter is decomposed again, and an unchanged one never is. Files are written to a temporary
-name and renamed, so concurrent loads (two nodes, a test run) never see half a file; nothing is
-ever evicted (delete the folder to reclaim the space).
+name and renamed, so concurrent loads (two nodes, a test run) never see half a file, with the
+permissions the user's umask gives (usually readable by everyone, so a shared cache folder serves
+other users' nodes); nothing is ever evicted (delete the folder to reclaim the space).
 
 The cache folder is ``$PHYSICS_MAPPER_CACHE_DIR/decompositions`` if that variable is set, else the
 platform's user cache folder (``platformdirs``): ``~/.cache/physics_mapper/decompositions`` on
@@ -52,6 +56,8 @@ from typing import Literal
 import numpy as np
 from numpy.typing import NDArray
 
+from physics_mapper.model.atomic_files import write_atomically
+
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
 Progress = Callable[[str], None]
@@ -61,7 +67,17 @@ DECOMPOSITION_METHODS: tuple[DecompositionMethod, ...] = ("coacd", "vhacd")
 #: Environment variable naming the cache's parent folder (tests, CI, read-only homes).
 CACHE_ENVIRONMENT_VARIABLE = "PHYSICS_MAPPER_CACHE_DIR"
 #: Bumped when the cache's file format changes, so that old files are not read.
-CACHE_FORMAT = 1
+CACHE_FORMAT = 2
+#: Most convex parts a decomposition or a ``parts`` file may have: Bullet collides every part of a body
+#: with every part near it, and CoACD and V-HACD give tens (``BENCHMARKS.md`` "Input caps" measures a
+#: parts file at the cap).
+MAX_CONVEX_PARTS = 256
+#: Most vertices all convex parts of one decomposition or ``parts`` file may have together.
+MAX_PART_VERTICES = 100_000
+#: Largest ``parts`` file or cache file read, bytes.
+MAX_PARTS_FILE_BYTES = 64 * 1024 * 1024
+#: A part whose vertices span less than this fraction of its size in some direction is flat: no volume.
+FLAT_PART_RATIO = 1e-9
 #: CoACD's concavity threshold range (its own documented range).
 THRESHOLD_LIMITS = (0.01, 1.0)
 #: Most vertices a CoACD part keeps (its decimation): Bullet's cost of a convex part grows with its vertices,
@@ -158,18 +174,24 @@ def decompose(
     """
     directory = cache_directory()
     cached = directory / f"{cache_key(_read_bytes(mesh_file), settings)}.obj"
+    damage = ""
     if cached.is_file():
         try:
-            return Decomposition(read_parts(cached), cached, settings.method, None)
-        except DecompositionError:
-            pass  # a damaged cache file (disk full, edited): computed again and replaced
+            return Decomposition(read_cached_parts(cached), cached, settings.method, None)
+        except DecompositionError as error:  # disk full, edited, truncated: computed again and replaced
+            damage = f"; the cached file was damaged: {error}"
     where = f"threshold {settings.threshold:g}, " if settings.method == "coacd" else ""
-    progress(f"decomposing {mesh_file} with {settings.method} ({where}once: the result is cached in {directory})")
+    progress(
+        f"decomposing {mesh_file} with {settings.method} ({where}once: the result is cached in {directory}){damage}"
+    )
     start = time.monotonic()
     parts = _coacd(vertices, faces, settings) if settings.method == "coacd" else _vhacd(vertices, faces)
     seconds = time.monotonic() - start
     if not parts:
         raise DecompositionError(f"{settings.method} returned no convex part")
+    problem = parts_problem(parts)
+    if problem is not None:
+        raise DecompositionError(f"{settings.method} of {mesh_file} gave an unusable result: {problem}")
     write_parts(cached, parts, f"{settings.method} decomposition of {mesh_file} ({asdict(settings)})")
     progress(f"decomposed {mesh_file}: {len(parts)} convex parts in {seconds:.1f} s, cached as {cached}")
     return Decomposition(parts, cached, settings.method, seconds)
@@ -178,8 +200,13 @@ def decompose(
 def parts_from_file(parts_file: Path) -> Decomposition:
     """A user's decomposition: the ``o``/``g`` groups of an OBJ file, copied into the cache in canonical form."""
     parts = read_parts(parts_file)
+    problem = parts_problem(parts)
+    if problem is not None:
+        raise DecompositionError(f"{parts_file}: {problem}")
     cached = cache_directory() / f"parts-{hashlib.sha256(_read_bytes(parts_file)).hexdigest()[:32]}.obj"
-    if not cached.is_file():
+    try:
+        read_cached_parts(cached)
+    except DecompositionError:  # missing or damaged: written (again)
         write_parts(cached, parts, f"convex parts of {parts_file}")
     return Decomposition(parts, cached, "parts file", None)
 
@@ -215,24 +242,76 @@ def _vhacd(vertices: FloatArray, faces: IntArray) -> tuple[ConvexPart, ...]:
         return read_parts(output)
 
 
+_HEADER = "# physics_mapper: "
+_CHECKSUM = "# sha256 "
+
+
 def write_parts(path: Path, parts: Sequence[ConvexPart], title: str) -> None:
-    """Write ``parts`` as an OBJ file, one ``o part_<i>`` group each, atomically (temporary file + rename)."""
-    lines = [f"# physics_mapper: {title}: {len(parts)} convex parts"]
+    """Write ``parts`` as an OBJ file, one ``o part_<i>`` group each, atomically (temporary file + rename).
+
+    The first two lines are comments (OBJ readers skip them): ``title`` with the part count, and the
+    SHA-256 of every line after them, which :func:`read_cached_parts` checks.
+    """
+    lines = []
     offset = 1  # OBJ indices are 1-based and global across groups
     for index, part in enumerate(parts):
         lines.append(f"o part_{index}")
         lines += [f"v {x!r} {y!r} {z!r}" for x, y, z in part.vertices.tolist()]
         lines += [f"f {a + offset} {b + offset} {c + offset}" for a, b, c in part.faces.tolist()]
         offset += len(part.vertices)
+    body = "\n".join(lines) + "\n"
+    header = f"{_HEADER}{' '.join(title.split())}: {len(parts)} convex parts\n"
+    checksum = f"{_CHECKSUM}{hashlib.sha256(body.encode('ascii')).hexdigest()}\n"
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        with tempfile.NamedTemporaryFile("w", dir=path.parent, suffix=".tmp", delete=False, encoding="ascii") as file:
-            file.write("\n".join(lines) + "\n")
-        os.replace(file.name, path)
+        write_atomically(path, header + checksum + body)
     except OSError as error:
         raise DecompositionError(
             f"cannot write {path}: {error.strerror or error} (set {CACHE_ENVIRONMENT_VARIABLE} to a writable folder)"
         ) from None
+
+
+def read_cached_parts(path: Path) -> tuple[ConvexPart, ...]:
+    """The parts of a file :func:`write_parts` wrote, verified: its checksum and part count match and
+    every part is finite and has a volume; DecompositionError saying what is damaged otherwise.
+    """
+    try:
+        with path.open("rb") as file:
+            content = file.read(MAX_PARTS_FILE_BYTES + 1)
+    except OSError as error:
+        raise DecompositionError(f"cannot read {path}: {error.strerror or error}") from None
+    header, _, rest = content.partition(b"\n")
+    checksum, _, body = rest.partition(b"\n")
+    count_word = header.rsplit(b":", 1)[-1].split()[:1]
+    if not header.startswith(_HEADER.encode()) or not checksum.startswith(_CHECKSUM.encode()) or not count_word:
+        raise DecompositionError(f"{path}: no part count or checksum in its first lines")
+    if hashlib.sha256(body).hexdigest() != checksum[len(_CHECKSUM) :].decode("ascii", "replace").strip():
+        raise DecompositionError(f"{path}: checksum mismatch (truncated or changed)")
+    parts = read_parts(path)
+    if count_word[0].decode("ascii", "replace") != str(len(parts)):
+        raise DecompositionError(f"{path}: {len(parts)} convex parts, its header says {count_word[0].decode()}")
+    problem = parts_problem(parts)
+    if problem is not None:
+        raise DecompositionError(f"{path}: {problem}")
+    return parts
+
+
+def parts_problem(parts: Sequence[ConvexPart]) -> str | None:
+    """Say why ``parts`` cannot be a body's collision geometry (too many, non-finite, flat), or return None."""
+    if len(parts) > MAX_CONVEX_PARTS:
+        return f"{len(parts)} convex parts (at most {MAX_CONVEX_PARTS})"
+    total = sum(len(part.vertices) for part in parts)
+    if total > MAX_PART_VERTICES:
+        return f"{total} vertices in its convex parts (at most {MAX_PART_VERTICES})"
+    for index, part in enumerate(parts):
+        if not np.isfinite(part.vertices).all():
+            return f"non-finite vertex coordinates (NaN or Inf) in convex part {index}"
+        if len(part.vertices) < 4:
+            return f"convex part {index} is flat: fewer than 4 vertices"
+        spans = np.linalg.svd(part.vertices - part.vertices.mean(axis=0), compute_uv=False)
+        if spans[-1] <= FLAT_PART_RATIO * max(float(spans[0]), 1e-300):
+            return f"convex part {index} is flat: its vertices lie in a plane, so it has no volume"
+    return None
 
 
 def read_parts(path: Path) -> tuple[ConvexPart, ...]:
@@ -243,7 +322,11 @@ def read_parts(path: Path) -> tuple[ConvexPart, ...]:
     :class:`DecompositionError` naming the line of a malformed entry.
     """
     try:
-        text = path.read_text(encoding="utf-8")
+        with path.open("rb") as file:
+            content = file.read(MAX_PARTS_FILE_BYTES + 1)
+        if len(content) > MAX_PARTS_FILE_BYTES:
+            raise DecompositionError(f"{path}: larger than {MAX_PARTS_FILE_BYTES // 2**20} MiB")
+        text = content.decode("utf-8")
     except (OSError, UnicodeDecodeError) as error:
         reason = error.strerror if isinstance(error, OSError) else "not a text (OBJ) file"
         raise DecompositionError(f"cannot read {path}: {reason or error}") from None
@@ -262,9 +345,14 @@ def read_parts(path: Path) -> tuple[ConvexPart, ...]:
                 groups[-1] += [(corners[0], corners[i], corners[i + 1]) for i in range(1, len(corners) - 1)]
             elif words[0] in ("o", "g") and groups[-1]:
                 groups.append([])
+                if len(groups) > MAX_CONVEX_PARTS:
+                    raise DecompositionError(f"{path}: more than {MAX_CONVEX_PARTS} convex parts")
         except (ValueError, IndexError):
             raise DecompositionError(f"{path}: line {number}: malformed {words[0]!r} entry") from None
-    parts = tuple(_part(np.asarray(vertices, dtype=np.float64), faces) for faces in groups if faces)
+    if len(vertices) > MAX_PART_VERTICES:
+        raise DecompositionError(f"{path}: {len(vertices)} vertices (at most {MAX_PART_VERTICES})")
+    every_vertex = np.asarray(vertices, dtype=np.float64)  # once: not once per part
+    parts = tuple(_part(every_vertex, faces) for faces in groups if faces)
     if not parts:
         raise DecompositionError(f"{path}: no faces, so no convex part")
     return parts

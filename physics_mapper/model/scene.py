@@ -275,6 +275,8 @@ class Scene:
     ground_truth: tuple[Pose, ...] | None = None
     #: The scene file's ``workspace:`` box; None: the default (:attr:`workspace`).
     explicit_workspace: Workspace | None = None
+    #: Warnings about what the file asks for (an extreme mass ratio), each as ``file: key: what``.
+    notes: tuple[str, ...] = field(default=(), compare=False)
 
     @property
     def object_names(self) -> tuple[str, ...]:

@@ -190,6 +190,8 @@ class PhysicsMapperNode(Node):
         ).value
         scene_path = resolve_scene_path(str(scene_file))
         scene = load_scene(scene_path)
+        for note in scene.notes:
+            self._logger.warning(note)
         for spec in PARAMETERS:
             default = getattr(scene.search, spec.name) if spec.default is None else spec.default
             self.declare_parameter(spec.name, default, _descriptor(spec, default))
