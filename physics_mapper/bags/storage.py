@@ -217,9 +217,10 @@ class BagWriter:
     def __init__(self, path: str | Path, storage: Storage = "mcap") -> None:
         self.path = Path(path)
         if self.path.exists() or self.path.is_symlink():
-            raise BagError(f"cannot write bag {self.path}: it exists")
+            raise BagError(f"cannot write bag {self.path}: it exists already")
         self._holder = temporary_sibling(self.path, "partial")
         try:
+            self.path.parent.mkdir(parents=True, exist_ok=True)
             self._holder.mkdir(mode=0o777)
             self._writer = _ChecksummedWriter(
                 self._holder / self.path.name, version=BAG_VERSION, storage_plugin=_PLUGINS[storage]

@@ -41,7 +41,7 @@ from numpy.typing import NDArray
 
 from physics_mapper.model.geometry import make_pose
 from physics_mapper.model.hypotheses import Hypothesis, RankedHypotheses, weights_problem
-from physics_mapper.model.limits import MAX_QUOTED_TEXT, clipped
+from physics_mapper.model.limits import MAX_QUOTED_TEXT, MAX_SEARCHED_HYPOTHESES, clipped
 from physics_mapper.model.scene import Workspace
 
 #: Seconds a new PoseArray waits for its weights message before uniform weights are assumed.
@@ -223,6 +223,8 @@ def rank(poses: ReceivedPoses, weights: ReceivedWeights | None, max_hypotheses: 
     """
     if weights is not None and weights.refusal is not None:
         return f"its weights message is unusable: {weights.refusal}"
+    requested = max_hypotheses
+    max_hypotheses = min(max_hypotheses, MAX_SEARCHED_HYPOTHESES)
     kept: list[Hypothesis] = []
     dropped: list[str] = []
     examined = 0
@@ -254,7 +256,12 @@ def rank(poses: ReceivedPoses, weights: ReceivedWeights | None, max_hypotheses: 
         of = f"{poses.count}" if examined == poses.count else f"the {examined} heaviest of {poses.count}"
         notes.append(f"dropped {len(dropped)} of {of} poses: {'; '.join(dropped[:3])}")
     if examined < poses.count:
-        notes.append(f"kept the {len(ranked)} heaviest of {poses.count} hypotheses (max_hypotheses_per_object)")
+        cap = (
+            "max_hypotheses_per_object"
+            if requested <= MAX_SEARCHED_HYPOTHESES
+            else f"the hard cap of {MAX_SEARCHED_HYPOTHESES} per object; max_hypotheses_per_object is {requested}"
+        )
+        notes.append(f"kept the {len(ranked)} heaviest of {poses.count} hypotheses ({cap})")
     return InUse(ranked, poses, weights, tuple(notes), tuple(dropped))
 
 

@@ -345,10 +345,10 @@ def read_parts(path: Path) -> tuple[ConvexPart, ...]:
                 groups[-1] += [(corners[0], corners[i], corners[i + 1]) for i in range(1, len(corners) - 1)]
             elif words[0] in ("o", "g") and groups[-1]:
                 groups.append([])
-                if len(groups) > MAX_CONVEX_PARTS:
-                    raise DecompositionError(f"{path}: more than {MAX_CONVEX_PARTS} convex parts")
         except (ValueError, IndexError):
             raise DecompositionError(f"{path}: line {number}: malformed {words[0]!r} entry") from None
+        if len(groups) > MAX_CONVEX_PARTS:
+            raise DecompositionError(f"{path}: more than {MAX_CONVEX_PARTS} convex parts")
     if len(vertices) > MAX_PART_VERTICES:
         raise DecompositionError(f"{path}: {len(vertices)} vertices (at most {MAX_PART_VERTICES})")
     every_vertex = np.asarray(vertices, dtype=np.float64)  # once: not once per part

@@ -32,6 +32,12 @@ MAX_MASS_RATIO = 30.0
 #: Hypotheses per object that a problem file may bring; more keep the heaviest, as the node's
 #: ``max_hypotheses_per_object`` (default the same) does with messages.
 MAX_HYPOTHESES_PER_OBJECT = 100
+#: Hypotheses per object any search takes, whatever ``max_hypotheses_per_object`` says: the heaviest are
+#: kept. Grouping compares every hypothesis of one object with every one of another, and the collision
+#: table holds a number per pair, so the cost of a search's set-up grows with the square of this
+#: (measured in ``BENCHMARKS.md``, "Input caps": 1000 x 1000 hypotheses are grouped in milliseconds;
+#: 100,000 x 100,000 would need 224 GiB at once).
+MAX_SEARCHED_HYPOTHESES = 1000
 #: Longest body name or ``frame_id`` in a scene file, characters.
 MAX_NAME_LENGTH = 256
 #: Characters of an input's own text (a frame_id, a YAML value) quoted in an error or a diagnostic.

@@ -528,8 +528,7 @@ def problem_from_dict(
         return _read_hypotheses(reader, value, key, workspace)
 
     hypotheses = _read_per_object(reader, given, "hypotheses", scene.object_names, read_hypotheses)
-    scene_notes = scene.notes if "scene" in top else ()  # an inline scene's notes are already the reader's
-    return Problem(scene, hypotheses, (*scene_notes, *reader.notes))
+    return Problem(scene, hypotheses, (*scene.notes, *reader.notes))
 
 
 def _load_yaml(path: Path) -> Any:
