@@ -30,7 +30,7 @@ from physics_mapper.model.decomposition import (
     read_cached_parts,
 )
 from physics_mapper.model.errors import EXIT_BAD_INPUT, InputError
-from physics_mapper.model.limits import MAX_MASS, MAX_MASS_RATIO
+from physics_mapper.model.limits import MAX_MASS, MAX_MASS_RATIO, MAX_OBJECTS
 from physics_mapper.model.meshes import MAX_MESH_FACES
 from physics_mapper.model.names import DERIVED_TOPICS, derived_topics, object_name_problem
 from physics_mapper.model.scene import Mesh, Scene
@@ -154,6 +154,15 @@ def test_names_the_node_cannot_use_are_refused_by_solve_and_the_node_alike(
     scene.write_text(yaml.safe_dump({"objects": [cube(n) for n in names]}), encoding="utf-8")
     node = run_cli("node", "--ros-args", "-p", f"scene_file:={scene}", timeout=60)
     one_error_line(node, fragment)
+
+
+def test_a_scene_with_more_objects_than_the_cap_is_refused(tmp_path: Path) -> None:
+    scene = tmp_path / "scene.yaml"
+    scene.write_text(yaml.safe_dump({"objects": [cube(f"c{i}") for i in range(MAX_OBJECTS + 1)]}), encoding="utf-8")
+    with pytest.raises(SceneError, match=f"objects: {MAX_OBJECTS + 1} objects \\(at most {MAX_OBJECTS}"):
+        load_scene(scene)
+    scene.write_text(yaml.safe_dump({"objects": [cube(f"c{i}") for i in range(MAX_OBJECTS)]}), encoding="utf-8")
+    assert len(load_scene(scene).objects) == MAX_OBJECTS
 
 
 # --- meshes ---------------------------------------------------------------------------------------------------

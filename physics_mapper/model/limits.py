@@ -38,6 +38,11 @@ MAX_HYPOTHESES_PER_OBJECT = 100
 #: (measured in ``BENCHMARKS.md``, "Input caps": 1000 x 1000 hypotheses are grouped in milliseconds;
 #: 100,000 x 100,000 would need 224 GiB at once).
 MAX_SEARCHED_HYPOTHESES = 1000
+#: Most movable objects and most static bodies in a scene. The node's start-up, its per-tick work and
+#: its shutdown grow with the objects (a subscription pair, two latched publishers and a marker each);
+#: measured at the cap (``BENCHMARKS.md``, "Input caps").
+MAX_OBJECTS = 128
+MAX_STATIC_BODIES = 256
 #: Longest body name or ``frame_id`` in a scene file, characters.
 MAX_NAME_LENGTH = 256
 #: Characters of an input's own text (a frame_id, a YAML value) quoted in an error or a diagnostic.

@@ -31,7 +31,9 @@ from physics_mapper.model.limits import (
     MAX_MASS,
     MAX_MASS_RATIO,
     MAX_NAME_LENGTH,
+    MAX_OBJECTS,
     MAX_QUOTED_TEXT,
+    MAX_STATIC_BODIES,
     MIN_DENSITY,
     MIN_MASS,
 )
@@ -408,13 +410,15 @@ def scene_from_dict(
     top = reader.mapping(data, "")
     reader.known_keys(top, "", (*_SCENE_KEYS, "hypotheses", "scene"))
     frame_id = reader.name(top.get("frame_id", "world"), "frame_id")
-    static = tuple(
-        _read_static(reader, item, f"static[{i}]", meshes)
-        for i, item in enumerate(reader.sequence(top.get("static", []), "static"))
-    )
+    static_items = reader.sequence(top.get("static", []), "static")
+    if len(static_items) > MAX_STATIC_BODIES:
+        raise reader.fail("static", f"{len(static_items)} static bodies (at most {MAX_STATIC_BODIES})")
+    static = tuple(_read_static(reader, item, f"static[{i}]", meshes) for i, item in enumerate(static_items))
     items = reader.sequence(reader.required(top, "objects", ""), "objects")
     if not items:
         raise reader.fail("objects", "needs at least one object")
+    if len(items) > MAX_OBJECTS:
+        raise reader.fail("objects", f"{len(items)} objects (at most {MAX_OBJECTS}: split the scene)")
     objects = tuple(_read_object(reader, item, f"objects[{i}]", meshes) for i, item in enumerate(items))
     names = [o.name for o in objects] + [b.name for b in static]
     for i, name in enumerate(names):
