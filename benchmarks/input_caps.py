@@ -126,7 +126,7 @@ def node_at(objects: int, folder: Path) -> None:
         process.send_signal(signal.SIGINT)
         process.wait(timeout=600)
         stopped = time.monotonic() - signalled
-    node.destroy_node()
+    node.destroy_node()  # type: ignore[no-untyped-call]  # rclpy 7 leaves it unannotated
     rclpy.shutdown()
     print(
         f"node, {objects} objects: first diagnostics after {started:.1f} s, RSS {rss:.0f} MiB; "
