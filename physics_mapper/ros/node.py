@@ -33,11 +33,13 @@ from pathlib import Path
 from typing import Any, cast
 
 import rclpy
-from diagnostic_msgs.msg import DiagnosticArray
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import PoseArray, PoseStamped
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
 from rcl_interfaces.srv import SetParameters
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
+from rclpy.clock import Clock
+from rclpy.clock_type import ClockType
 from rclpy.event_handler import QoSMessageLostInfo, SubscriptionEventCallbacks
 from rclpy.exceptions import InvalidTopicNameException, ParameterException, ParameterNotDeclaredException
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
@@ -52,6 +54,7 @@ from visualization_msgs.msg import MarkerArray
 from msg_adapters.diagnostics import diagnostics_msg
 from msg_adapters.hypotheses import received_pose_array, received_weights
 from msg_adapters.results import configuration_msgs, markers_msg, object_pose_msgs, static_markers_msg
+from physics_mapper.mapping.clock import ClockWatch, duplicate_name_warning
 from physics_mapper.mapping.inputs import InputSettings, MessageKind
 from physics_mapper.mapping.mapper import DEFAULT_RATE_HZ, Mapper, MapperSettings, TickReport, mapper_settings_problem
 from physics_mapper.mapping.stamps import NANOSECONDS_PER_SECOND
@@ -70,6 +73,7 @@ from physics_mapper.mapping.topics import (
     weights_topic,
 )
 from physics_mapper.model.errors import EXIT_BAD_INPUT, InputError
+from physics_mapper.model.limits import MAX_DIAGNOSTIC_TEXT, clipped
 from physics_mapper.model.resources import ResourceError, resolve_resource
 from physics_mapper.model.scene import SEARCH_LIMITS, SearchParams, search_parameter_doc
 from physics_mapper.model.scene_files import SceneError, load_scene, search_with_overrides
@@ -79,6 +83,8 @@ from physics_mapper.search.results import SearchResult
 
 #: Seconds between two /diagnostics messages unless ``diagnostics_period`` says otherwise (the ~1 Hz convention).
 DEFAULT_DIAGNOSTICS_PERIOD = 1.0
+#: Wall-clock seconds between two checks of the simulated clock and of the node's name on the graph.
+WATCH_PERIOD = 1.0
 
 
 @dataclass(frozen=True)
@@ -227,6 +233,10 @@ class PhysicsMapperNode(Node):
         self._order_set_parameters_requests()
         self._tick_timer = self.create_timer(1.0 / float(values["rate_hz"]), self._tick)
         self._diagnostics_timer = self.create_timer(float(values["diagnostics_period"]), self._publish_diagnostics)
+        # By wall clock: with use_sim_time the timers above wait for /clock, and a missing one must be reported.
+        self._clock_watch = ClockWatch()
+        self._watch_warnings: dict[str, str] = {}  # what the watch found, by kind, added to every diagnostics
+        self._watch_timer = self.create_timer(WATCH_PERIOD, self._watch, clock=Clock(clock_type=ClockType.STEADY_TIME))
         self._last_message = ""
         self._logger.info(
             f"scene {scene_path}: objects {', '.join(scene.object_names)} in frame {scene.frame_id!r}; "
@@ -445,6 +455,24 @@ class PhysicsMapperNode(Node):
             settled_pub.publish(settled)
         self._published_objects = (stamp_ns, result)
 
+    def _watch(self) -> None:
+        """Check, by wall clock, what no tick can see: a stopped simulated clock, another node of this name."""
+        sim_time = bool(self.get_parameter("use_sim_time").value)
+        clock = self._clock_watch.observe(time.monotonic(), self._now_ns(), sim_time)
+        full_name = self.get_fully_qualified_name()
+        count = sum(
+            1
+            for name, namespace in self.get_node_names_and_namespaces()
+            if name == self.get_name() and namespace == self.get_namespace()
+        )
+        found = {"clock": clock, "name": duplicate_name_warning(full_name, count)}
+        for kind, warning in found.items():
+            if warning is not None and kind not in self._watch_warnings:  # logged when it starts, not every second
+                self._logger.warning(warning)
+        self._watch_warnings = {kind: warning for kind, warning in found.items() if warning is not None}
+        if clock is not None:  # the diagnostics timer waits for /clock too: published from here instead
+            self._publish_diagnostics()
+
     def _publish_diagnostics(self) -> None:
         """The last tick's report, and how the ticks kept time since the previous message.
 
@@ -462,6 +490,11 @@ class PhysicsMapperNode(Node):
             stamp_ns=self._now_ns(),
             ticks=self._ticks.take_period(),
         )
+        warnings = list(getattr(self, "_watch_warnings", {}).values())
+        if warnings:
+            status = diagnostics.status[0]
+            status.level = max(status.level, DiagnosticStatus.WARN, key=lambda level: level[0])
+            status.message = clipped("; ".join([*warnings, status.message]), MAX_DIAGNOSTIC_TEXT)
         self._diagnostics_pub.publish(diagnostics)
         message = diagnostics.status[0].message
         if message != self._last_message:
