@@ -40,10 +40,14 @@ in the same canonical form, so pybullet always loads a file written here.
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import importlib
 import json
+import math
 import os
+import signal
+import subprocess
 import sys
 import tempfile
 import time
@@ -83,6 +87,15 @@ THRESHOLD_LIMITS = (0.01, 1.0)
 #: Most vertices a CoACD part keeps (its decimation): Bullet's cost of a convex part grows with its vertices,
 #: and undecimated parts of the mug reach 500 (V-HACD's default cap is 64 too).
 COACD_MAX_PART_VERTICES = 64
+#: Wall-clock seconds a decomposition may take (CoACD on pybullet_data's mug: about 30 s on one core).
+DECOMPOSITION_TIME_LIMIT = 600.0
+#: Address space a decomposition's child process may use, bytes (CoACD on the mug peaks far below).
+DECOMPOSITION_MEMORY_LIMIT = 4 * 2**30
+#: Environment variables overriding the two limits: seconds, and MiB.
+TIME_LIMIT_VARIABLE = "PHYSICS_MAPPER_DECOMPOSITION_SECONDS"
+MEMORY_LIMIT_VARIABLE = "PHYSICS_MAPPER_DECOMPOSITION_MIB"
+#: Seconds between two looks of the parent at its decomposing child: the latency of a stop.
+STOP_POLL = 0.05
 #: Voxels V-HACD fills the mesh with (pybullet's default is 1,000,000: 6 s on the mug, 14 parts; this: 0.5 s, 12).
 VHACD_RESOLUTION = 100_000
 
@@ -185,7 +198,7 @@ def decompose(
         f"decomposing {mesh_file} with {settings.method} ({where}once: the result is cached in {directory}){damage}"
     )
     start = time.monotonic()
-    parts = _coacd(vertices, faces, settings) if settings.method == "coacd" else _vhacd(vertices, faces)
+    parts = _in_child_process(mesh_file, vertices, faces, settings)
     seconds = time.monotonic() - start
     if not parts:
         raise DecompositionError(f"{settings.method} returned no convex part")
@@ -216,6 +229,94 @@ def _read_bytes(path: Path) -> bytes:
         return path.read_bytes()
     except OSError as error:
         raise DecompositionError(f"cannot read {path}: {error.strerror or error}") from None
+
+
+def run_method(vertices: FloatArray, faces: IntArray, settings: DecompositionSettings) -> tuple[ConvexPart, ...]:
+    """Run ``settings.method`` in this process (what the child process of :func:`decompose` does)."""
+    return _coacd(vertices, faces, settings) if settings.method == "coacd" else _vhacd(vertices, faces)
+
+
+def decomposition_limits() -> tuple[float, int]:
+    """The wall-clock seconds and bytes of memory a decomposition may take (module constants, or the
+    environment's :data:`TIME_LIMIT_VARIABLE` and :data:`MEMORY_LIMIT_VARIABLE`)."""
+    seconds, memory = DECOMPOSITION_TIME_LIMIT, DECOMPOSITION_MEMORY_LIMIT
+    try:
+        seconds = float(os.environ.get(TIME_LIMIT_VARIABLE, seconds))
+        memory = int(float(os.environ.get(MEMORY_LIMIT_VARIABLE, memory / 2**20)) * 2**20)
+    except ValueError:
+        raise DecompositionError(f"{TIME_LIMIT_VARIABLE} and {MEMORY_LIMIT_VARIABLE} must be numbers") from None
+    return seconds, memory
+
+
+def _in_child_process(
+    mesh_file: Path, vertices: FloatArray, faces: IntArray, settings: DecompositionSettings
+) -> tuple[ConvexPart, ...]:
+    """:func:`run_method` in a child process with a wall-clock, CPU and memory limit, killed if interrupted.
+
+    The wait polls every :data:`STOP_POLL` seconds, so a signal's KeyboardInterrupt (the command's, or
+    the node's interruptible start-up) stops it within that time, at any moment of the decomposition.
+    """
+    seconds, memory = decomposition_limits()
+    with tempfile.TemporaryDirectory(prefix="physics_mapper_decomposition_") as name:
+        folder = Path(name)
+        request = {
+            "method": settings.method,
+            "threshold": settings.threshold,
+            "memory_bytes": memory,
+            "cpu_seconds": max(1, math.ceil(seconds)),
+        }
+        (folder / "request.json").write_text(json.dumps(request), encoding="utf-8")
+        np.savez(folder / "mesh.npz", vertices=np.asarray(vertices, dtype=np.float64), faces=np.asarray(faces))
+        command = [sys.executable, "-m", "physics_mapper.model.decomposition_worker", str(folder)]
+        # Its own session: a Ctrl-C in the terminal reaches the parent only, which kills the child.
+        child = subprocess.Popen(
+            command, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, start_new_session=True
+        )
+        try:
+            deadline = time.monotonic() + seconds
+            while child.poll() is None:
+                if time.monotonic() > deadline:
+                    raise DecompositionError(
+                        f"{settings.method} of {mesh_file} took longer than its {seconds:g} s limit "
+                        f"(set {TIME_LIMIT_VARIABLE} to allow more, or simplify the mesh)"
+                    )
+                with contextlib.suppress(subprocess.TimeoutExpired):
+                    child.wait(STOP_POLL)
+        finally:
+            if child.poll() is None:
+                child.kill()
+                child.wait()
+            stderr = child.stderr.read().decode("utf-8", "replace") if child.stderr is not None else ""
+            if child.stderr is not None:
+                child.stderr.close()
+        error_file = folder / "error.txt"
+        if child.returncode != 0:
+            raise DecompositionError(_child_failure(mesh_file, settings, child.returncode, error_file, stderr, memory))
+        with np.load(folder / "parts.npz") as data:
+            count = len(data.files) // 2
+            return tuple(
+                ConvexPart(np.asarray(data[f"v{i}"], dtype=np.float64), np.asarray(data[f"f{i}"], dtype=np.int64))
+                for i in range(count)
+            )
+
+
+def _child_failure(
+    mesh_file: Path, settings: DecompositionSettings, status: int, error_file: Path, stderr: str, memory: int
+) -> str:
+    """One line saying why the decomposition's child process failed."""
+    what = f"{settings.method} of {mesh_file}"
+    reported = error_file.read_text(encoding="utf-8").strip() if error_file.is_file() else ""
+    limit = f"its {memory / 2**20:g} MiB memory limit (set {MEMORY_LIMIT_VARIABLE} to allow more, or simplify the mesh)"
+    if reported == "out of memory" or "bad_alloc" in stderr or "MemoryError" in stderr:
+        return f"{what} ran out of {limit}"
+    if reported:
+        return f"{what} failed: {reported}"
+    if status in (-signal.SIGXCPU, 128 + signal.SIGXCPU):
+        return f"{what} used up its CPU time limit (set {TIME_LIMIT_VARIABLE} to allow more, or simplify the mesh)"
+    if status in (-signal.SIGABRT, 128 + signal.SIGABRT, -signal.SIGSEGV, -signal.SIGKILL):
+        return f"{what} crashed (signal {-status if status < 0 else status - 128}), probably past {limit}"
+    last = stderr.strip().splitlines()[-1] if stderr.strip() else f"exit status {status}"
+    return f"{what} failed: {' '.join(last.split())}"
 
 
 def _coacd(vertices: FloatArray, faces: IntArray, settings: DecompositionSettings) -> tuple[ConvexPart, ...]:

@@ -195,7 +195,8 @@ class PhysicsMapperNode(Node):
             ParameterDescriptor(description="scene YAML (path or package://pkg/path); read once", read_only=True),
         ).value
         scene_path = resolve_scene_path(str(scene_file))
-        scene = load_scene(scene_path)
+        with self._stop.interruptible():  # a decomposition at start-up stops at a signal, as a search does
+            scene = load_scene(scene_path)
         for note in scene.notes:
             self._logger.warning(note)
         for spec in PARAMETERS:
