@@ -453,3 +453,40 @@ def test_meshes_at_the_limits_still_load(tmp_path: Path) -> None:
     (tmp_path / "edge.obj").write_text("\n".join(lines) + "\n", encoding="ascii")
     scene = load_inline(floor_scene_dict(mesh_object("m", "edge.obj", mass=MAX_MASS)), tmp_path)
     assert np.isclose(mesh(scene).geometry.bounds[1][0], 1e7)
+
+
+# --- pairwise work on hypotheses ------------------------------------------------------------------------------
+
+
+def test_cube_overlaps_compared_in_chunks_agree_with_the_whole_comparison(monkeypatch: pytest.MonkeyPatch) -> None:
+    from physics_mapper.search import groups
+
+    rng = np.random.default_rng(3)
+    for trial in range(200):
+        a, b = rng.uniform(-1.0, 1.0, size=(int(rng.integers(1, 40)), 3)), rng.uniform(-1.0, 1.0, size=(30, 3))
+        half_a, half_b = rng.uniform(0.0, 0.1, size=2)
+        whole = bool(np.any(np.all(np.abs(a[:, None, :] - b[None, :, :]) <= half_a + half_b, axis=2)))
+        monkeypatch.setattr(groups, "PAIRS_PER_CHUNK", int(rng.integers(1, 100)))
+        assert groups._cubes_meet(a, half_a, b, half_b) == whole, trial
+
+
+def test_a_search_takes_at_most_the_hard_cap_of_hypotheses_per_object() -> None:
+    from physics_mapper.model.geometry import Pose
+    from physics_mapper.model.hypotheses import Hypothesis, RankedHypotheses
+    from physics_mapper.model.limits import MAX_SEARCHED_HYPOTHESES
+    from physics_mapper.physics.checker import PhysicsChecker
+    from physics_mapper.search.strategy import make_search
+
+    problem = load_problem(PYRAMID_PROBLEM)
+    many = MAX_SEARCHED_HYPOTHESES * 3
+    hypotheses = [
+        RankedHypotheses.from_weighted(
+            [Hypothesis(Pose((0.001 * i, 0.0, 0.1 + 0.3 * o)), 1.0 + i) for i in range(many)]
+        )
+        for o in range(len(problem.scene.objects))
+    ]
+    with PhysicsChecker(problem.scene) as checker:
+        search = make_search(checker, hypotheses, problem.scene.search)
+        kept = search.hypotheses
+    assert [len(ranked) for ranked in kept] == [MAX_SEARCHED_HYPOTHESES] * len(hypotheses)
+    assert kept[0].pose(1) == hypotheses[0].pose(1) and abs(sum(h.weight for h in kept[0].hypotheses) - 1.0) < 1e-9
