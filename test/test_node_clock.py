@@ -135,3 +135,25 @@ def test_progress_never_shows_more_done_than_total_nor_a_negative_eta() -> None:
     line = progress.bar()
     assert "118/118+ snapshots (the metadata said 101)" in line and "ETA --" in line
     assert "100%" in line and "#" * 24 in line and "ETA -" not in line.replace("ETA --", "")
+
+
+def test_a_matched_publisher_whose_arrays_never_arrive_is_warned(tmp_path: Path, client_of: list[RosClient]) -> None:
+    """What a best-effort input cannot count (arrays lost whole) shows as a publisher matched and nothing received.
+
+    The publisher here sends nothing: the node sees exactly what it sees when every array is too large.
+    """
+    from geometry_msgs.msg import PoseArray
+
+    from physics_mapper.mapping.clock import SILENT_PUBLISHER_SECONDS
+    from physics_mapper.mapping.topics import poses_topic
+
+    process = start("/silent", tmp_path / "node.log")
+    try:
+        client = RosClient("/silent")
+        client_of.append(client)
+        client.node.create_publisher(PoseArray, poses_topic("cube_top"), 10)
+        text = f"hypotheses/cube_top: 1 publisher(s) matched for {SILENT_PUBLISHER_SECONDS:g} s or more"
+        found = client.next_diagnostics(lambda d: warned(d, text), timeout=30.0, what="the silent input warning")
+        assert "set input_reliability: reliable" in search_status(found).message  # type: ignore[union-attr]
+    finally:
+        stop(process)

@@ -47,3 +47,38 @@ def duplicate_name_warning(full_name: str, count: int) -> str | None:
         f"{count} nodes named {full_name} on this ROS domain: their maps, diagnostics and parameters mix "
         "(give each its own namespace or __node name)"
     )
+
+
+#: Wall-clock seconds a best-effort input may have a matched publisher and no message before the node warns.
+SILENT_PUBLISHER_SECONDS = 5.0
+
+
+class SilentInputWatch:
+    """Says when an object's input has publishers but none of their PoseArrays arrives.
+
+    On a best-effort subscription, a message too large to arrive whole (its fragments not all
+    delivered) is dropped without the middleware reporting a loss, so ``poses lost`` stays 0 while
+    every array is lost. What can be seen is a matched publisher and nothing received: that is
+    what this watch words.
+    """
+
+    def __init__(self) -> None:
+        self._matched_since: dict[str, float] = {}
+
+    def observe(self, wall: float, name: str, publishers: int, received: int, best_effort: bool) -> str | None:
+        """A warning for object ``name`` (``publishers`` matched, ``received`` PoseArrays so far), or None."""
+        if publishers == 0 or received > 0:
+            self._matched_since.pop(name, None)
+            return None
+        since = self._matched_since.setdefault(name, wall)
+        if wall - since < SILENT_PUBLISHER_SECONDS:
+            return None
+        advice = (
+            "a best-effort input drops arrays too large to arrive whole, uncounted: set input_reliability: reliable"
+            if best_effort
+            else "is its publisher best effort? a reliable input does not match one"
+        )
+        return (
+            f"hypotheses/{name}: {publishers} publisher(s) matched for {SILENT_PUBLISHER_SECONDS:g} s or more "
+            f"but no PoseArray arrived ({advice})"
+        )

@@ -292,6 +292,11 @@ class ObjectInputs:
         }
         self._last_lost: float | None = None  # when the middleware last reported a lost message
 
+    @property
+    def poses_received(self) -> int:
+        """PoseArrays received so far, refused ones too."""
+        return self._counts["poses received"]
+
     def add_poses(self, poses: ReceivedPoses) -> None:
         self._poses.append(poses)
         self._counts["poses received"] += 1

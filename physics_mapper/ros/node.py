@@ -54,7 +54,7 @@ from visualization_msgs.msg import MarkerArray
 from msg_adapters.diagnostics import diagnostics_msg
 from msg_adapters.hypotheses import received_pose_array, received_weights
 from msg_adapters.results import configuration_msgs, markers_msg, object_pose_msgs, static_markers_msg
-from physics_mapper.mapping.clock import ClockWatch, duplicate_name_warning
+from physics_mapper.mapping.clock import ClockWatch, SilentInputWatch, duplicate_name_warning
 from physics_mapper.mapping.inputs import InputSettings, MessageKind
 from physics_mapper.mapping.mapper import DEFAULT_RATE_HZ, Mapper, MapperSettings, TickReport, mapper_settings_problem
 from physics_mapper.mapping.stamps import NANOSECONDS_PER_SECOND
@@ -236,6 +236,8 @@ class PhysicsMapperNode(Node):
         self._diagnostics_timer = self.create_timer(float(values["diagnostics_period"]), self._publish_diagnostics)
         # By wall clock: with use_sim_time the timers above wait for /clock, and a missing one must be reported.
         self._clock_watch = ClockWatch()
+        self._silent_inputs = SilentInputWatch()
+        self._best_effort = reliability == "best_effort"
         self._watch_warnings: dict[str, str] = {}  # what the watch found, by kind, added to every diagnostics
         self._watch_timer = self.create_timer(WATCH_PERIOD, self._watch, clock=Clock(clock_type=ClockType.STEADY_TIME))
         self._last_message = ""
@@ -467,6 +469,12 @@ class PhysicsMapperNode(Node):
             if name == self.get_name() and namespace == self.get_namespace()
         )
         found = {"clock": clock, "name": duplicate_name_warning(full_name, count)}
+        for name, inputs in self.mapper.inputs.objects.items():
+            publishers = self.count_publishers(poses_topic(name))
+            silent = self._silent_inputs.observe(
+                time.monotonic(), name, publishers, inputs.poses_received, self._best_effort
+            )
+            found[f"input {name}"] = silent
         for kind, warning in found.items():
             if warning is not None and kind not in self._watch_warnings:  # logged when it starts, not every second
                 self._logger.warning(warning)
