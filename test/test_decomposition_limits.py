@@ -16,7 +16,8 @@ from pathlib import Path
 import pytest
 import trimesh
 import yaml
-from ros_helpers import PHYSICS_MAPPER
+from diagnostic_msgs.msg import DiagnosticStatus
+from ros_helpers import PHYSICS_MAPPER, RosClient, search_status
 
 from physics_mapper.model.decomposition import MEMORY_LIMIT_VARIABLE, TIME_LIMIT_VARIABLE
 from physics_mapper.model.errors import EXIT_BAD_INPUT, EXIT_INTERRUPTED
@@ -66,13 +67,44 @@ def test_a_signal_stops_solve_during_a_runaway_vhacd(plate: Path, stop_signal: s
     assert workers() == before  # the child was killed, not left running
 
 
-def test_a_node_decomposing_at_start_up_stops_on_sigint(plate: Path) -> None:
+def test_a_node_decomposing_at_start_up_reports_it_and_stops_on_sigint(plate: Path) -> None:
     before = workers()
     command = [str(PHYSICS_MAPPER), "node", "--ros-args", "-p", f"scene_file:={plate / 'scene.yaml'}"]
+    command += ["-r", "__ns:=/decomposing"]
     process = start_until_decomposing(command, plate)
+    client = RosClient("/decomposing")
+    try:
+        found = client.next_diagnostics(lambda d: True, timeout=30.0, what="diagnostics while decomposing")
+        status = search_status(found)
+        assert status is not None and status.level == DiagnosticStatus.WARN
+        assert "decomposing" in status.message and "plate.obj" in status.message
+        assert status.message.endswith("the search starts when the geometry is ready")
+    finally:
+        client.close()
     process.send_signal(signal.SIGINT)
     assert process.wait(timeout=STOP_GUARD) == 0  # the node's signal: a clean stop
     assert workers() == before
+
+
+def test_a_node_searches_once_its_geometry_is_ready(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A decomposition that finishes: the node reports it, then serves its inputs as usual."""
+    trimesh.creation.annulus(0.03, 0.05, 0.04).export(tmp_path / "ring.obj")
+    ring = {**PLATE, "name": "ring", "file": "ring.obj", "decomposition": {"method": "vhacd"}}
+    scene = {"static": [{"name": "floor", "shape": "plane"}], "objects": [ring]}
+    (tmp_path / "scene.yaml").write_text(yaml.safe_dump(scene), encoding="utf-8")
+    monkeypatch.setenv("PHYSICS_MAPPER_CACHE_DIR", str(tmp_path / "cache"))
+    command = [str(PHYSICS_MAPPER), "node", "--ros-args", "-p", f"scene_file:={tmp_path / 'scene.yaml'}"]
+    process = subprocess.Popen([*command, "-r", "__ns:=/ring"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    client = RosClient("/ring")
+    try:
+        messages = [search_status(d) for d in [client.next_diagnostics(lambda d: True, timeout=30.0)]]
+        client.next_diagnostics(lambda d: "waiting for hypotheses of: ring" in search_status(d).message, 120.0)  # type: ignore[union-attr]
+        messages += [search_status(d) for d in client.diagnostics]
+        assert any("decomposing" in m.message for m in messages if m is not None)
+    finally:
+        client.close()
+        process.send_signal(signal.SIGINT)
+        process.wait(timeout=STOP_GUARD)
 
 
 @pytest.mark.parametrize(

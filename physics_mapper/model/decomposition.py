@@ -41,6 +41,7 @@ in the same canonical form, so pybullet always loads a file written here.
 from __future__ import annotations
 
 import contextlib
+import contextvars
 import hashlib
 import importlib
 import json
@@ -50,8 +51,9 @@ import signal
 import subprocess
 import sys
 import tempfile
+import threading
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import asdict, dataclass
 from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
@@ -268,13 +270,18 @@ def _in_child_process(
         (folder / "request.json").write_text(json.dumps(request), encoding="utf-8")
         np.savez(folder / "mesh.npz", vertices=np.asarray(vertices, dtype=np.float64), faces=np.asarray(faces))
         command = [sys.executable, "-m", "physics_mapper.model.decomposition_worker", str(folder)]
-        # Its own session: a Ctrl-C in the terminal reaches the parent only, which kills the child.
-        child = subprocess.Popen(
-            command, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, start_new_session=True
-        )
+        cancel = _CANCEL.get()
+        # Its own session: a Ctrl-C in the terminal reaches the parent only, which kills the child. Its
+        # stderr goes to a file: a pipe nobody reads while it runs would block it once full.
+        with (folder / "stderr.txt").open("wb") as log:
+            child = subprocess.Popen(
+                command, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=log, start_new_session=True
+            )
         try:
             deadline = time.monotonic() + seconds
             while child.poll() is None:
+                if cancel is not None and cancel.is_set():
+                    raise DecompositionError(f"{settings.method} of {mesh_file}: interrupted")
                 if time.monotonic() > deadline:
                     raise DecompositionError(
                         f"{settings.method} of {mesh_file} took longer than its {seconds:g} s limit "
@@ -286,9 +293,7 @@ def _in_child_process(
             if child.poll() is None:
                 child.kill()
                 child.wait()
-            stderr = child.stderr.read().decode("utf-8", "replace") if child.stderr is not None else ""
-            if child.stderr is not None:
-                child.stderr.close()
+        stderr = (folder / "stderr.txt").read_text(encoding="utf-8", errors="replace")
         error_file = folder / "error.txt"
         if child.returncode != 0:
             raise DecompositionError(_child_failure(mesh_file, settings, child.returncode, error_file, stderr, memory))
@@ -298,6 +303,23 @@ def _in_child_process(
                 ConvexPart(np.asarray(data[f"v{i}"], dtype=np.float64), np.asarray(data[f"f{i}"], dtype=np.int64))
                 for i in range(count)
             )
+
+
+_CANCEL: contextvars.ContextVar[threading.Event | None] = contextvars.ContextVar("decomposition_cancel", default=None)
+
+
+@contextlib.contextmanager
+def cancelled_by(event: threading.Event) -> Iterator[None]:
+    """Within the block (in this thread), a decomposition stops with DecompositionError once ``event`` is set.
+
+    For a thread loading a scene while another waits (the node spinning during its start-up): setting
+    the event kills the decomposition's child process within :data:`STOP_POLL` seconds.
+    """
+    token = _CANCEL.set(event)
+    try:
+        yield
+    finally:
+        _CANCEL.reset(token)
 
 
 def _child_failure(

@@ -57,6 +57,7 @@ from msg_adapters.results import configuration_msgs, markers_msg, object_pose_ms
 from physics_mapper.mapping.clock import ClockWatch, SilentInputWatch, duplicate_name_warning
 from physics_mapper.mapping.inputs import InputSettings, MessageKind
 from physics_mapper.mapping.mapper import DEFAULT_RATE_HZ, Mapper, MapperSettings, TickReport, mapper_settings_problem
+from physics_mapper.mapping.scene_loading import SceneLoading
 from physics_mapper.mapping.stamps import NANOSECONDS_PER_SECOND
 from physics_mapper.mapping.tick_statistics import TickStatistics
 from physics_mapper.mapping.topics import (
@@ -75,8 +76,8 @@ from physics_mapper.mapping.topics import (
 from physics_mapper.model.errors import EXIT_BAD_INPUT, InputError
 from physics_mapper.model.limits import MAX_DIAGNOSTIC_TEXT, clipped
 from physics_mapper.model.resources import ResourceError, resolve_resource
-from physics_mapper.model.scene import SEARCH_LIMITS, SearchParams, search_parameter_doc
-from physics_mapper.model.scene_files import SceneError, load_scene, search_with_overrides
+from physics_mapper.model.scene import SEARCH_LIMITS, Scene, SearchParams, search_parameter_doc
+from physics_mapper.model.scene_files import SceneError, search_with_overrides
 from physics_mapper.ros.qos import DIAGNOSTICS_QOS, MAP_QOS, input_qos
 from physics_mapper.ros.spinning import STOP_POLL, SignalStop, shutdown_ros
 from physics_mapper.search.results import SearchResult
@@ -85,6 +86,8 @@ from physics_mapper.search.results import SearchResult
 DEFAULT_DIAGNOSTICS_PERIOD = 1.0
 #: Wall-clock seconds between two checks of the simulated clock and of the node's name on the graph.
 WATCH_PERIOD = 1.0
+#: Seconds a scene may take to load before the node spins and reports what it is doing (a decomposition).
+LOADING_REPORT_AFTER = 0.2
 
 
 @dataclass(frozen=True)
@@ -195,8 +198,7 @@ class PhysicsMapperNode(Node):
             ParameterDescriptor(description="scene YAML (path or package://pkg/path); read once", read_only=True),
         ).value
         scene_path = resolve_scene_path(str(scene_file))
-        with self._stop.interruptible():  # a decomposition at start-up stops at a signal, as a search does
-            scene = load_scene(scene_path)
+        scene = self._load_scene(scene_path)
         for note in scene.notes:
             self._logger.warning(note)
         for spec in PARAMETERS:
@@ -457,6 +459,45 @@ class PhysicsMapperNode(Node):
             pose_pub.publish(pose)
             settled_pub.publish(settled)
         self._published_objects = (stamp_ns, result)
+
+    def _load_scene(self, path: Path) -> Scene:
+        """The scene, loaded in a thread while this node spins, reporting a decomposition in its diagnostics.
+
+        A signal stops the load at once (the decomposition's child process is killed): KeyboardInterrupt.
+        """
+        loading = SceneLoading(path)
+        if loading.wait(LOADING_REPORT_AFTER):  # from the cache: nothing to report
+            return loading.result()
+        publisher = self.create_publisher(DiagnosticArray, DIAGNOSTICS_TOPIC, DIAGNOSTICS_QOS)
+        executor = SingleThreadedExecutor(context=self.context)
+        executor.add_node(self)
+        reported = -float("inf")
+        try:
+            while not loading.done:
+                if self._stop.requested:
+                    loading.cancel()
+                    raise KeyboardInterrupt
+                if time.monotonic() - reported >= DEFAULT_DIAGNOSTICS_PERIOD:
+                    reported = time.monotonic()
+                    publisher.publish(self._loading_diagnostics(loading.activity or f"loading {path}"))
+                executor.spin_once(timeout_sec=STOP_POLL / 2)
+        finally:
+            executor.remove_node(self)
+            executor.shutdown()
+            self.destroy_publisher(publisher)
+        return loading.result()
+
+    def _loading_diagnostics(self, activity: str) -> DiagnosticArray:
+        """A WARN search status while the scene loads: no search yet, and why."""
+        status = DiagnosticStatus(
+            level=DiagnosticStatus.WARN,
+            name=f"{self.get_name()}: search",
+            message=clipped(f"{activity}: the search starts when the geometry is ready", MAX_DIAGNOSTIC_TEXT),
+            hardware_id=self.get_fully_qualified_name(),
+        )
+        message = DiagnosticArray(status=[status])
+        message.header.stamp = self.get_clock().now().to_msg()
+        return message
 
     def _watch(self) -> None:
         """Check, by wall clock, what no tick can see: a stopped simulated clock, another node of this name."""
