@@ -51,6 +51,18 @@ def _stop_on_sigterm_like_ctrl_c() -> None:
     signal.signal(signal.SIGTERM, signal.default_int_handler)
 
 
+def _abandon_stdout() -> None:
+    """Point the standard output at /dev/null: what it still buffers would fail again at exit."""
+    import os
+
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        os.close(devnull)
+    except (OSError, ValueError):  # no descriptor behind sys.stdout: nothing to flush at exit
+        pass
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="physics-mapper",
@@ -77,9 +89,20 @@ def main(argv: Sequence[str] | None = None) -> int:
 
         args = build_parser().parse_args(arguments)
         try:
-            return int(args.run(args))
+            code = int(args.run(args))
+            sys.stdout.flush()  # a full disk or a closed pipe shows here, not in the interpreter's exit
+            return code
         except (SceneError, InputError) as error:
             print(f"physics-mapper {args.command}: error: {error}", file=sys.stderr)
+            return EXIT_BAD_INPUT
+        except OSError as error:
+            if error.filename is not None:  # a file's error, not the standard output's
+                raise
+            _abandon_stdout()
+            print(
+                f"physics-mapper {args.command}: error: cannot write to standard output: {error.strerror}",
+                file=sys.stderr,
+            )
             return EXIT_BAD_INPUT
     except KeyboardInterrupt:
         return 0 if arguments[:1] and arguments[0] in RUN_UNTIL_STOPPED else EXIT_INTERRUPTED

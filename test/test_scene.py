@@ -350,9 +350,10 @@ def test_numbers_are_read_in_every_usual_spelling(tmp_path: Path) -> None:
 
 def test_strings_that_only_look_like_numbers_stay_strings(tmp_path: Path) -> None:
     path = tmp_path / "scene.yaml"
-    path.write_text("frame_id: 1e5x\nobjects: [{name: 1.5e, shape: sphere, radius: 1e-1}]\n", encoding="utf-8")
+    text = "frame_id: 1e5x\nstatic: [{name: 1.5e, shape: plane}]\nobjects: [{name: b, shape: sphere, radius: 1e-1}]\n"
+    path.write_text(text, encoding="utf-8")
     scene = load_scene(path)
-    assert (scene.frame_id, scene.objects[0].name) == ("1e5x", "1.5e")
+    assert (scene.frame_id, scene.static[0].name) == ("1e5x", "1.5e")
 
 
 def test_more_hypotheses_than_the_cap_keep_the_heaviest_with_a_note(tmp_path: Path) -> None:

@@ -27,6 +27,8 @@ is read, so a damaged bag is reported rather than read as other messages. SQLite
 from __future__ import annotations
 
 import contextlib
+import os
+import shutil
 import sqlite3
 from collections.abc import Collection, Iterator, Sequence
 from contextlib import contextmanager
@@ -61,6 +63,8 @@ from physics_mapper.mapping.topics import (
     recorded_poses_topic,
     recorded_weights_topic,
 )
+from physics_mapper.model.atomic_files import temporary_sibling
+from physics_mapper.model.errors import InputError
 from physics_mapper.model.geometry import Pose, Quaternion, Vector3, make_pose
 from physics_mapper.model.hypotheses import Hypothesis, RankedHypotheses
 
@@ -89,8 +93,8 @@ _Float64MultiArray = TYPESTORE.types[WEIGHTS]
 INFINITE = QosTime(9_223_372_036, 854_775_807)
 
 
-class BagError(ValueError):
-    """A bag cannot be used: unreadable, corrupt or truncated, or missing or mistyped topics."""
+class BagError(InputError, ValueError):
+    """A bag cannot be used, read or written: unreadable, corrupt, truncated, mistyped topics, a full disk."""
 
 
 def offered_qos(qos: TopicQos) -> Qos:
@@ -268,18 +272,30 @@ def _name_ros_distro(path: Path, storage: Storage) -> None:
 class BagWriter:
     """Writes a new bag (mcap, with checksums, or sqlite3); topics are added on their first message.
 
-    Use as a context manager; refuses (BagError) a path that already exists.
+    Use as a context manager; refuses (BagError) a path that already exists. The bag is written
+    whole or not at all: into a hidden folder beside ``path``, moved to ``path`` once its metadata
+    is written; a failure (a full disk, an exception in the block) removes it, and ``path`` never
+    holds a bag without metadata. Write errors are BagErrors naming the bag.
     """
 
     def __init__(self, path: str | Path, storage: Storage = "mcap") -> None:
         self.path = Path(path)
+        if self.path.exists() or self.path.is_symlink():
+            raise BagError(f"cannot write bag {self.path}: it exists already")
+        self._holder = temporary_sibling(self.path, "partial")
         try:
             self._storage = storage
-            self._writer = _ChecksummedWriter(self.path, version=BAG_VERSION, storage_plugin=_PLUGINS[storage])
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+            self._holder.mkdir(mode=0o777)
+            self._writer = _ChecksummedWriter(
+                self._holder / self.path.name, version=BAG_VERSION, storage_plugin=_PLUGINS[storage]
+            )
             self._writer.open()
         except (WriterError, OSError) as error:
-            raise BagError(f"cannot write bag {self.path}: {error}") from None
+            shutil.rmtree(self._holder, ignore_errors=True)
+            raise BagError(f"cannot write bag {self.path}: {_reason(error)}") from None
         self._connections: dict[str, Connection] = {}
+        self._closed = False
 
     def __enter__(self) -> BagWriter:
         return self
@@ -287,13 +303,40 @@ class BagWriter:
     def __exit__(
         self, kind: type[BaseException] | None, error: BaseException | None, traceback: TracebackType | None
     ) -> None:
-        self.close()
+        if kind is None:
+            self.close()
+        else:
+            self.discard()
 
     def close(self) -> None:
-        """Write the metadata and close the storage file (idempotent)."""
-        if self._writer.storage is not None:
-            self._writer.close()
-            _name_ros_distro(self.path, self._storage)
+        """Write the metadata, close the storage file and move the bag into place (idempotent)."""
+        if self._closed:
+            return
+        self._closed = True
+        try:
+            if self._writer.storage is not None:
+                self._writer.close()
+                _name_ros_distro(self._holder / self.path.name, self._storage)
+            if self.path.exists():
+                raise FileExistsError(f"{self.path} appeared while the bag was written")
+            os.rename(self._holder / self.path.name, self.path)
+        except (WriterError, OSError) as error:
+            raise BagError(f"cannot write bag {self.path}: {_reason(error)} (nothing written)") from None
+        finally:
+            shutil.rmtree(self._holder, ignore_errors=True)
+
+    def discard(self) -> None:
+        """Stop writing and remove what was written: ``path`` is left as it was (idempotent)."""
+        if self._closed:
+            return
+        self._closed = True
+        try:
+            if self._writer.storage is not None:
+                self._writer.close()
+        except Exception:  # the partial bag is removed whatever closing it raised
+            pass
+        finally:
+            shutil.rmtree(self._holder, ignore_errors=True)
 
     def add_topic(self, topic: str, msgtype: str, offered: Sequence[Qos] = ()) -> None:
         """Add a topic with the QoS profiles its publishers offered (rosbag2's ``offered_qos_profiles``)."""
@@ -310,7 +353,10 @@ class BagWriter:
         connection = self._connections[topic]
         if connection.msgtype != msgtype:
             raise BagError(f"topic {topic} was written as {connection.msgtype}, not {msgtype}")
-        self._writer.write(connection, time_ns, raw)
+        try:
+            self._writer.write(connection, time_ns, raw)
+        except (WriterError, OSError) as error:
+            raise BagError(f"cannot write bag {self.path}: {_reason(error)}") from None
 
     def write_detections(
         self, time_ns: int, stamp_ns: int, frame_id: str, detections: Sequence[tuple[str, RankedHypotheses]]
@@ -328,6 +374,13 @@ class BagWriter:
         self.write(recorded_poses_topic(object_name), POSE_ARRAY, time_ns, pose_array_cdr(stamp_ns, frame_id, poses))
         weights = [h.weight for h in hypotheses.hypotheses]
         self.write(recorded_weights_topic(object_name), WEIGHTS, time_ns + 1, weights_cdr(weights))
+
+
+def _reason(error: BaseException) -> str:
+    """An OS or writer error on one line: ``No space left on device``."""
+    if isinstance(error, OSError) and error.strerror:
+        return error.strerror
+    return " ".join(str(error).split())
 
 
 @contextmanager

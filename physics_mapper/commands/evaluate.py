@@ -166,6 +166,9 @@ def run_batch_command(args: argparse.Namespace, scene: Scene, settings: Sequence
     name = args.command
     paths = find_bags(args.bags)
     args.output.mkdir(parents=True, exist_ok=True)  # before the run: an unusable folder is known at once
+    from physics_mapper.evaluation.outputs import lock_report_folder
+
+    args.report_lock = lock_report_folder(args.output, name)  # held until the process ends
     executor = executor_for(args)
     try:
         with sigterm_as_interrupt(), executor:

@@ -73,6 +73,9 @@ def run(args: argparse.Namespace) -> int:
         args.output.mkdir(parents=True, exist_ok=True)
     except OSError as error:
         raise InputError(f"cannot create {args.output}: {error.strerror or error}") from None
+    from physics_mapper.evaluation.outputs import lock_report_folder
+
+    lock = lock_report_folder(args.output, "experiment")  # two runs into one folder would mix their reports
     options = ExperimentOptions(
         output_dir=args.output,
         seed=args.seed,
@@ -87,6 +90,7 @@ def run(args: argparse.Namespace) -> int:
         start = time.monotonic()
         output = importlib.import_module(f"physics_mapper.experiments.{name}").run(options)
         _progress(f"{name}: wrote {output.png}, {output.markdown}, {output.json} in {time.monotonic() - start:.1f} s")
+    lock.close()
     return 0
 
 

@@ -7,6 +7,7 @@ import argparse
 import sys
 from pathlib import Path
 
+from physics_mapper.model.atomic_files import write_atomically
 from physics_mapper.model.errors import InputError
 from physics_mapper.model.resources import ResourceError, resolve_resource
 from physics_mapper.model.scene import Problem
@@ -37,8 +38,11 @@ def check_output_folder(path: Path) -> None:
 
 
 def write_output(path: Path, text: str) -> None:
-    """Write an output file the user named; InputError (one line) if it cannot be written."""
+    """Write an output file the user named, whole or not at all; InputError (one line) if it cannot be written.
+
+    Written beside it first and renamed into place: on failure a previous file of that name is untouched.
+    """
     try:
-        path.write_text(text, encoding="utf-8")
+        write_atomically(path, text)
     except OSError as error:
         raise InputError(f"cannot write {path}: {error.strerror or error}") from None

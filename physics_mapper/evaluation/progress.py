@@ -71,16 +71,24 @@ class Progress:
             self._redraw(force=True)
 
     def status(self) -> str:
-        """Snapshots done of all, the rate and the ETA."""
+        """Snapshots done of all, the rate and the ETA.
+
+        The total comes from the bags' metadata, which may be wrong: once more snapshots are done
+        than it said, the count shows ``N/N+`` (more than the metadata said, how many more unknown)
+        and the ETA ``--``; never more done than total, nor a negative ETA.
+        """
         elapsed = self.clock() - self.started
         rate = self.snapshots / elapsed if elapsed > 0.0 else 0.0
+        if self.snapshots > self.total_snapshots:
+            said = f"the metadata said {self.total_snapshots}"
+            return f"{self.snapshots}/{self.snapshots}+ snapshots ({said}), {rate:.1f}/s, ETA --"
         left = self.total_snapshots - self.snapshots
         eta = duration_text(left / rate) if rate > 0.0 else "--"
         return f"{self.snapshots}/{self.total_snapshots} snapshots, {rate:.1f}/s, ETA {eta}"
 
     def bar(self) -> str:
-        """The bar line: share of snapshots done, tasks done, :meth:`status`."""
-        share = self.snapshots / self.total_snapshots if self.total_snapshots else 1.0
+        """The bar line: share of snapshots done (at most all), tasks done, :meth:`status`."""
+        share = min(1.0, self.snapshots / self.total_snapshots) if self.total_snapshots else 1.0
         filled = round(BAR_WIDTH * share)
         bar = "#" * filled + "." * (BAR_WIDTH - filled)
         return f"{self.prefix} [{bar}] {share:4.0%} {self.tasks}/{self.total_tasks} tasks, {self.status()}"

@@ -23,6 +23,7 @@ from physics_mapper.evaluation.runner import BatchRun
 from physics_mapper.evaluation.settings import Setting, node_parameters_yaml, value_text
 from physics_mapper.evaluation.summary import bag_summary, overall_summary, time_summary
 from physics_mapper.evaluation.tasks import TaskOutput
+from physics_mapper.model.atomic_files import write_atomically
 from physics_mapper.model.errors import InputError
 
 Criterion = Literal["settled", "chosen", "valid"]
@@ -539,9 +540,12 @@ def write_sweep(
         except InputError as error:
             best["params_file_error"] = str(error)
         else:
-            output_dir.mkdir(parents=True, exist_ok=True)
             params_path = output_dir / PARAMS_FILE
-            params_path.write_text(text, encoding="utf-8")
+            try:
+                output_dir.mkdir(parents=True, exist_ok=True)
+                write_atomically(params_path, text)
+            except OSError as error:
+                raise InputError(f"cannot write {params_path}: {error.strerror or error}") from None
             best["params_file"] = PARAMS_FILE
     markdown = sweep_markdown(data, "sweep.png", None if params_path is None else str(params_path))
     return write_outputs(output_dir, "sweep", sweep_figure(data), data, markdown), params_path

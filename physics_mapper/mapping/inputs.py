@@ -18,6 +18,11 @@ Rules:
   hypotheses in use; the next usable one does. Single bad poses (NaN/Inf, not a unit quaternion,
   outside the scene's workspace) are dropped with their weights.
 - Hypotheses received more than ``max_age`` seconds ago are stale and not used.
+- A clock that jumps back (simulated time restarted: a bag played again, a simulator reset) by
+  more than :data:`CLOCK_JUMP_TOLERANCE` does not make ages negative: the tracker keeps its own
+  timeline, the node's clock plus every backward jump seen so far, so ages go on from where they
+  were and hypotheses go stale ``max_age`` after they arrived, as without the jump; the jump is
+  named in every object's details.
 - Messages the middleware reports lost are counted per object and kind, and named in the
   object's status while the last loss is more recent than ``max_age``.
 
@@ -29,6 +34,7 @@ The tracker is thread-safe: subscriptions may add messages while a tick takes a 
 
 from __future__ import annotations
 
+import math
 import threading
 from collections import deque
 from collections.abc import Sequence
@@ -41,7 +47,7 @@ from numpy.typing import NDArray
 
 from physics_mapper.model.geometry import make_pose
 from physics_mapper.model.hypotheses import Hypothesis, RankedHypotheses, weights_problem
-from physics_mapper.model.limits import MAX_QUOTED_TEXT, clipped
+from physics_mapper.model.limits import MAX_QUOTED_TEXT, MAX_SEARCHED_HYPOTHESES, clipped
 from physics_mapper.model.scene import Workspace
 
 #: Seconds a new PoseArray waits for its weights message before uniform weights are assumed.
@@ -234,6 +240,8 @@ def rank(poses: ReceivedPoses, weights: ReceivedWeights | None, max_hypotheses: 
     """
     if weights is not None and weights.refusal is not None:
         return f"its weights message is unusable: {weights.refusal}"
+    requested = max_hypotheses
+    max_hypotheses = min(max_hypotheses, MAX_SEARCHED_HYPOTHESES)
     kept: list[Hypothesis] = []
     dropped: list[str] = []
     examined = 0
@@ -265,7 +273,12 @@ def rank(poses: ReceivedPoses, weights: ReceivedWeights | None, max_hypotheses: 
         of = f"{poses.count}" if examined == poses.count else f"the {examined} heaviest of {poses.count}"
         notes.append(f"dropped {len(dropped)} of {of} poses: {'; '.join(dropped[:3])}")
     if examined < poses.count:
-        notes.append(f"kept the {len(ranked)} heaviest of {poses.count} hypotheses (max_hypotheses_per_object)")
+        cap = (
+            "max_hypotheses_per_object"
+            if requested <= MAX_SEARCHED_HYPOTHESES
+            else f"the hard cap of {MAX_SEARCHED_HYPOTHESES} per object; max_hypotheses_per_object is {requested}"
+        )
+        notes.append(f"kept the {len(ranked)} heaviest of {poses.count} hypotheses ({cap})")
     return InUse(ranked, poses, weights, tuple(notes), tuple(dropped))
 
 
@@ -289,6 +302,11 @@ class ObjectInputs:
             "weights lost": 0,
         }
         self._last_lost: float | None = None  # when the middleware last reported a lost message
+
+    @property
+    def poses_received(self) -> int:
+        """PoseArrays received so far, refused ones too."""
+        return self._counts["poses received"]
 
     def add_poses(self, poses: ReceivedPoses) -> None:
         self._poses.append(poses)
@@ -400,25 +418,60 @@ class ObjectInputs:
         return ObjectStatus(self.name, level, message, in_use.hypotheses, in_use.poses.stamp_ns, tuple(details))
 
 
+#: Seconds the node's clock may seem to go back without being taken as a jump: receive times are
+#: estimated from the middleware's system-time stamps, so consecutive ones may disagree a little.
+CLOCK_JUMP_TOLERANCE = 0.5
+
+
 class InputTracker:
-    """Inputs of every scene object, in scene order; safe to feed from other threads while a tick reads it."""
+    """Inputs of every scene object, in scene order; safe to feed from other threads while a tick reads it.
+
+    Times given to it are the node's clock, seconds; kept on the tracker's own timeline, which never
+    goes back (module docstring).
+    """
 
     def __init__(self, names: Sequence[str]) -> None:
         self.objects = {name: ObjectInputs(name) for name in names}
         self._lock = threading.Lock()
+        self._latest = -math.inf  # the latest time seen, on the timeline
+        self._offset = 0.0  # timeline - node clock: the backward jumps seen so far, seconds
+        self._jumps: list[tuple[float, float]] = []  # (node clock after it, seconds back) of each jump
+
+    def _timeline(self, clock: float) -> float:
+        """``clock`` (node clock, s) on the tracker's timeline; a backward jump moves the timeline's offset."""
+        time = clock + self._offset
+        if time < self._latest - CLOCK_JUMP_TOLERANCE:
+            back = self._latest - time
+            self._offset += back
+            self._jumps.append((clock, back))
+            time = self._latest
+        self._latest = max(self._latest, time)
+        return time
 
     def add_poses(self, name: str, poses: ReceivedPoses) -> None:
         with self._lock:
-            self.objects[name].add_poses(poses)
+            self.objects[name].add_poses(replace(poses, received=self._timeline(poses.received)))
 
     def add_weights(self, name: str, weights: ReceivedWeights) -> None:
         with self._lock:
-            self.objects[name].add_weights(weights)
+            self.objects[name].add_weights(replace(weights, received=self._timeline(weights.received)))
 
     def add_lost(self, name: str, kind: MessageKind, count: int, now: float) -> None:
         with self._lock:
-            self.objects[name].add_lost(kind, count, now)
+            self.objects[name].add_lost(kind, count, self._timeline(now))
+
+    @property
+    def clock_jumps(self) -> tuple[tuple[float, float], ...]:
+        """Each backward jump of the node's clock seen: (the clock just after it, seconds back)."""
+        with self._lock:
+            return tuple(self._jumps)
 
     def snapshot(self, now: float, settings: InputSettings) -> InputSnapshot:
         with self._lock:
-            return InputSnapshot(tuple(inputs.status(now, settings) for inputs in self.objects.values()))
+            time = self._timeline(now)
+            statuses = tuple(inputs.status(time, settings) for inputs in self.objects.values())
+            if self._jumps:
+                clock, back = self._jumps[-1]
+                jump = (("clock jumped back", f"{back:.3f} s, to {clock:.3f} s ({len(self._jumps)} jump(s) so far)"),)
+                statuses = tuple(replace(status, details=status.details + jump) for status in statuses)
+            return InputSnapshot(statuses)

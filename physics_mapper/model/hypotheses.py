@@ -69,6 +69,12 @@ class RankedHypotheses:
     def __len__(self) -> int:
         return len(self.hypotheses)
 
+    def heaviest(self, count: int) -> RankedHypotheses:
+        """The ``count`` heaviest hypotheses, renormalised (``self`` if there are no more than that)."""
+        if len(self.hypotheses) <= count:
+            return self
+        return RankedHypotheses.from_weighted(self.hypotheses[:count])
+
     def weight(self, rank: int) -> float:
         """Normalised weight of the hypothesis of 1-based ``rank``."""
         return self.hypotheses[rank - 1].weight

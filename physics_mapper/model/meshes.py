@@ -48,6 +48,7 @@ from physics_mapper.model.decomposition import (
     stderr_progress,
 )
 from physics_mapper.model.geometry import Quaternion, Vector3
+from physics_mapper.model.limits import MAX_COORDINATE
 
 if TYPE_CHECKING:
     import trimesh
@@ -58,6 +59,10 @@ MeshCollision = Literal["convex_hull", "decomposition", "triangle_mesh"]
 MESH_FORMATS = {".obj": "obj", ".stl": "stl"}
 #: Most vertices a mesh file may have (pybullet's own limit for a triangle mesh is 131072).
 MAX_MESH_VERTICES = 100_000
+#: Most triangles a mesh file may have: a closed surface has about twice as many triangles as vertices.
+#: Counted in the file's text (or binary STL header) before trimesh parses it, since parsing is the cost
+#: (measured, ``BENCHMARKS.md`` "Input caps": 4.2 million faces took 32 s and 1.9 GB).
+MAX_MESH_FACES = 2 * MAX_MESH_VERTICES
 #: Largest mesh file read, bytes (100,000 vertices take about 5 MB as OBJ text).
 MAX_MESH_FILE_BYTES = 64 * 1024 * 1024
 #: A part or mesh whose hull is thinner than this many metres in some direction has no volume.
@@ -158,6 +163,7 @@ def load_mesh_geometry(request: MeshRequest, progress: Progress = stderr_progres
     raw = _read_surface(path)
     scale = np.asarray(request.scale, dtype=np.float64)
     surface = _scaled(raw, scale)
+    _check_magnitude(path, np.asarray(surface.vertices), " (scaled)")
     parts: tuple[ConvexPart, ...] = ()
     decomposition = None
     if request.collision == "convex_hull":
@@ -207,6 +213,9 @@ def _read_surface(path: Path) -> trimesh.Trimesh:
             data.decode("utf-8")
         except UnicodeDecodeError:
             raise MeshError(path, "not a mesh: an OBJ file is text, this is not") from None
+    faces_given = _counted_faces(data, kind)
+    if faces_given > MAX_MESH_FACES:
+        raise MeshError(path, f"too many faces: {faces_given} (at most {MAX_MESH_FACES}; simplify the mesh)")
     try:
         loaded: Any = trimesh.load(io.BytesIO(data), file_type=kind, force="mesh", process=False)
         vertices = np.asarray(loaded.vertices, dtype=np.float64)
@@ -223,12 +232,39 @@ def _read_surface(path: Path) -> trimesh.Trimesh:
         raise MeshError(path, f"non-finite vertex coordinates (NaN or Inf) at vertex {int(np.argmax(bad)) + 1}")
     if faces.min() < 0 or faces.max() >= len(vertices):
         raise MeshError(path, "a face refers to a vertex that does not exist")
+    if len(faces) > MAX_MESH_FACES:
+        raise MeshError(path, f"too many faces: {len(faces)} (at most {MAX_MESH_FACES}; simplify the mesh)")
+    _check_magnitude(path, vertices, "")
     surface = trimesh.Trimesh(vertices, faces, process=False)
     surface.merge_vertices(merge_tex=True, merge_norm=True)
     surface.update_faces(surface.nondegenerate_faces())
     if len(surface.faces) == 0:
         raise MeshError(path, "degenerate: every triangle has zero area")
     return surface
+
+
+def _counted_faces(data: bytes, kind: str) -> int:
+    """Faces the file declares, counted without parsing it: OBJ ``f`` lines, STL facets."""
+    if kind == "obj":
+        return data.count(b"\nf ") + data.count(b"\nf\t") + int(data.startswith((b"f ", b"f\t")))
+    if data[:5].lower() == b"solid" and b"facet" in data[:1024]:
+        return data.count(b"facet normal")
+    declared = int.from_bytes(data[80:84], "little") if len(data) >= 84 else 0  # binary STL's triangle count
+    return declared if len(data) == 84 + 50 * declared else 0  # not binary STL: for trimesh to refuse
+
+
+def _check_magnitude(path: Path, vertices: FloatArray, scaled: str) -> None:
+    """Refuse coordinates beyond :data:`~physics_mapper.model.limits.MAX_COORDINATE` (the physics' trusted range)."""
+    if len(vertices) == 0:
+        return
+    largest = float(np.abs(vertices).max())
+    if largest > MAX_COORDINATE:
+        index = int(np.argmax(np.abs(vertices).max(axis=1))) + 1
+        raise MeshError(
+            path,
+            f"vertex {index}{scaled} is {largest:g} m from the origin, beyond the ±{MAX_COORDINATE:g} m "
+            "where the physics is trusted",
+        )
 
 
 def _scaled(surface: trimesh.Trimesh, scale: NDArray[np.float64]) -> trimesh.Trimesh:

@@ -278,6 +278,8 @@ class Scene:
     #: A pose estimator's class ids -> the objects they detect (``class_map:``; an object's own name
     #: is its class id unless it is mapped). A class of several objects has instances.
     class_map: tuple[tuple[str, tuple[str, ...]], ...] = ()
+    #: Warnings about what the file asks for (an extreme mass ratio), each as ``file: key: what``.
+    notes: tuple[str, ...] = field(default=(), compare=False)
 
     @property
     def object_names(self) -> tuple[str, ...]:

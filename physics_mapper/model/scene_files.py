@@ -26,11 +26,19 @@ from physics_mapper.model.geometry import IDENTITY, ORIGIN, Pose, make_pose
 from physics_mapper.model.hypotheses import Hypothesis, RankedHypotheses
 from physics_mapper.model.limits import (
     MAX_COORDINATE,
+    MAX_DENSITY,
     MAX_HYPOTHESES_PER_OBJECT,
+    MAX_MASS,
+    MAX_MASS_RATIO,
     MAX_NAME_LENGTH,
+    MAX_OBJECTS,
     MAX_QUOTED_TEXT,
+    MAX_STATIC_BODIES,
+    MIN_DENSITY,
+    MIN_MASS,
 )
 from physics_mapper.model.meshes import MeshCollision, MeshError, MeshGeometry, MeshRequest, load_mesh_geometry
+from physics_mapper.model.names import object_name_problem, topic_clash
 from physics_mapper.model.resources import ResourceError, resolve_resource, resource_uri
 from physics_mapper.model.scene import (
     OBJECT_MESH_COLLISIONS,
@@ -302,14 +310,27 @@ def _read_object(reader: _Reader, value: Any, key: str, meshes: _MeshLoader) -> 
     data = reader.mapping(value, key)
     reader.known_keys(data, key, ("name", *_SHAPE_KEYS, "mass", "density", "friction", "rolling_friction"))
     name = reader.name(reader.required(data, "name", key), f"{key}.name")
+    problem = object_name_problem(name)
+    if problem is not None:
+        raise reader.fail(f"{key}.name", f"{_show(name)}: {problem}")
     if "mass" in data and "density" in data:
         raise reader.fail(f"{key}.density", "give mass or density, not both")
     shape = _read_shape(reader, data, key, OBJECT_SHAPES, meshes, movable=True)
     assert not isinstance(shape, Plane)  # excluded by OBJECT_SHAPES
     if "density" in data:
-        mass = reader.number(data["density"], f"{key}.density", positive=True) * shape_volume(shape)
+        density = reader.number(data["density"], f"{key}.density", positive=True)
+        if not MIN_DENSITY <= density <= MAX_DENSITY:
+            problem = f"must be in [{MIN_DENSITY:g}, {MAX_DENSITY:g}] kg/m^3, got {density:g}"
+            raise reader.fail(f"{key}.density", problem)
+        mass = density * shape_volume(shape)
+        if not MIN_MASS <= mass <= MAX_MASS:
+            problem = f"gives a mass of {mass:g} kg, outside [{MIN_MASS:g}, {MAX_MASS:g}] kg where Bullet is trusted"
+            raise reader.fail(f"{key}.density", problem)
     else:
         mass = reader.number(data.get("mass", 0.5), f"{key}.mass", positive=True)
+        if not MIN_MASS <= mass <= MAX_MASS:
+            problem = f"must be in [{MIN_MASS:g}, {MAX_MASS:g}] kg (where Bullet is trusted), got {mass:g}"
+            raise reader.fail(f"{key}.mass", problem)
     return ObjectModel(
         name=name,
         shape=shape,
@@ -411,18 +432,25 @@ def scene_from_dict(
     top = reader.mapping(data, "")
     reader.known_keys(top, "", (*_SCENE_KEYS, "hypotheses", "scene"))
     frame_id = reader.name(top.get("frame_id", "world"), "frame_id")
-    static = tuple(
-        _read_static(reader, item, f"static[{i}]", meshes)
-        for i, item in enumerate(reader.sequence(top.get("static", []), "static"))
-    )
+    static_items = reader.sequence(top.get("static", []), "static")
+    if len(static_items) > MAX_STATIC_BODIES:
+        raise reader.fail("static", f"{len(static_items)} static bodies (at most {MAX_STATIC_BODIES})")
+    static = tuple(_read_static(reader, item, f"static[{i}]", meshes) for i, item in enumerate(static_items))
     items = reader.sequence(reader.required(top, "objects", ""), "objects")
     if not items:
         raise reader.fail("objects", "needs at least one object")
+    if len(items) > MAX_OBJECTS:
+        raise reader.fail("objects", f"{len(items)} objects (at most {MAX_OBJECTS}: split the scene)")
     objects = tuple(_read_object(reader, item, f"objects[{i}]", meshes) for i, item in enumerate(items))
     names = [o.name for o in objects] + [b.name for b in static]
     for i, name in enumerate(names):
         if name in names[:i]:
             raise reader.fail("objects" if i < len(objects) else "static", f"duplicate body name {name!r}")
+    clash = topic_clash([o.name for o in objects])
+    if clash is not None:
+        first, second, topic = clash
+        raise reader.fail("objects", f"objects {first!r} and {second!r} would share the node's topic {topic!r}")
+    _note_mass_ratio(reader, objects)
     search = _read_search(reader, top.get("search", {}), "search")
     truth = None
     if "ground_truth" in top:
@@ -431,11 +459,32 @@ def scene_from_dict(
     object_names = [o.name for o in objects]
     class_map = _read_class_map(reader, top["class_map"], "class_map", object_names) if "class_map" in top else ()
     scene = Scene(
-        objects, static, search, frame_id, ground_truth=truth, explicit_workspace=workspace, class_map=class_map
+        objects,
+        static,
+        search,
+        frame_id,
+        ground_truth=truth,
+        explicit_workspace=workspace,
+        class_map=class_map,
+        notes=tuple(reader.notes),
     )
     for model, pose in zip(objects, truth or (), strict=False):
         _check_inside(reader, scene.workspace, pose, f"ground_truth.{model.name}")
     return scene
+
+
+def _note_mass_ratio(reader: _Reader, objects: Sequence[ObjectModel]) -> None:
+    """Warn when the heaviest object outweighs the lightest by more than Bullet stacks reliably."""
+    heaviest = max(objects, key=lambda o: o.mass)
+    lightest = min(objects, key=lambda o: o.mass)
+    ratio = heaviest.mass / lightest.mass
+    if ratio > MAX_MASS_RATIO:
+        reader.note(
+            "objects",
+            f"{heaviest.name} ({heaviest.mass:g} kg) is {ratio:.3g} times as heavy as {lightest.name} "
+            f"({lightest.mass:g} kg): beyond a ratio of {MAX_MASS_RATIO:g}, a heavy object resting on a light one "
+            "sinks into it in Bullet and a valid stack can be rejected as unstable",
+        )
 
 
 def _check_inside(reader: _Reader, workspace: Workspace, pose: Pose, key: str) -> None:
@@ -514,7 +563,7 @@ def problem_from_dict(
         return _read_hypotheses(reader, value, key, workspace)
 
     hypotheses = _read_per_object(reader, given, "hypotheses", scene.object_names, read_hypotheses)
-    return Problem(scene, hypotheses, tuple(reader.notes))
+    return Problem(scene, hypotheses, (*scene.notes, *reader.notes))
 
 
 def _load_yaml(path: Path) -> Any:

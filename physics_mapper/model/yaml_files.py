@@ -12,13 +12,16 @@ reads YAML 1.2's float spellings (:data:`FLOAT_SPELLING`), as rcl's own paramete
 
 from __future__ import annotations
 
+import os
 import re
+import stat
 from pathlib import Path
 from typing import Any
 
 import yaml
 from yaml.composer import ComposerError
-from yaml.nodes import Node
+from yaml.constructor import ConstructorError
+from yaml.nodes import MappingNode, Node
 
 from physics_mapper.model.limits import MAX_FILE_BYTES, MAX_KEY_TEXT, MAX_YAML_DEPTH, clipped
 
@@ -64,6 +67,23 @@ class _BoundedLoader(yaml.SafeLoader):
         finally:
             self._depth -= 1
 
+    def construct_mapping(self, node: MappingNode, deep: bool = False) -> dict[Any, Any]:
+        """A mapping whose keys are all different: a second ``objects:`` would silently drop the first."""
+        seen: dict[Any, Node] = {}
+        for key_node, _ in node.value:
+            if key_node.tag == "tag:yaml.org,2002:merge":
+                continue  # ``<<: *base`` merges, and keys given beside it override the merged ones
+            key = self.construct_object(key_node, deep=True)
+            try:
+                first = seen.get(key)
+            except TypeError:  # an unhashable key: PyYAML's own error says so
+                continue
+            if first is not None:
+                where = f"line {first.start_mark.line + 1}, column {first.start_mark.column + 1}"
+                raise ConstructorError(None, None, f"duplicate key {key!r} (first at {where})", key_node.start_mark)
+            seen[key] = key_node
+        return super().construct_mapping(node, deep=deep)
+
 
 # Tried after YAML 1.1's own int and float patterns, so integers stay integers.
 _BoundedLoader.add_implicit_resolver("tag:yaml.org,2002:float", FLOAT_SPELLING, list("-+.0123456789"))
@@ -81,14 +101,34 @@ def parse_yaml(text: str, source: str) -> Any:
         raise FileError(source, "", f"not valid YAML: {str(error).splitlines()[0]}") from None
 
 
+def read_regular_file(path: Path, limit: int) -> bytes:
+    """At most ``limit`` + 1 bytes of ``path``, which must be a regular file; OSError or ValueError otherwise.
+
+    Opened without blocking and checked on the open descriptor: a FIFO, a device or a socket
+    named as an input would otherwise block the reader forever (or stream without end).
+    """
+    descriptor = os.open(path, os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_CLOEXEC", 0))
+    try:
+        mode = os.fstat(descriptor).st_mode
+        if not stat.S_ISREG(mode):
+            kind = "a directory" if stat.S_ISDIR(mode) else "a FIFO" if stat.S_ISFIFO(mode) else "a special file"
+            raise ValueError(f"not a regular file ({kind})")
+        os.set_blocking(descriptor, True)
+        with os.fdopen(descriptor, "rb", closefd=False) as file:
+            return file.read(limit + 1)
+    finally:
+        os.close(descriptor)
+
+
 def read_yaml(path: Path) -> Any:
     """Read and parse a YAML file; raises :class:`FileError` naming it."""
     source = str(path)
     try:
-        with path.open("rb") as file:
-            content = file.read(MAX_FILE_BYTES + 1)
+        content = read_regular_file(path, MAX_FILE_BYTES)
     except OSError as error:
         raise FileError(source, "", f"cannot read file: {error.strerror or error}") from None
+    except ValueError as error:
+        raise FileError(source, "", f"cannot read file: {error}") from None
     if len(content) > MAX_FILE_BYTES:
         raise FileError(source, "", f"larger than the {MAX_FILE_BYTES // 2**20} MiB allowed for a YAML input file")
     try:

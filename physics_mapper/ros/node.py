@@ -33,10 +33,12 @@ from pathlib import Path
 from typing import Any, cast
 
 import rclpy
-from diagnostic_msgs.msg import DiagnosticArray
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import PoseArray, PoseStamped
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
+from rclpy.clock import Clock
+from rclpy.clock_type import ClockType
 from rclpy.event_handler import QoSMessageLostInfo, SubscriptionEventCallbacks
 from rclpy.exceptions import InvalidTopicNameException, ParameterException
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
@@ -53,9 +55,11 @@ from rclpy.timer import Timer
 from std_msgs.msg import Float64MultiArray
 from visualization_msgs.msg import MarkerArray
 
+from physics_mapper.mapping.clock import ClockWatch, SilentInputWatch, duplicate_name_warning
 from physics_mapper.mapping.detections import DETECTIONS_TOPIC, detection_inputs
 from physics_mapper.mapping.inputs import InputSettings, MessageKind
 from physics_mapper.mapping.mapper import DEFAULT_RATE_HZ, Mapper, MapperSettings, TickReport, mapper_settings_problem
+from physics_mapper.mapping.scene_loading import SceneLoading
 from physics_mapper.mapping.stamps import NANOSECONDS_PER_SECOND
 from physics_mapper.mapping.tick_statistics import TickStatistics
 from physics_mapper.mapping.topics import (
@@ -72,9 +76,10 @@ from physics_mapper.mapping.topics import (
     weights_topic,
 )
 from physics_mapper.model.errors import EXIT_BAD_INPUT, InputError
+from physics_mapper.model.limits import MAX_DIAGNOSTIC_TEXT, clipped
 from physics_mapper.model.resources import ResourceError, resolve_resource
-from physics_mapper.model.scene import SEARCH_LIMITS, SearchParams, search_parameter_doc
-from physics_mapper.model.scene_files import SceneError, load_scene, search_with_overrides
+from physics_mapper.model.scene import SEARCH_LIMITS, Scene, SearchParams, search_parameter_doc
+from physics_mapper.model.scene_files import SceneError, search_with_overrides
 from physics_mapper.msg_adapters.diagnostics import diagnostics_msg
 from physics_mapper.msg_adapters.hypotheses import received_pose_array, received_weights
 from physics_mapper.msg_adapters.results import configuration_msgs, markers_msg, object_pose_msgs, static_markers_msg
@@ -84,6 +89,10 @@ from physics_mapper.search.results import SearchResult
 
 #: Seconds between two /diagnostics messages unless ``diagnostics_period`` says otherwise (the ~1 Hz convention).
 DEFAULT_DIAGNOSTICS_PERIOD = 1.0
+#: Wall-clock seconds between two checks of the simulated clock and of the node's name on the graph.
+WATCH_PERIOD = 1.0
+#: Seconds a scene may take to load before the node spins and reports what it is doing (a decomposition).
+LOADING_REPORT_AFTER = 0.2
 
 
 @dataclass(frozen=True)
@@ -196,7 +205,9 @@ class MapperNodeBase(Node):
         """Read the parameters and the scene; subscribe to the inputs and create the publishers."""
         unknown = self._unknown_parameters()
         scene_path = resolve_scene_path(str(self._declare("scene_file", "", SCENE_FILE_DESCRIPTOR)))
-        scene = load_scene(scene_path)
+        scene = self._load_scene(scene_path)
+        for note in scene.notes:
+            self._logger.warning(note)
         for spec in PARAMETERS:
             default = getattr(scene.search, spec.name) if spec.default is None else spec.default
             self._declare(spec.name, default, _descriptor(spec, default))
@@ -225,6 +236,10 @@ class MapperNodeBase(Node):
         ]
         self._published_objects: tuple[int, SearchResult] | None = None
         self._diagnostics_pub = self._map_publisher(DiagnosticArray, DIAGNOSTICS_TOPIC, DIAGNOSTICS_QOS)
+        self._clock_watch = ClockWatch()
+        self._silent_inputs = SilentInputWatch()
+        self._best_effort = reliability == "best_effort"
+        self._watch_warnings: dict[str, str] = {}  # what the watch found, by kind, added to every diagnostics
         self._last_message = ""
         self._logger.info(
             f"scene {scene_path}: objects {', '.join(scene.object_names)} in frame {scene.frame_id!r}; "
@@ -245,7 +260,13 @@ class MapperNodeBase(Node):
         self._markers_pub.publish(static_markers_msg(self.mapper.scene, stamp_ns=self._now_ns()))
         self._tick_timer = self.create_timer(1.0 / float(values["rate_hz"]), self._tick)
         self._diagnostics_timer = self.create_timer(float(values["diagnostics_period"]), self._publish_diagnostics)
-        self._timers = [self._tick_timer, self._diagnostics_timer]
+        # By wall clock: with use_sim_time the timers above wait for /clock, and a missing one must be reported.
+        steady = Clock(clock_type=ClockType.STEADY_TIME)
+        self._timers = [
+            self._tick_timer,
+            self._diagnostics_timer,
+            self.create_timer(WATCH_PERIOD, self._watch, clock=steady),
+        ]
 
     def stop_ticking(self) -> None:
         """Stop both timers (the subscriptions go on collecting hypotheses)."""
@@ -545,6 +566,77 @@ class MapperNodeBase(Node):
             settled_pub.publish(settled)
         self._published_objects = (stamp_ns, result)
 
+    def _load_scene(self, path: Path) -> Scene:
+        """The scene, loaded in a thread while this node spins, reporting a decomposition in its diagnostics.
+
+        A signal stops the load at once (the decomposition's child process is killed): KeyboardInterrupt.
+        A node already spun by an executor (the managed node, configured from a service call) waits
+        for the load without spinning itself.
+        """
+        loading = SceneLoading(path)
+        if loading.wait(LOADING_REPORT_AFTER):  # from the cache: nothing to report
+            return loading.result()
+        if self.executor is not None:
+            while not loading.wait(STOP_POLL):
+                if self._stop.requested:
+                    loading.cancel()
+                    raise KeyboardInterrupt
+            return loading.result()
+        publisher = self.create_publisher(DiagnosticArray, DIAGNOSTICS_TOPIC, DIAGNOSTICS_QOS)
+        executor = SingleThreadedExecutor(context=self.context)
+        executor.add_node(self)
+        reported = -float("inf")
+        try:
+            while not loading.done:
+                if self._stop.requested:
+                    loading.cancel()
+                    raise KeyboardInterrupt
+                if time.monotonic() - reported >= DEFAULT_DIAGNOSTICS_PERIOD:
+                    reported = time.monotonic()
+                    publisher.publish(self._loading_diagnostics(loading.activity or f"loading {path}"))
+                executor.spin_once(timeout_sec=STOP_POLL / 2)
+        finally:
+            executor.remove_node(self)
+            executor.shutdown()
+            self.destroy_publisher(publisher)
+        return loading.result()
+
+    def _loading_diagnostics(self, activity: str) -> DiagnosticArray:
+        """A WARN search status while the scene loads: no search yet, and why."""
+        status = DiagnosticStatus(
+            level=DiagnosticStatus.WARN,
+            name=f"{self.get_name()}: search",
+            message=clipped(f"{activity}: the search starts when the geometry is ready", MAX_DIAGNOSTIC_TEXT),
+            hardware_id=self.get_fully_qualified_name(),
+        )
+        message = DiagnosticArray(status=[status])
+        message.header.stamp = self.get_clock().now().to_msg()
+        return message
+
+    def _watch(self) -> None:
+        """Check, by wall clock, what no tick can see: a stopped simulated clock, another node of this name."""
+        sim_time = bool(self.get_parameter("use_sim_time").value)
+        clock = self._clock_watch.observe(time.monotonic(), self._now_ns(), sim_time)
+        full_name = self.get_fully_qualified_name()
+        count = sum(
+            1
+            for name, namespace in self.get_node_names_and_namespaces()
+            if name == self.get_name() and namespace == self.get_namespace()
+        )
+        found = {"clock": clock, "name": duplicate_name_warning(full_name, count)}
+        for name, inputs in self.mapper.inputs.objects.items():
+            publishers = self.count_publishers(poses_topic(name))
+            silent = self._silent_inputs.observe(
+                time.monotonic(), name, publishers, inputs.poses_received, self._best_effort
+            )
+            found[f"input {name}"] = silent
+        for kind, warning in found.items():
+            if warning is not None and kind not in self._watch_warnings:  # logged when it starts, not every second
+                self._logger.warning(warning)
+        self._watch_warnings = {kind: warning for kind, warning in found.items() if warning is not None}
+        if clock is not None:  # the diagnostics timer waits for /clock too: published from here instead
+            self._publish_diagnostics()
+
     def _publish_diagnostics(self) -> None:
         """The last tick's report, and how the ticks kept time since the previous message.
 
@@ -562,6 +654,11 @@ class MapperNodeBase(Node):
             stamp_ns=self._now_ns(),
             ticks=self._ticks.take_period(),
         )
+        warnings = list(getattr(self, "_watch_warnings", {}).values())
+        if warnings:
+            status = diagnostics.status[0]
+            status.level = max(status.level, DiagnosticStatus.WARN, key=lambda level: level[0])
+            status.message = clipped("; ".join([*warnings, status.message]), MAX_DIAGNOSTIC_TEXT)
         self._diagnostics_pub.publish(diagnostics)
         message = diagnostics.status[0].message
         if message != self._last_message:

@@ -78,10 +78,29 @@ class Grouping:
         return tuple(sorted(groups))
 
 
+#: Pairs of cubes compared at once: the comparison's arrays stay within a few MB, however many hypotheses.
+PAIRS_PER_CHUNK = 1 << 18
+
+
 def _cubes_meet(centres_a: NDArray[np.float64], half_a: float, centres_b: NDArray[np.float64], half_b: float) -> bool:
-    """Whether some cube of one set overlaps some cube of the other (closed cubes)."""
-    gaps = np.abs(centres_a[:, None, :] - centres_b[None, :, :])
-    return bool(np.any(np.all(gaps <= half_a + half_b, axis=2)))
+    """Whether some cube of one set overlaps some cube of the other (closed cubes).
+
+    Compared in chunks of :data:`PAIRS_PER_CHUNK` pairs; a search's sets are capped before this
+    (:data:`~physics_mapper.model.limits.MAX_SEARCHED_HYPOTHESES`), which bounds the time.
+    """
+    reach = half_a + half_b
+    # Only cubes of b within reach of a's bounding box can meet one of a's (and the other way round).
+    near_b = centres_b[
+        np.all((centres_b >= centres_a.min(axis=0) - reach) & (centres_b <= centres_a.max(axis=0) + reach), axis=1)
+    ]
+    if len(near_b) == 0:
+        return False
+    rows = max(1, PAIRS_PER_CHUNK // len(near_b))
+    for start in range(0, len(centres_a), rows):
+        gaps = np.abs(centres_a[start : start + rows, None, :] - near_b[None, :, :])
+        if np.any(np.all(gaps <= reach, axis=2)):
+            return True
+    return False
 
 
 def interaction_groups(

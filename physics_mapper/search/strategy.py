@@ -9,6 +9,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 from physics_mapper.model.hypotheses import RankedHypotheses
+from physics_mapper.model.limits import MAX_SEARCHED_HYPOTHESES
 from physics_mapper.model.scene import SearchParams
 from physics_mapper.physics.checker import PhysicsChecker
 from physics_mapper.physics.refine import load_solver
@@ -30,7 +31,8 @@ def make_search(
     parameters that only change the deadline or the fallback, ``previous`` itself is returned, to be
     resumed; a grouped search also keeps every group whose objects' hypotheses are unchanged.
     """
-    hypotheses = tuple(hypotheses)
+    # Bounded before any pairwise step (grouping, the collision table), whatever the caller passed.
+    hypotheses = tuple(ranked.heaviest(MAX_SEARCHED_HYPOTHESES) for ranked in hypotheses)
     if params.fallback == "refine":
         load_solver()  # before the deadline starts (once per process)
     if params.strategy == "joint":

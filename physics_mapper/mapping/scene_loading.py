@@ -1,0 +1,67 @@
+"""Loading the node's scene in a thread of its own, so that the node keeps handling events meanwhile (ROS-free).
+
+A scene's first load may decompose meshes (a minute for CoACD); :class:`SceneLoading` runs
+:func:`~physics_mapper.model.scene_files.load_scene` in a thread while the node spins and reports
+what is happening (:attr:`SceneLoading.activity`: the decomposition under way). :meth:`SceneLoading.cancel`
+stops it within the decomposition's poll period (its child process is killed).
+"""
+
+from __future__ import annotations
+
+import threading
+from pathlib import Path
+
+from physics_mapper.model.decomposition import cancelled_by, stderr_progress
+from physics_mapper.model.scene import Scene
+from physics_mapper.model.scene_files import load_scene
+
+
+class SceneLoading:
+    """A scene file being loaded in a background thread; :meth:`result` waits for it."""
+
+    def __init__(self, path: Path) -> None:
+        self.path = path
+        self._cancel = threading.Event()
+        self._activity: str | None = None
+        self._scene: Scene | None = None
+        self._error: BaseException | None = None
+        self._thread = threading.Thread(target=self._run, name="scene loading", daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        try:
+            with cancelled_by(self._cancel):
+                self._scene = load_scene(self.path, self._progress)
+        except BaseException as error:  # handed to the thread that asks for the result
+            self._error = error
+
+    def _progress(self, line: str) -> None:
+        stderr_progress(line)
+        self._activity = line if line.startswith("decomposing") else None
+
+    @property
+    def done(self) -> bool:
+        return not self._thread.is_alive()
+
+    @property
+    def activity(self) -> str | None:
+        """What the load is doing now, if it is slow work (``decomposing <mesh> with <method> ...``)."""
+        return self._activity
+
+    def wait(self, seconds: float) -> bool:
+        """Wait up to ``seconds`` for the load to end; whether it has."""
+        self._thread.join(seconds)
+        return self.done
+
+    def cancel(self) -> None:
+        """Stop the load (a decomposition's child process is killed) and wait for the thread."""
+        self._cancel.set()
+        self._thread.join()
+
+    def result(self) -> Scene:
+        """The scene, once loaded; raises what loading raised (a SceneError)."""
+        self._thread.join()
+        if self._error is not None:
+            raise self._error
+        assert self._scene is not None
+        return self._scene

@@ -1,0 +1,134 @@
+"""Decompositions run in a child process with limits: stopped by a signal at any moment, an error line past a limit.
+
+The thin plate (10 x 10 x 0.1 cm) is V-HACD's worst case: in this process it ran for minutes, past
+gigabytes, deaf to SIGINT and SIGTERM. Each test starts a real command or node on it, waits until the
+decomposition is under way (its progress line), and checks what the program decided.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+import trimesh
+import yaml
+from diagnostic_msgs.msg import DiagnosticStatus
+from ros_helpers import PHYSICS_MAPPER, RosClient, search_status
+
+from physics_mapper.model.decomposition import MEMORY_LIMIT_VARIABLE, TIME_LIMIT_VARIABLE
+from physics_mapper.model.errors import EXIT_BAD_INPUT, EXIT_INTERRUPTED
+
+#: Seconds a signalled process may take to exit: the decomposition's stop latency (``STOP_POLL``), then
+#: the interpreter's own exit. Generous: a guard against a process that does not stop at all, not a measurement
+#: (``BENCHMARKS.md`` has those).
+STOP_GUARD = 10.0
+PLATE = {"name": "plate", "shape": "mesh", "file": "plate.obj", "collision": "decomposition", "mass": 0.1}
+
+
+@pytest.fixture
+def plate(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Iterator[Path]:
+    """A folder with the plate mesh, a scene and a problem using it with V-HACD, and a cache of its own."""
+    trimesh.creation.box((0.1, 0.1, 0.001)).export(tmp_path / "plate.obj")
+    body = {**PLATE, "decomposition": {"method": "vhacd"}}
+    scene = {"static": [{"name": "floor", "shape": "plane"}], "objects": [body]}
+    (tmp_path / "scene.yaml").write_text(yaml.safe_dump(scene), encoding="utf-8")
+    problem = {**scene, "hypotheses": {"plate": [{"position": [0.0, 0.0, 0.001], "weight": 1.0}]}}
+    (tmp_path / "problem.yaml").write_text(yaml.safe_dump(problem), encoding="utf-8")
+    monkeypatch.setenv("PHYSICS_MAPPER_CACHE_DIR", str(tmp_path / "cache"))
+    yield tmp_path
+
+
+def workers() -> list[str]:
+    """Decomposition child processes of this test run (its cache folder is in their parent's environment)."""
+    listed = subprocess.run(["ps", "-eo", "pid,args"], capture_output=True, text=True, check=True).stdout
+    return [line for line in listed.splitlines() if "physics_mapper.model.decomposition_worker" in line]
+
+
+def start_until_decomposing(command: list[str], cwd: Path) -> subprocess.Popen[str]:
+    """Start ``command`` and return once it has said that it is decomposing the plate."""
+    process = subprocess.Popen(command, cwd=cwd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    assert process.stdout is not None
+    for line in process.stdout:
+        if "decomposing" in line and "plate.obj" in line:
+            return process
+    raise AssertionError(f"no decomposition started (exit {process.wait()})")
+
+
+@pytest.mark.parametrize("stop_signal", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+def test_a_signal_stops_solve_during_a_runaway_vhacd(plate: Path, stop_signal: signal.Signals) -> None:
+    before = workers()
+    process = start_until_decomposing([str(PHYSICS_MAPPER), "solve", "problem.yaml"], plate)
+    process.send_signal(stop_signal)
+    assert process.wait(timeout=STOP_GUARD) == EXIT_INTERRUPTED
+    assert workers() == before  # the child was killed, not left running
+
+
+def test_a_node_decomposing_at_start_up_reports_it_and_stops_on_sigint(plate: Path) -> None:
+    before = workers()
+    command = [str(PHYSICS_MAPPER), "node", "--ros-args", "-p", f"scene_file:={plate / 'scene.yaml'}"]
+    command += ["-r", "__ns:=/decomposing"]
+    process = start_until_decomposing(command, plate)
+    client = RosClient("/decomposing")
+    try:
+        found = client.next_diagnostics(lambda d: True, timeout=30.0, what="diagnostics while decomposing")
+        status = search_status(found)
+        assert status is not None and status.level == DiagnosticStatus.WARN
+        assert "decomposing" in status.message and "plate.obj" in status.message
+        assert status.message.endswith("the search starts when the geometry is ready")
+    finally:
+        client.close()
+    process.send_signal(signal.SIGINT)
+    assert process.wait(timeout=STOP_GUARD) == 0  # the node's signal: a clean stop
+    assert workers() == before
+
+
+def test_a_node_searches_once_its_geometry_is_ready(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A decomposition that finishes: the node reports it, then serves its inputs as usual."""
+    trimesh.creation.annulus(0.03, 0.05, 0.04).export(tmp_path / "ring.obj")
+    ring = {**PLATE, "name": "ring", "file": "ring.obj", "decomposition": {"method": "vhacd"}}
+    scene = {"static": [{"name": "floor", "shape": "plane"}], "objects": [ring]}
+    (tmp_path / "scene.yaml").write_text(yaml.safe_dump(scene), encoding="utf-8")
+    monkeypatch.setenv("PHYSICS_MAPPER_CACHE_DIR", str(tmp_path / "cache"))
+    command = [str(PHYSICS_MAPPER), "node", "--ros-args", "-p", f"scene_file:={tmp_path / 'scene.yaml'}"]
+    process = subprocess.Popen([*command, "-r", "__ns:=/ring"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    client = RosClient("/ring")
+    try:
+        messages = [search_status(d) for d in [client.next_diagnostics(lambda d: True, timeout=30.0)]]
+        client.next_diagnostics(lambda d: "waiting for hypotheses of: ring" in search_status(d).message, 120.0)  # type: ignore[union-attr]
+        messages += [search_status(d) for d in client.diagnostics]
+        assert any("decomposing" in m.message for m in messages if m is not None)
+    finally:
+        client.close()
+        process.send_signal(signal.SIGINT)
+        process.wait(timeout=STOP_GUARD)
+
+
+@pytest.mark.parametrize(
+    ("variable", "value", "fragment"),
+    [
+        (MEMORY_LIMIT_VARIABLE, "300", "ran out of its 300 MiB memory limit"),
+        (TIME_LIMIT_VARIABLE, "2", "took longer than its 2 s limit"),
+    ],
+)
+def test_a_decomposition_past_its_limit_is_one_error_line_naming_the_mesh_and_the_limit(
+    plate: Path, variable: str, value: str, fragment: str
+) -> None:
+    environment = {**os.environ, variable: value}
+    completed = subprocess.run(
+        [str(PHYSICS_MAPPER), "solve", "problem.yaml"],
+        cwd=plate,
+        env=environment,
+        capture_output=True,
+        text=True,
+        timeout=300,
+        check=False,
+    )
+    assert completed.returncode == EXIT_BAD_INPUT, completed.stderr
+    error = completed.stderr.splitlines()[-1]
+    assert error.startswith("physics-mapper solve: error: problem.yaml: objects[0].file: ")
+    assert f"vhacd of {plate / 'plate.obj'} {fragment}" in error and "Traceback" not in completed.stderr
+    assert not (plate / "cache" / "decompositions").exists() or not list((plate / "cache" / "decompositions").iterdir())
