@@ -130,7 +130,7 @@ def test_progress_never_shows_more_done_than_total_nor_a_negative_eta() -> None:
     progress = Progress("evaluate", 101, 1, stream=stream, mode="bar", clock=lambda: now[0])
     now[0] = 10.0
     progress.snapshot_done(100)
-    assert "100/101 snapshots" in progress.status() and "ETA 0:01" in progress.status()
+    assert "100/101 snapshots" in progress.status() and "ETA 00:01" in progress.status()
     progress.snapshot_done(18)  # the bag's metadata said 101, it held 118
     line = progress.bar()
     assert "118/118+ snapshots (the metadata said 101)" in line and "ETA --" in line

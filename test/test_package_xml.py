@@ -38,6 +38,7 @@ PROVIDERS: dict[str, str | None] = {
     "trimesh": "python3-trimesh-pip",
     "platformdirs": "python3-platformdirs",
     "psutil": "python3-psutil",
+    "tqdm": "python3-tqdm",
     "hypothesis": "python3-hypothesis",
     "pytest": "python3-pytest",
     "coacd": None,

@@ -1,9 +1,10 @@
-"""Progress of a batch run on stderr: a bar with the rate and an ETA on a terminal, one line per task otherwise.
+"""Progress of a batch run on stderr: a bar (tqdm) with the rate and an ETA on a terminal, one line per task otherwise.
 
-On a terminal (``auto`` when the stream is a TTY) one line is redrawn at most :data:`REDRAW_INTERVAL`
+On a terminal (``auto`` when the stream is a TTY) tqdm redraws one line at most :data:`REDRAW_INTERVAL`
 apart; in a log (not a TTY) each finished task prints one line, with the same counts and ETA, and
 nothing else. The ETA is the snapshots left divided by the rate so far (snapshots per second since
-the start, start-up included, so it is pessimistic at first).
+the start, start-up included, so it is pessimistic at first). The counts are ours, not tqdm's: the
+total comes from the bags' metadata, which may be wrong (:meth:`Progress.status`).
 """
 
 from __future__ import annotations
@@ -14,6 +15,8 @@ import time
 from collections.abc import Callable
 from typing import Literal, TextIO
 
+from tqdm import tqdm
+
 ProgressMode = Literal["auto", "bar", "lines", "off"]
 
 #: Seconds between two redraws of the bar.
@@ -22,11 +25,8 @@ BAR_WIDTH = 24
 
 
 def duration_text(seconds: float) -> str:
-    """``1:02:03``, ``2:03`` or ``0:07``: hours, minutes and seconds, rounded up."""
-    whole = math.ceil(seconds)
-    hours, rest = divmod(whole, 3600)
-    minutes, secs = divmod(rest, 60)
-    return f"{hours}:{minutes:02d}:{secs:02d}" if hours else f"{minutes}:{secs:02d}"
+    """``1:02:03``, ``02:03`` or ``00:07`` (tqdm's form): hours, minutes and seconds, rounded up."""
+    return str(tqdm.format_interval(math.ceil(seconds)))
 
 
 class Progress:
@@ -53,8 +53,15 @@ class Progress:
         self.started = clock()
         self.snapshots = 0
         self.tasks = 0
-        self._drawn_at: float | None = None
-        self._width = 0
+        self._bar = tqdm(
+            total=max(total_snapshots, 1),
+            desc=prefix,
+            file=stream,
+            disable=self.mode != "bar",
+            mininterval=REDRAW_INTERVAL,
+            bar_format="{desc} {percentage:3.0f}% [{bar:" + str(BAR_WIDTH) + "}]{postfix}",  # postfix: ", ..."
+            ascii=" #",
+        )
 
     def snapshot_done(self, count: int = 1) -> None:
         """``count`` more snapshots searched."""
@@ -68,7 +75,7 @@ class Progress:
             print(f"{self.prefix}: {self.tasks}/{self.total_tasks} {what}; {self.status()}", file=self.stream)
             self.stream.flush()
         else:
-            self._redraw(force=True)
+            self._redraw()
 
     def status(self) -> str:
         """Snapshots done of all, the rate and the ETA.
@@ -88,26 +95,18 @@ class Progress:
 
     def bar(self) -> str:
         """The bar line: share of snapshots done (at most all), tasks done, :meth:`status`."""
-        share = min(1.0, self.snapshots / self.total_snapshots) if self.total_snapshots else 1.0
-        filled = round(BAR_WIDTH * share)
-        bar = "#" * filled + "." * (BAR_WIDTH - filled)
-        return f"{self.prefix} [{bar}] {share:4.0%} {self.tasks}/{self.total_tasks} tasks, {self.status()}"
+        return str(self._bar)
 
-    def _redraw(self, force: bool = False) -> None:
-        if self.mode != "bar":
-            return
-        now = self.clock()
-        if not force and self._drawn_at is not None and now - self._drawn_at < REDRAW_INTERVAL:
-            return
-        self._drawn_at = now
-        line = self.bar()
-        self.stream.write("\r" + line.ljust(self._width))
-        self.stream.flush()
-        self._width = len(line)
+    def _redraw(self) -> None:
+        """Bring tqdm's bar to our counts (tqdm redraws at most every :data:`REDRAW_INTERVAL`)."""
+        bar = self._bar
+        done = min(self.snapshots, self.total_snapshots) if self.total_snapshots else 0
+        if self.snapshots > self.total_snapshots:
+            bar.total = done = max(self.snapshots, 1)  # the metadata said less: the bar is full
+        bar.set_postfix_str(f"{self.tasks}/{self.total_tasks} tasks, {self.status()}", refresh=False)
+        bar.update(done - bar.n)
 
     def close(self) -> None:
-        """End the bar's line, so that what follows starts on a new one."""
-        if self.mode == "bar" and self._drawn_at is not None:
-            self._redraw(force=True)
-            self.stream.write("\n")
-            self.stream.flush()
+        """Draw the bar a last time and end its line, so that what follows starts on a new one."""
+        self._bar.refresh()
+        self._bar.close()
