@@ -21,12 +21,14 @@ from physics_mapper.model.meshes import MeshCollision, MeshGeometry
 
 Fallback = Literal["none", "settled", "refine"]
 FALLBACKS: tuple[Fallback, ...] = ("none", "settled", "refine")
-#: ``grouped``: Algorithm 1 per interaction group (issue 8); ``joint``: the paper's single search.
-Strategy = Literal["grouped", "joint"]
-STRATEGIES: tuple[Strategy, ...] = ("grouped", "joint")
-#: How T bounds a node: ``relative`` p(C) / p(root) < T, per group; ``absolute`` p(C) < T (the paper's).
-Bound = Literal["relative", "absolute"]
-BOUNDS: tuple[Bound, ...] = ("relative", "absolute")
+#: ``conflict``: per interaction group, a conflict-directed best-first search (the default);
+#: ``grouped``: Algorithm 1 per interaction group; ``joint``: the paper's single search.
+Strategy = Literal["conflict", "grouped", "joint"]
+STRATEGIES: tuple[Strategy, ...] = ("conflict", "grouped", "joint")
+#: How T bounds a node: ``resolving`` p(C) / p(first valid) < T, per group (the default); ``relative``
+#: p(C) / p(root) < T, per group; ``absolute`` p(C) < T (the paper's).
+Bound = Literal["resolving", "relative", "absolute"]
+BOUNDS: tuple[Bound, ...] = ("resolving", "relative", "absolute")
 #: ``early``: a settling may stop at rest or once an object's jitter is beyond the threshold; ``full``: never.
 SettleExit = Literal["early", "full"]
 SETTLE_EXITS: tuple[SettleExit, ...] = ("early", "full")
@@ -207,8 +209,10 @@ class SearchParams:
         ``refine_max_speed * TIME_STEP`` metres per iteration, and its settling caps linear speeds.
     refine_mean_radius: ``fallback: refine`` starts each object at the weighted mean position of its
         hypotheses within this many metres of its most likely one (0: at the most likely one).
-    strategy: one search over all objects (``joint``) or one per interaction group (``grouped``).
-    bound: whether T bounds p(C) itself (``absolute``) or p(C) / p(root) of the group (``relative``).
+    strategy: one search per interaction group that skips what known conflicts rule out (``conflict``),
+        the paper's search per interaction group (``grouped``) or over all objects (``joint``).
+    bound: whether T bounds p(C) itself (``absolute``), p(C) / p(root) of the group (``relative``), or
+        p(C) / p(first valid configuration of the group) (``resolving``; nothing is bounded before one).
     settle_exit: whether a settling may stop early (``early``) or always runs settle_time (``full``).
     interaction_margin: metres added around every object's bounding ball when grouping objects.
     queue_limit: nodes the search's queues hold at most (each group an equal share).
@@ -224,8 +228,8 @@ class SearchParams:
     fallback: Fallback = "none"
     refine_max_speed: float = 1.0
     refine_mean_radius: float = 0.1
-    strategy: Strategy = "grouped"
-    bound: Bound = "relative"
+    strategy: Strategy = "conflict"
+    bound: Bound = "resolving"
     settle_exit: SettleExit = "early"
     interaction_margin: float = 0.02
     queue_limit: int = 20_000

@@ -9,7 +9,11 @@ the product of the chosen normalised weights,
 The root is (1, ..., 1); a node's children each advance one object's rank by one, so
 p(child) <= p(parent) and visits come in non-increasing p(C). A node below the bound is
 still checked but not expanded ("bounded"): with ``bound: absolute`` (the paper's reading)
-when p(C) < T, with ``bound: relative`` when p(C) / p(root) < T. Rule 1 is tested first, and
+when p(C) < T, with ``bound: relative`` when p(C) / p(root) < T, with ``bound: resolving`` (the
+default) when p(C) / p(V) < T, V the first valid node found (no node is bounded before one is).
+V is the most probable configuration that resolves every known conflict, once found: every more
+probable one was rejected (:mod:`physics_mapper.search.conflicts`), so invalid first hypotheses do not
+push the valid configuration below T, however many objects have one. Rule 1 is tested first, and
 only collision-free nodes are simulated. Among valid nodes the least total jitter J wins.
 
 With ``fallback: refine``, once the root has failed a rule and while no node is valid, the
@@ -83,7 +87,9 @@ class TraceEntry:
     ``group`` is the interaction group's id when the code covers that group's objects only
     (None: every object). ``settle_stop`` says why the settling stopped early (``rest`` or
     ``beyond_threshold``: the jitter is then the one at that moment) after ``settled_time``
-    simulated seconds (both None for a settling of the whole ``settle_time``).
+    simulated seconds (both None for a settling of the whole ``settle_time``). ``conflict`` names the
+    assignments (object name, rank) a conflict-directed search learned from the rejection
+    (:mod:`physics_mapper.search.conflicts`).
     """
 
     code: Code
@@ -98,6 +104,7 @@ class TraceEntry:
     group: int | None = None
     settle_stop: SettleStop | None = None
     settled_time: float | None = None
+    conflict: tuple[tuple[str, int], ...] | None = None
 
 
 @dataclass
@@ -107,7 +114,10 @@ class SearchStats:
     ``end`` is None while nodes are queued (``queued`` of them when the result was made);
     ``dropped`` counts queued nodes the queue limit threw away, ``untraced`` visits the trace
     limit left out. ``settle_steps`` are the simulation steps run, ``settle_steps_saved`` those
-    early exits spared, ``memo_hits`` settlings reused, ``merges`` escape-guard merges.
+    early exits spared, ``memo_hits`` settlings reused, ``merges`` escape-guard merges. A
+    conflict-directed search also counts ``conflicts`` learned, candidates ``skipped`` because they
+    contain a known conflict (never checked), and its settlings: ``local_settlings`` (only what changed
+    and its neighbours simulated) and ``full_settlings`` (every object of the group).
     """
 
     visited: int = 0
@@ -126,6 +136,10 @@ class SearchStats:
     settle_steps_saved: int = 0
     memo_hits: int = 0
     merges: int = 0
+    conflicts: int = 0
+    skipped: int = 0
+    local_settlings: int = 0
+    full_settlings: int = 0
 
     @property
     def exhausted(self) -> bool:
@@ -278,6 +292,8 @@ class BranchAndBound:
         self._refined: RefinedMap | None = None
         self._root: Code = tuple(1 for _ in self.hypotheses)
         self.root_probability = self.probability(self._root)
+        #: p(C) of the first valid node found (the reference of ``bound: resolving``).
+        self.first_valid_probability: float | None = None
         self._configurations = math.prod(len(h) for h in self.hypotheses)
         self._push(self._root, None)
 
@@ -294,6 +310,9 @@ class BranchAndBound:
         threshold = self.params.probability_threshold
         if self.params.bound == "relative":
             return probability / self.root_probability < threshold
+        if self.params.bound == "resolving":
+            reference = self.first_valid_probability
+            return reference is not None and probability / reference < threshold
         return probability < threshold
 
     def _push(self, code: Code, parent: Code | None) -> None:
@@ -495,6 +514,8 @@ class BranchAndBound:
                 candidate.code, candidate.probability, "unstable", bounded, moved=moved, jitter=settling.total_jitter
             )
         else:
+            if self.first_valid_probability is None:
+                self.first_valid_probability = candidate.probability
             if self._best is None or settling.total_jitter < self._best.settling.total_jitter:
                 self._best = candidate
             entry = TraceEntry(candidate.code, candidate.probability, "valid", bounded, jitter=settling.total_jitter)

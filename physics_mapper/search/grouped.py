@@ -183,8 +183,12 @@ class GroupedSearch:
     """Algorithm 1 per interaction group, anytime and resumable like :class:`BranchAndBound` (module docstring).
 
     Build one with :func:`~physics_mapper.search.strategy.make_search` (``strategy: grouped``), or
-    :meth:`following` to carry over a previous search's groups.
+    :meth:`following` to carry over a previous search's groups. Subclasses search each group with
+    :attr:`group_search`.
     """
+
+    #: The search each interaction group gets.
+    group_search: type[GroupSearch] = GroupSearch
 
     def __init__(
         self,
@@ -245,7 +249,7 @@ class GroupedSearch:
         """A search for ``hypotheses``: ``previous`` itself, resumed, if nothing but the deadline or the
         fallback changed; else a new one that keeps every group of ``previous`` still valid."""
         hypotheses = tuple(hypotheses)
-        if not isinstance(previous, GroupedSearch):
+        if not isinstance(previous, cls) or type(previous) is not cls:  # another class searches its groups otherwise
             return cls(checker, hypotheses, params)
         if resumable(previous, checker, hypotheses, params):
             previous.params = params
@@ -261,7 +265,7 @@ class GroupedSearch:
         hypotheses = tuple(self.hypotheses[i] for i in objects)
         if memo is None or not memo.serves(hypotheses, physics_key(self.params)):
             memo = SettleMemo(hypotheses, physics_key(self.params), SETTLE_MEMO_LIMIT)
-        group = GroupSearch(self, self._next_id, objects, memo)
+        group = self.group_search(self, self._next_id, objects, memo)
         self._next_id += 1
         self._groups[group.group_id] = group
         self._reschedule(group)

@@ -1,0 +1,125 @@
+"""A conflict-directed best-first search in each interaction group (``strategy: conflict``, the default).
+
+The idea of conflict-directed A* (Williams & Ragno 2007) on the paper's Algorithm 1. Every rejection
+teaches a *conflict* K, a few (object, rank) assignments no valid configuration holds together
+(:mod:`physics_mapper.search.conflicts`). Candidates are still visited in the paper's order, decreasing
+p(C) with its tie rule, from one max-priority queue with the same dedup set, but:
+
+- a candidate that contains a known conflict is *skipped*: never checked, it is invalid;
+- a candidate rejected or skipped because of conflict K is expanded by advancing only the objects of
+  K (a collision: two objects, not N), since every other child still contains K; a valid candidate
+  is expanded by every object, as in the paper;
+- a child is queued only if one of its parents, the configurations one rank lower on one object, is
+  above the bound: exactly the nodes the paper's search queues, since there a node is queued iff some
+  parent is visited and not bounded, and a parent's p(C) is at least its child's. A node below the
+  bound is therefore still expanded here (its children are kept only if another parent is above it).
+
+Why the answer is the paper's. Take a valid configuration D that the paper's search visits (some
+parent of D, or D itself, is above the bound). Every X <= D (rank by rank) is then queued here too:
+each parent of X is at least as probable as X or as a parent of D. Follow X from the root towards D:
+if X is valid, every child is queued; if X contains a conflict K, D does not (D is valid), so D
+advances some object of K beyond X, and that child of X is queued. So every valid configuration the
+paper's search visits is visited here, in the same order, and no other (nothing below the bound is
+queued); the least J among them, the first of equal ones, is the same answer. The same argument
+with collision conflicts only gives the ``settled`` fallback's configuration, the first collision-free
+one: before it, every rejection was a collision. The search ends ``exhausted`` when the bound kept no
+child from the queue (every configuration was visited or contains a conflict), else ``bounded``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+from physics_mapper.physics.checker import Collision, PartialSettling
+from physics_mapper.search.branch_and_bound import Candidate, Code, TraceEntry, _QueueItem
+from physics_mapper.search.conflicts import Blame, Conflict, ConflictStore, collision_conflict
+from physics_mapper.search.grouped import GroupedSearch, GroupSearch, SettleMemo
+
+
+class ConflictGroupSearch(GroupSearch):
+    """One interaction group searched conflict-directed (module docstring); its conflicts in :attr:`conflicts`."""
+
+    def __init__(self, owner: GroupedSearch, group_id: int, objects: tuple[int, ...], memo: SettleMemo) -> None:
+        # Per object, its weights by rank (index 0 unused): p(C) is queried for every child and parent.
+        self._weights = tuple((0.0, *(h.weight for h in owner.hypotheses[i].hypotheses)) for i in objects)
+        super().__init__(owner, group_id, objects, memo)
+        scene = self.checker.scene
+        self.names = tuple(scene.objects[i].name for i in self.objects)
+        self._positions = {name: position for position, name in enumerate(self.names)}
+        self.conflicts = ConflictStore()
+        self.blame = Blame([scene.objects[i].shape for i in self.objects], self.hypotheses, self.params)
+        self._cut = 0  # children no parent above the bound would queue
+
+    def _visit(self, item: _QueueItem, stop_at: float | None) -> TraceEntry | None:
+        """Skip, or check and learn; then expand by the conflict (None: the deadline cut a settling short)."""
+        code, probability = item.code, item.probability
+        bounded = self.is_bounded(probability)
+        known = self.conflicts.contained(code)
+        if known is not None:
+            self.stats.skipped += 1
+            self._expand(code, bounded, known)
+            return TraceEntry(code, probability, known.kind, bounded, parent=item.parent, group=self.trace_group)
+        check = self._check(code, stop_at)
+        if isinstance(check, PartialSettling):
+            self._interrupted = (code, check)
+            return None
+        conflict: Conflict | None
+        if isinstance(check, Collision):
+            entry = TraceEntry(code, probability, "collision", bounded, pair=check.pair, depth=check.depth)
+            conflict = collision_conflict(code, check, self._positions)
+        else:
+            entry = self._judge(Candidate(code, probability, check), bounded)
+            conflict = None if entry.outcome == "valid" else self.blame.conflict(code, check)
+        if conflict is not None:
+            self.stats.conflicts += self.conflicts.learn(conflict)
+        named = None if conflict is None else self.named(conflict)
+        entry = replace(entry, parent=item.parent, group=self.trace_group, conflict=named)
+        self._record(entry)
+        self._expand(code, bounded, conflict)
+        return entry
+
+    def probability(self, code: Code) -> float:
+        """p(C), multiplied in the same order as :meth:`BranchAndBound.probability` (the same number)."""
+        return math.prod([weights[rank] for weights, rank in zip(self._weights, code, strict=True)])
+
+    def named(self, conflict: Conflict) -> tuple[tuple[str, int], ...]:
+        """A conflict's assignments as (object name, rank)."""
+        return tuple((self.names[position], rank) for position, rank in conflict.assignments)
+
+    def _expand(self, code: Code, bounded: bool, conflict: Conflict | None) -> None:
+        """Queue the children that advance an object of ``conflict`` (None: every object) and have a
+        parent above the bound."""
+        positions = range(len(code)) if conflict is None else conflict.positions
+        for position in positions:
+            if code[position] < len(self.hypotheses[position]):
+                child = (*code[:position], code[position] + 1, *code[position + 1 :])
+                if not bounded or self._has_parent_above_bound(child):
+                    self._push(child, code)
+                else:
+                    self._cut += 1
+        if not bounded:
+            self.stats.expanded += 1
+
+    def _has_parent_above_bound(self, code: Code) -> bool:
+        """Whether some configuration one rank lower on one object is not bounded."""
+        for position, rank in enumerate(code):
+            if rank > 1:
+                parent = (*code[:position], rank - 1, *code[position + 1 :])
+                if not self.is_bounded(self.probability(parent)):
+                    return True
+        return False
+
+    def _update_end(self) -> None:
+        if self._queue:
+            self.stats.end = None
+        elif self.stats.dropped:
+            self.stats.end = "truncated"
+        else:
+            self.stats.end = "bounded" if self._cut else "exhausted"
+
+
+class ConflictSearch(GroupedSearch):
+    """Interaction groups under one deadline (:class:`GroupedSearch`), each searched conflict-directed."""
+
+    group_search = ConflictGroupSearch

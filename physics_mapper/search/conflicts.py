@@ -1,0 +1,190 @@
+"""Conflicts: what a rejected configuration teaches about every configuration that shares part of it.
+
+A *conflict* is a set of assignments (object, rank), the objects given as positions in an interaction
+group's object order, such that every configuration that contains all of them is invalid. A search
+that knows a conflict never checks a configuration containing it (:mod:`physics_mapper.search.conflict_directed`).
+
+From a collision (Rule 1). The deepest overlap of a configuration is the largest of its pairs'
+overlaps, and a pair's overlap depends on the two bodies' poses alone
+(:mod:`physics_mapper.physics.collision_table`). So if object i at rank a overlaps object j at rank b
+deeper than ``penetration_threshold``, every configuration with i at a and j at b is in collision:
+the conflict is {(i, a), (j, b)}; against a static body it is {(i, a)}.
+
+From an instability (Rule 2), the *blame rule*. Let the settling of configuration C move the objects U
+beyond ``jitter_threshold`` tau (J_u > tau). Write
+
+- S_p for object p's *swept box* in that settling: the box of the positions it passed through
+  (:attr:`~physics_mapper.physics.checker.Settling.reach`) grown by its bounding radius r_p, which
+  holds its body at every moment looked at, whatever its orientation;
+- E_p(h) for p's *stable envelope* at hypothesis h: the box of its body at h
+  (:func:`~physics_mapper.model.extents.body_box`) grown by g_p = max(1, r_p / w) tau
+  (:func:`~physics_mapper.model.extents.stable_growth`): no point of a body moves further while its
+  jitter stays within tau.
+
+One object of U moving beyond tau makes C unstable, so the rule blames one, u: B_u = {u}, plus every
+object whose swept box meets S_u (it touched, or could have touched, u during the settling), plus
+every object with some hypothesis h whose E_p(h) meets S_u (at another rank it could have been in
+u's way). Of the objects of U, the one with the smallest B_u is blamed; the conflict is
+{(p, C_p) : p in B_u}.
+
+Why it is sound. Take C' containing the conflict, and suppose C' stable: then every object stays
+within its stable envelope, so no object outside B_u comes near S_u, while the objects of B_u start
+where they started in C. u then meets exactly the bodies it could meet in C, and falls, slides or
+topples as it did, beyond tau: C' is unstable after all. The argument takes the objects of
+B_u \\ {u}, held within tau of the poses they had in C, to act on u as they did in C; that is
+the rule's one assumption, checked on the crowded suite (every configuration a conflict skipped is
+checked in full by the tests, and none is valid). A settling without a swept box (reused from a memo)
+blames every object of the configuration, which is trivially sound.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+from numpy.typing import NDArray
+
+from physics_mapper.model.extents import body_box, stable_growth
+from physics_mapper.model.hypotheses import RankedHypotheses
+from physics_mapper.model.scene import ObjectShape, SearchParams, object_radius
+from physics_mapper.physics.checker import Collision, Settling
+
+#: (position of the object in its group, 1-based rank of its hypothesis).
+Assignment = tuple[int, int]
+ConflictKind = Literal["collision", "unstable"]
+FloatArray = NDArray[np.float64]
+#: An axis-aligned box, (low corner, high corner), metres.
+Region = tuple[tuple[float, float, float], tuple[float, float, float]]
+
+
+@dataclass(frozen=True, slots=True)
+class Conflict:
+    """Assignments no valid configuration holds together (module docstring), sorted by position.
+
+    ``region`` (unstable only) is the swept box of the object blamed for moving beyond the threshold:
+    an object whose hypotheses change keeps the conflict sound only if it cannot reach it.
+    """
+
+    assignments: tuple[Assignment, ...]
+    kind: ConflictKind
+    region: Region | None = None
+
+    @property
+    def positions(self) -> tuple[int, ...]:
+        return tuple(position for position, _ in self.assignments)
+
+    def holds_in(self, code: Sequence[int]) -> bool:
+        """Whether configuration ``code`` (ranks by position) contains every assignment."""
+        return all(code[position] == rank for position, rank in self.assignments)
+
+
+class ConflictStore:
+    """The conflicts one group's search knows, indexed by their first assignment."""
+
+    def __init__(self) -> None:
+        self._by_first: dict[Assignment, list[Conflict]] = {}
+        self._known: set[tuple[Assignment, ...]] = set()
+
+    def __len__(self) -> int:
+        return len(self._known)
+
+    def __iter__(self) -> Iterator[Conflict]:
+        return (conflict for conflicts in self._by_first.values() for conflict in conflicts)
+
+    def learn(self, conflict: Conflict) -> bool:
+        """Remember ``conflict``; False if it was known already."""
+        if conflict.assignments in self._known:
+            return False
+        self._known.add(conflict.assignments)
+        self._by_first.setdefault(conflict.assignments[0], []).append(conflict)
+        return True
+
+    def contained(self, code: Sequence[int]) -> Conflict | None:
+        """The smallest known conflict that configuration ``code`` contains (None: it resolves every one).
+
+        O(N) lookups plus one test per conflict starting with one of the configuration's assignments.
+        """
+        smallest: Conflict | None = None
+        for position, rank in enumerate(code):
+            for conflict in self._by_first.get((position, rank), ()):
+                if (smallest is None or len(conflict.assignments) < len(smallest.assignments)) and conflict.holds_in(
+                    code
+                ):
+                    smallest = conflict
+        return smallest
+
+
+def collision_conflict(code: Sequence[int], collision: Collision, positions: dict[str, int]) -> Conflict:
+    """The conflict of a collision: the pair's two assignments, or one against a static body.
+
+    ``positions`` maps the group's object names to their positions; other names are static bodies.
+    """
+    involved = sorted(positions[name] for name in collision.pair if name in positions)
+    return Conflict(tuple((position, code[position]) for position in involved), "collision")
+
+
+class Blame:
+    """The blame rule (module docstring) for one group: its objects' radii and stable envelopes.
+
+    The envelopes, every hypothesis's body box grown by g_p (metres), are made on first use.
+    """
+
+    def __init__(
+        self, shapes: Sequence[ObjectShape], hypotheses: Sequence[RankedHypotheses], params: SearchParams
+    ) -> None:
+        self.shapes = tuple(shapes)
+        self.hypotheses = tuple(hypotheses)
+        self.threshold = params.jitter_threshold
+        self.radii = np.array([object_radius(shape) for shape in self.shapes])
+        self.growth = tuple(stable_growth(r, params.jitter_threshold, params.angular_weight) for r in self.radii)
+        self._envelopes: tuple[tuple[FloatArray, FloatArray], ...] | None = None
+
+    @property
+    def envelopes(self) -> tuple[tuple[FloatArray, FloatArray], ...]:
+        """Per object, (M x 3 low corners, M x 3 high corners) of E_p(h) over its hypotheses."""
+        if self._envelopes is None:
+            self._envelopes = tuple(
+                envelopes(shape, ranked, growth)
+                for shape, ranked, growth in zip(self.shapes, self.hypotheses, self.growth, strict=True)
+            )
+        return self._envelopes
+
+    def conflict(self, code: Sequence[int], settling: Settling) -> Conflict:
+        """The conflict an unstable settling of configuration ``code`` teaches: of the objects that moved
+        beyond the threshold, the one blamed on the fewest objects (one such object makes C unstable)."""
+        moved = [p for p, jitter in enumerate(settling.jitters) if jitter > self.threshold]
+        if settling.reach is None or not moved:
+            return Conflict(tuple(enumerate(code)), "unstable")
+        low = np.array([low for low, _ in settling.reach]) - self.radii[:, None]
+        high = np.array([high for _, high in settling.reach]) + self.radii[:, None]
+        blamed, u = min(((self._blamed(u, low, high), u) for u in moved), key=lambda found: len(found[0]))
+        region: Region = (
+            (float(low[u][0]), float(low[u][1]), float(low[u][2])),
+            (float(high[u][0]), float(high[u][1]), float(high[u][2])),
+        )
+        return Conflict(tuple((p, code[p]) for p in blamed), "unstable", region)
+
+    def _blamed(self, moved: int, low: FloatArray, high: FloatArray) -> list[int]:
+        """The object that moved, every object whose swept box meets its swept box, and every object with
+        a stable envelope that does, in position order (``low``, ``high``: the swept boxes, N x 3)."""
+        blamed = {moved}
+        touches = np.all((low <= high[moved]) & (high >= low[moved]), axis=1)
+        blamed.update(int(p) for p in np.nonzero(touches)[0])
+        for p, (env_low, env_high) in enumerate(self.envelopes):
+            if p not in blamed and np.any(np.all((env_low <= high[moved]) & (env_high >= low[moved]), axis=1)):
+                blamed.add(p)
+        return sorted(blamed)
+
+    def reaches(self, position: int, region: Region) -> bool:
+        """Whether some stable envelope of the object at ``position`` meets ``region``."""
+        env_low, env_high = self.envelopes[position]
+        low, high = np.asarray(region[0]), np.asarray(region[1])
+        return bool(np.any(np.all((env_low <= high) & (env_high >= low), axis=1)))
+
+
+def envelopes(shape: ObjectShape, ranked: RankedHypotheses, growth: float) -> tuple[FloatArray, FloatArray]:
+    """(M x 3, M x 3): each hypothesis's body box (ranked order) grown by ``growth`` metres."""
+    boxes = [body_box(shape, hypothesis.pose) for hypothesis in ranked.hypotheses]
+    return np.array([low for low, _ in boxes]) - growth, np.array([high for _, high in boxes]) + growth
