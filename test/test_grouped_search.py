@@ -52,7 +52,7 @@ def run_to_end(scene: Scene, hypotheses: tuple[RankedHypotheses, ...], params: S
 def test_paper_problems_give_the_joint_search_s_trace_and_answer_bit_for_bit(name: str) -> None:
     problem = load_problem(PROBLEMS / f"{name}.yaml")
     params = problem.scene.search
-    assert params.strategy == "grouped"  # the default
+    assert params.strategy == "grouped"  # the shipped paper scenes pin it
     with PhysicsChecker(problem.scene) as checker:
         search = make_search(checker, problem.hypotheses, params)
         grouped = search.run(None)

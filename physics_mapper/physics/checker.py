@@ -155,8 +155,9 @@ class PartialSettling:
     ``poses`` (the start, from which the jitters are measured). Compared by identity: the
     checker that interrupted it recognises it as the settling it kept. ``objects``,
     ``max_speed`` and ``early_exit`` are the settling's (see :meth:`PhysicsChecker.settle`), with
-    the consecutive looks so far with every object at rest (``rest_checks``) and with an object at
-    rest beyond the jitter threshold (``beyond_checks``), and the ``reach`` so far (None: not tracked).
+    ``fixed`` are objects held where they are (scene index, pose), with the consecutive looks so far
+    with every object at rest (``rest_checks``) and with an object at rest beyond the jitter threshold
+    (``beyond_checks``), and the ``reach`` so far (None: not tracked).
     """
 
     poses: tuple[Pose, ...]
@@ -166,6 +167,7 @@ class PartialSettling:
     objects: tuple[int, ...] | None = None
     max_speed: float | None = None
     early_exit: EarlyExit | None = None
+    fixed: tuple[tuple[int, Pose], ...] = ()
     rest_checks: int = 0
     beyond_checks: int = 0
     reach: tuple[PositionRange, ...] | None = None
@@ -196,12 +198,14 @@ def _widened(reach: tuple[PositionRange, ...], poses: Sequence[Pose]) -> tuple[P
 
 class SettleOptions(TypedDict, total=False):
     """Keyword options of :meth:`PhysicsChecker.settle` (see there): which objects settle (scene
-    indices; the others stay parked), a speed cap (m/s), an early exit, and whether to record reach."""
+    indices; the others stay parked), a speed cap (m/s), an early exit, whether to record reach, and
+    objects held fixed at given poses (scene index, pose) while the others settle."""
 
     objects: Sequence[int] | None
     max_speed: float | None
     early_exit: EarlyExit | None
     track_reach: bool
+    fixed: Sequence[tuple[int, Pose]]
 
 
 @dataclass(frozen=True)
@@ -428,8 +432,11 @@ class PhysicsChecker:
         objects, statics = self.scene.objects, self.scene.static
         return objects[index].name if index < len(objects) else statics[index - len(objects)].name
 
-    def _place(self, poses: Sequence[Pose], objects: Sequence[int] | None = None) -> None:
-        """Put ``objects`` (None: all) at ``poses``, from rest; every other object stays parked, massless."""
+    def _place(
+        self, poses: Sequence[Pose], objects: Sequence[int] | None = None, fixed: Sequence[tuple[int, Pose]] = ()
+    ) -> None:
+        """Put ``objects`` (None: all) at ``poses``, from rest, and the ``fixed`` ones (scene index, pose)
+        massless where given; every other object stays parked, massless."""
         indices = tuple(self._indices(objects))
         if len(poses) != len(indices):
             raise ValueError(f"{len(poses)} poses for {len(indices)} objects")
@@ -437,9 +444,9 @@ class PhysicsChecker:
         pybullet.restoreState(self._initial_state, physicsClientId=self._client)
         self._empty_contact_caches()
         self._simulate_only(indices)
-        for index, pose in zip(indices, poses, strict=True):
+        for index, pose in (*zip(indices, poses, strict=True), *fixed):
             self._set_pose(index, pose)
-        self._placed = indices
+        self._placed = (*indices, *(index for index, _ in fixed))
 
     def _simulate_only(self, objects: tuple[int, ...]) -> None:
         """Give ``objects`` their masses back and every other object zero mass (no call when nothing changes)."""
@@ -630,10 +637,12 @@ class PhysicsChecker:
         stay parked. ``max_speed`` (m/s) caps each object's linear speed after every step (within a
         step, gravity adds at most g * TIME_STEP = 0.04 m/s to it). ``early_exit`` may end the
         settling before ``settle_time`` (:class:`EarlyExit`); ``track_reach`` records where each
-        object went (:attr:`Settling.reach`).
+        object went (:attr:`Settling.reach`). ``fixed`` (scene index, pose) places further objects that
+        do not move (massless, as parked ones) and are not measured: the others rest against them.
         """
         objects = options.get("objects")
-        self._place(poses, objects)
+        fixed = tuple(options.get("fixed", ()))
+        self._place(poses, objects, fixed)
         plan = PartialSettling(
             poses=tuple(poses),
             angular_weight=angular_weight,
@@ -642,6 +651,7 @@ class PhysicsChecker:
             objects=None if objects is None else tuple(objects),
             max_speed=options.get("max_speed"),
             early_exit=options.get("early_exit"),
+            fixed=fixed,
             reach=_start_reach(poses) if options.get("track_reach", False) else None,
         )
         return self._simulate(plan, stop_at)
@@ -662,18 +672,18 @@ class PhysicsChecker:
         another checker's, or objects were parked or placed since) is simulated again from its start.
         """
         if partial is not self._interrupted:
-            self._place(partial.poses, partial.objects)
+            self._place(partial.poses, partial.objects, partial.fixed)
             return self._simulate(partial.restarted(), stop_at)
         if self._interrupted_state is not None and self._massless != self._interrupted_massless:
             # Objects were parked or placed since (their masses changed): Bullet re-entered them into
             # its world, so the saved contact points would not come back as they were. Start over.
             self._forget_interrupted()
-            self._place(partial.poses, partial.objects)
+            self._place(partial.poses, partial.objects, partial.fixed)
             return self._simulate(partial.restarted(), stop_at)
         if self._interrupted_state is not None:
             self._empty_contact_caches()
             pybullet.restoreState(self._interrupted_state, physicsClientId=self._client)
-            self._placed = tuple(self._indices(partial.objects))
+            self._placed = (*self._indices(partial.objects), *(index for index, _ in partial.fixed))
         self._forget_interrupted()
         return self._simulate(partial, stop_at)
 

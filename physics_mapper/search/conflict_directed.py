@@ -31,10 +31,19 @@ from __future__ import annotations
 import math
 from dataclasses import replace
 
-from physics_mapper.physics.checker import Collision, PartialSettling
-from physics_mapper.search.branch_and_bound import Candidate, Code, TraceEntry, _QueueItem
+from physics_mapper.model.geometry import Pose
+from physics_mapper.physics.checker import Collision, PartialSettling, Settling
+from physics_mapper.search.branch_and_bound import (
+    BranchAndBound,
+    Candidate,
+    Code,
+    TraceEntry,
+    _QueueItem,
+    early_exit_rule,
+)
 from physics_mapper.search.conflicts import Blame, Conflict, ConflictStore, collision_conflict
 from physics_mapper.search.grouped import GroupedSearch, GroupSearch, SettleMemo
+from physics_mapper.search.local_settling import LocalPlan, LocalSettling
 
 
 class ConflictGroupSearch(GroupSearch):
@@ -50,6 +59,8 @@ class ConflictGroupSearch(GroupSearch):
         self.conflicts = ConflictStore()
         self.blame = Blame([scene.objects[i].shape for i in self.objects], self.hypotheses, self.params)
         self._cut = 0  # children no parent above the bound would queue
+        self.local = LocalSettling(self.blame)
+        self._local: tuple[Code, LocalPlan] | None = None  # the local settling under way
 
     def _visit(self, item: _QueueItem, stop_at: float | None) -> TraceEntry | None:
         """Skip, or check and learn; then expand by the conflict (None: the deadline cut a settling short)."""
@@ -69,8 +80,12 @@ class ConflictGroupSearch(GroupSearch):
             entry = TraceEntry(code, probability, "collision", bounded, pair=check.pair, depth=check.depth)
             conflict = collision_conflict(code, check, self._positions)
         else:
-            entry = self._judge(Candidate(code, probability, check), bounded)
-            conflict = None if entry.outcome == "valid" else self.blame.conflict(code, check)
+            settling = self._verdict(code, check, stop_at)
+            if isinstance(settling, PartialSettling):
+                self._interrupted = (code, settling)
+                return None
+            entry = self._judge(Candidate(code, probability, settling), bounded)
+            conflict = None if entry.outcome == "valid" else self.blame.conflict(code, settling)
         if conflict is not None:
             self.stats.conflicts += self.conflicts.learn(conflict)
         named = None if conflict is None else self.named(conflict)
@@ -78,6 +93,57 @@ class ConflictGroupSearch(GroupSearch):
         self._record(entry)
         self._expand(code, bounded, conflict)
         return entry
+
+    def _verdict(self, code: Code, settling: Settling, stop_at: float | None) -> Settling | PartialSettling:
+        """Rule 2's settling of ``code`` for the judge: a local one that shows an instability, else a full
+        one (a local settling that shows none is confirmed by a full one first), contexts recorded."""
+        local, self._local = self._local, None
+        if local is not None and local[0] == code and len(settling.jitters) < len(self.objects):
+            plan = local[1]
+            self.local.observe(code, plan.simulated, settling.jitters)
+            whole = LocalSettling.whole(plan, settling, self.poses(code))
+            if not whole.is_stable(self.params.jitter_threshold):
+                return whole
+            confirmed = super()._settle(code, self.poses(code), stop_at)
+            if isinstance(confirmed, PartialSettling):
+                return confirmed
+            settling = confirmed
+        positions = range(len(self.objects))
+        self.local.observe(code, positions, settling.jitters)
+        self.local.forget(code, [p for p in positions if settling.jitters[p] > self.params.jitter_threshold])
+        return settling
+
+    def _settle(self, code: Code, poses: tuple[Pose, ...], stop_at: float | None) -> Settling | PartialSettling:
+        """Rule 2 of one node: locally where the contexts allow (:mod:`~physics_mapper.search.local_settling`),
+        else of the whole group (always for the node a fallback may report)."""
+        plan = None if self._settling_completely else self.local.plan(code)
+        if plan is None:
+            return super()._settle(code, poses, stop_at)
+        self._local = (code, plan)
+        params = self.params
+        outcome = self.checker.settle(
+            [poses[p] for p in plan.simulated],
+            params.settle_time,
+            params.angular_weight,
+            stop_at,
+            objects=[self.objects[p] for p in plan.simulated],
+            fixed=[(self.objects[p], poses[p]) for p in plan.fixed],
+            early_exit=early_exit_rule(params, complete=False),
+            track_reach=True,
+        )
+        if isinstance(outcome, Settling):
+            self._settled(code, outcome)
+        return outcome
+
+    def _settled(self, code: Code, settling: Settling) -> None:
+        """Count the settling; a local one is guarded as one of the whole group and kept out of the memo."""
+        if self._local is None or self._local[0] != code or len(settling.jitters) == len(self.objects):
+            self.stats.full_settlings += 1
+            super()._settled(code, settling)
+            return
+        self.stats.local_settlings += 1
+        BranchAndBound._settled(self, code, settling)  # the step counters only: the memo holds full settlings
+        self._guard(code, LocalSettling.whole(self._local[1], settling, self.poses(code)))
 
     def probability(self, code: Code) -> float:
         """p(C), multiplied in the same order as :meth:`BranchAndBound.probability` (the same number)."""
