@@ -134,7 +134,7 @@ def _shelf(objects: int, rng: np.random.Generator) -> _Layout:
 
 
 def _bin(objects: int, rng: np.random.Generator) -> _Layout:
-    """Boxes and upright cylinders on a grid, two layers, dropped into a walled bin (settled: :data:`DROP_SETTLE_TIME`)."""
+    """Boxes and upright cylinders on a grid, two layers, dropped into a walled bin and settled."""
     side = math.ceil(math.sqrt(math.ceil(objects / 2)))
     inner = side * BIN_CELL
     models, poses = [], []

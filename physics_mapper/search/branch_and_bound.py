@@ -180,7 +180,9 @@ class GroupResult:
 
     ``id`` is the group's id in the trace (None for a search over every object), ``code`` the
     group's ranks (its objects' order), ``valid`` whether that sub-configuration passed both rules.
-    ``kept`` says the group's search was carried over unchanged from the previous search.
+    ``kept`` says the group's search was carried over unchanged from the previous search. A
+    conflict-directed group's counters (:class:`SearchStats`) come with it: ``conflicts``, ``skipped``,
+    ``local_settlings`` and ``full_settlings``.
     """
 
     id: int | None
@@ -192,6 +194,10 @@ class GroupResult:
     visited: int
     end: SearchEnd | None
     kept: bool = False
+    conflicts: int = 0
+    skipped: int = 0
+    local_settlings: int = 0
+    full_settlings: int = 0
 
 
 @dataclass(frozen=True)
@@ -581,6 +587,10 @@ class BranchAndBound:
             visited=self.stats.visited,
             end=self.stats.end,
             kept=kept,
+            conflicts=self.stats.conflicts,
+            skipped=self.stats.skipped,
+            local_settlings=self.stats.local_settlings,
+            full_settlings=self.stats.full_settlings,
         )
 
     @property

@@ -100,9 +100,7 @@ class LocalSettling:
             jitters[position] = local.jitters[index]
             if local.reach is not None:
                 reach[position] = local.reach[index]
-        return Settling(
-            tuple(settled), tuple(jitters), local.stopped, local.steps, local.steps_total, tuple(reach)
-        )
+        return Settling(tuple(settled), tuple(jitters), local.stopped, local.steps, local.steps_total, tuple(reach))
 
 
 def neighbours(blame: Blame) -> tuple[tuple[int, ...], ...]:
@@ -114,7 +112,8 @@ def neighbours(blame: Blame) -> tuple[tuple[int, ...], ...]:
     found: list[set[int]] = [set() for _ in envelopes]
     for p, q in zip(*np.nonzero(np.triu(near, k=1)), strict=True):
         (low_p, high_p), (low_q, high_q) = envelopes[p], envelopes[q]
-        if np.any(np.all((low_p[:, None, :] <= high_q[None, :, :]) & (high_p[:, None, :] >= low_q[None, :, :]), axis=2)):
+        meets = (low_p[:, None, :] <= high_q[None, :, :]) & (high_p[:, None, :] >= low_q[None, :, :])
+        if np.any(np.all(meets, axis=2)):
             found[int(p)].add(int(q))
             found[int(q)].add(int(p))
     return tuple(tuple(sorted(members)) for members in found)

@@ -117,6 +117,8 @@ def describe_entry(entry: TraceEntry) -> str:
         evidence = f"J={entry.jitter:.4f}"
         if entry.settle_stop is not None:
             evidence += f" (settling stopped {_STOPS[entry.settle_stop]} at {entry.settled_time:.3f} s)"
+    if entry.conflict is not None:
+        evidence += " conflict {" + ", ".join(f"{name}:{rank}" for name, rank in entry.conflict) + "}"
     return f"{outcome_kind(entry)} {evidence}" + (" [bounded]" if entry.bounded else "")
 
 
