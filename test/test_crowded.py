@@ -11,6 +11,7 @@ from dataclasses import replace
 
 import pytest
 
+from physics_mapper.bench.crowded import JITTER_TOLERANCE
 from physics_mapper.bench.crowded_suite import CrowdedCase, CrowdedProblem, crowded_problem, truth_is_valid
 from physics_mapper.model.scene import Bound, SearchParams
 from physics_mapper.physics.checker import PhysicsChecker
@@ -66,7 +67,7 @@ def test_the_answer_is_the_exhaustive_paper_search_s(case_runs: CaseRuns) -> Non
     problem, paper, conflict, _ = case_runs
     assert paper.stats.finished and conflict.stats.finished
     assert (conflict.code, conflict.valid) == (paper.code, paper.valid) == (problem.answer, True)
-    assert conflict.jitter == pytest.approx(paper.jitter, abs=1e-6)
+    assert conflict.jitter == pytest.approx(paper.jitter, abs=JITTER_TOLERANCE)
     assert conflict.stats.visited < paper.stats.visited  # the point of it
 
 

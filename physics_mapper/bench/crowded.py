@@ -48,6 +48,10 @@ ANSWER_CAP = 1.0
 BUDGETS = (0.2, ANSWER_CAP)
 #: Seconds the paper's search gets to finish, for the agreement column.
 EXHAUSTIVE_CAP = 5.0
+#: How far apart (m + weighted rad) the same configuration's J may be in two searches: the world's
+#: history (bodies placed, parked, re-massed in another order) moves Bullet's contact order, and a
+#: box settling ends a few micrometres elsewhere (4 um measured on the reduced suite).
+JITTER_TOLERANCE = 1e-4
 #: Small problems where the paper's search always finishes (the tests' reduced suite).
 REDUCED = (
     CrowdedCase("row", 5, 3, 0),
@@ -138,7 +142,7 @@ def full_verdicts(problem: CrowdedProblem, result: SearchResult) -> tuple[int, i
 
 def exhaustive_agreement(problem: CrowdedProblem, cap: float = EXHAUSTIVE_CAP) -> tuple[bool, bool | None]:
     """Whether the paper's search per group finishes within ``cap`` s, and then whether the conflict search
-    run to the end gives its answer (code, validity; J within 1e-6)."""
+    run to the end gives its answer (code, validity; J within :data:`JITTER_TOLERANCE`)."""
     scene, hypotheses = problem.problem.scene, problem.problem.hypotheses
     with PhysicsChecker(scene) as checker:
         paper = make_search(checker, hypotheses, params_for("grouped", scene.search))
@@ -149,7 +153,7 @@ def exhaustive_agreement(problem: CrowdedProblem, cap: float = EXHAUSTIVE_CAP) -
         found = make_search(checker, hypotheses, params_for("conflict", scene.search)).run(None)
     same = (found.code, found.valid) == (expected.code, expected.valid)
     if same and found.jitter is not None and expected.jitter is not None:
-        same = abs(found.jitter - expected.jitter) <= 1e-6
+        same = abs(found.jitter - expected.jitter) <= JITTER_TOLERANCE
     return True, same
 
 

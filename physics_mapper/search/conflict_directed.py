@@ -55,7 +55,7 @@ class ConflictGroupSearch(GroupSearch):
         super().__init__(owner, group_id, objects, memo)
         scene = self.checker.scene
         self.names = tuple(scene.objects[i].name for i in self.objects)
-        self._positions = {name: position for position, name in enumerate(self.names)}
+        self._object_positions = {index: position for position, index in enumerate(self.objects)}
         self.conflicts = ConflictStore()
         self.blame = Blame([scene.objects[i].shape for i in self.objects], self.hypotheses, self.params)
         self._cut = 0  # children no parent above the bound would queue
@@ -78,7 +78,7 @@ class ConflictGroupSearch(GroupSearch):
         conflict: Conflict | None
         if isinstance(check, Collision):
             entry = TraceEntry(code, probability, "collision", bounded, pair=check.pair, depth=check.depth)
-            conflict = collision_conflict(code, check, self._positions)
+            conflict = self._learn_collisions(code)
         else:
             settling = self._verdict(code, check, stop_at)
             if isinstance(settling, PartialSettling):
@@ -86,13 +86,27 @@ class ConflictGroupSearch(GroupSearch):
                 return None
             entry = self._judge(Candidate(code, probability, settling), bounded)
             conflict = None if entry.outcome == "valid" else self.blame.conflict(code, settling)
-        if conflict is not None:
-            self.stats.conflicts += self.conflicts.learn(conflict)
+            if conflict is not None:
+                self.stats.conflicts += self.conflicts.learn(conflict)
         named = None if conflict is None else self.named(conflict)
         entry = replace(entry, parent=item.parent, group=self.trace_group, conflict=named)
         self._record(entry)
         self._expand(code, bounded, conflict)
         return entry
+
+    def _learn_collisions(self, code: Code) -> Conflict:
+        """Learn a conflict from every overlap beyond the threshold; the smallest one, to expand by."""
+        assert self.collisions is not None  # a group search always has its table
+        threshold = self.params.penetration_threshold
+        depths = self.collisions.depths(self.objects, code)
+        learned = [
+            collision_conflict(code, pair, self._object_positions, self.collisions, threshold)
+            for pair, depth in sorted(depths.items())
+            if depth > threshold
+        ]
+        for conflict in learned:
+            self.stats.conflicts += self.conflicts.learn(conflict)
+        return min(learned, key=lambda conflict: len(conflict.assignments))
 
     def _verdict(self, code: Code, settling: Settling, stop_at: float | None) -> Settling | PartialSettling:
         """Rule 2's settling of ``code`` for the judge: a local one that shows an instability, else a full

@@ -8,7 +8,9 @@ From a collision (Rule 1). The deepest overlap of a configuration is the largest
 overlaps, and a pair's overlap depends on the two bodies' poses alone
 (:mod:`physics_mapper.physics.collision_table`). So if object i at rank a overlaps object j at rank b
 deeper than ``penetration_threshold``, every configuration with i at a and j at b is in collision:
-the conflict is {(i, a), (j, b)}; against a static body it is {(i, a)}.
+the conflict is {(i, a), (j, b)}; against a static body it is {(i, a)}, and so it is when i at a
+overlaps j at every one of j's ranks. A rejected configuration teaches one conflict per overlap
+beyond the threshold, not only the deepest one's.
 
 From an instability (Rule 2), the *blame rule*. Let the settling of configuration C move the objects U
 beyond ``jitter_threshold`` tau (J_u > tau). Write
@@ -49,7 +51,8 @@ from numpy.typing import NDArray
 from physics_mapper.model.extents import body_box, stable_growth
 from physics_mapper.model.hypotheses import RankedHypotheses
 from physics_mapper.model.scene import ObjectShape, SearchParams, object_radius
-from physics_mapper.physics.checker import Collision, Settling
+from physics_mapper.physics.checker import Settling
+from physics_mapper.physics.collision_table import CollisionTable
 
 #: (position of the object in its group, 1-based rank of its hypothesis).
 Assignment = tuple[int, int]
@@ -116,13 +119,27 @@ class ConflictStore:
         return smallest
 
 
-def collision_conflict(code: Sequence[int], collision: Collision, positions: dict[str, int]) -> Conflict:
-    """The conflict of a collision: the pair's two assignments, or one against a static body.
+def collision_conflict(
+    code: Sequence[int], pair: tuple[int, int], positions: dict[int, int], table: CollisionTable, threshold: float
+) -> Conflict:
+    """The conflict of one overlap beyond ``threshold`` metres between bodies ``pair`` (body indices, lower
+    first: an object, then an object or a static body; ``positions`` maps the group's object indices to
+    their positions).
 
-    ``positions`` maps the group's object names to their positions; other names are static bodies.
+    Against a static body: {(i, a)}. Between objects i at a and j at b: {(i, a)} alone if i at a
+    overlaps j at every rank of j (then no configuration with i at a is collision-free), else the same
+    for j, else {(i, a), (j, b)}.
     """
-    involved = sorted(positions[name] for name in collision.pair if name in positions)
-    return Conflict(tuple((position, code[position]) for position in involved), "collision")
+    first, second = pair
+    i = positions[first]
+    if second not in positions:
+        return Conflict(((i, code[i]),), "collision")
+    j = positions[second]
+    if bool(np.all(table.pair_depths(first, code[i], second) > threshold)):
+        return Conflict(((i, code[i]),), "collision")
+    if bool(np.all(table.pair_depths(second, code[j], first) > threshold)):
+        return Conflict(((j, code[j]),), "collision")
+    return Conflict(((i, code[i]), (j, code[j])), "collision")
 
 
 class Blame:
