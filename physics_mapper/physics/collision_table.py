@@ -121,6 +121,14 @@ class CollisionTable:
         depths.update({(i, j): float(depth) for i, j, depth in pairs if depth != NO_CONTACT})
         return depths
 
+    def static_depth(self, i: int, a: int) -> float:
+        """Object ``i`` at rank ``a``: its deepest overlap (m, -inf: no contact) with any static body,
+        filled by a collision pass of that object alone if unknown."""
+        row = self._static_rows(i)[a - 1]
+        if math.isnan(row[-1]):
+            self._fill((i,), (a,), [])
+        return float(np.max(row[:-1])) if self._static_count else NO_CONTACT
+
     def pair_depths(self, i: int, a: int, j: int) -> NDArray[np.float64]:
         """Object ``i`` at rank ``a`` against object ``j`` at each of its ranks: the deepest overlaps (m,
         -inf: no contact), missing entries filled by a collision pass of the two objects alone."""

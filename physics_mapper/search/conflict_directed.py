@@ -85,9 +85,7 @@ class ConflictGroupSearch(GroupSearch):
                 self._interrupted = (code, settling)
                 return None
             entry = self._judge(Candidate(code, probability, settling), bounded)
-            conflict = None if entry.outcome == "valid" else self.blame.conflict(code, settling)
-            if conflict is not None:
-                self.stats.conflicts += self.conflicts.learn(conflict)
+            conflict = None if entry.outcome == "valid" else self._learn(self.blame.conflicts(code, settling))
         named = None if conflict is None else self.named(conflict)
         entry = replace(entry, parent=item.parent, group=self.trace_group, conflict=named)
         self._record(entry)
@@ -99,11 +97,16 @@ class ConflictGroupSearch(GroupSearch):
         assert self.collisions is not None  # a group search always has its table
         threshold = self.params.penetration_threshold
         depths = self.collisions.depths(self.objects, code)
-        learned = [
-            collision_conflict(code, pair, self._object_positions, self.collisions, threshold)
-            for pair, depth in sorted(depths.items())
-            if depth > threshold
-        ]
+        return self._learn(
+            [
+                collision_conflict(code, pair, self._object_positions, self.collisions, self.conflicts, threshold)
+                for pair, depth in sorted(depths.items())
+                if depth > threshold
+            ]
+        )
+
+    def _learn(self, learned: list[Conflict]) -> Conflict:
+        """Remember every conflict of ``learned``; the smallest, to expand by."""
         for conflict in learned:
             self.stats.conflicts += self.conflicts.learn(conflict)
         return min(learned, key=lambda conflict: len(conflict.assignments))

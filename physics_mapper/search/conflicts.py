@@ -8,8 +8,8 @@ From a collision (Rule 1). The deepest overlap of a configuration is the largest
 overlaps, and a pair's overlap depends on the two bodies' poses alone
 (:mod:`physics_mapper.physics.collision_table`). So if object i at rank a overlaps object j at rank b
 deeper than ``penetration_threshold``, every configuration with i at a and j at b is in collision:
-the conflict is {(i, a), (j, b)}; against a static body it is {(i, a)}, and so it is when i at a
-overlaps j at every one of j's ranks. A rejected configuration teaches one conflict per overlap
+the conflict is {(i, a), (j, b)}; against a static body it is {(i, a)}, and so it is when, at every
+one of j's ranks, i at a overlaps j or j is ruled out alone. A rejected configuration teaches one conflict per overlap
 beyond the threshold, not only the deepest one's.
 
 From an instability (Rule 2), the *blame rule*. Let the settling of configuration C move the objects U
@@ -26,8 +26,7 @@ beyond ``jitter_threshold`` tau (J_u > tau). Write
 One object of U moving beyond tau makes C unstable, so the rule blames one, u: B_u = {u}, plus every
 object whose swept box meets S_u (it touched, or could have touched, u during the settling), plus
 every object with some hypothesis h whose E_p(h) meets S_u (at another rank it could have been in
-u's way). Of the objects of U, the one with the smallest B_u is blamed; the conflict is
-{(p, C_p) : p in B_u}.
+u's way). Each object u of U gives the conflict {(p, C_p) : p in B_u}.
 
 Why it is sound. Take C' containing the conflict, and suppose C' stable: then every object stays
 within its stable envelope, so no object outside B_u comes near S_u, while the objects of B_u start
@@ -96,6 +95,10 @@ class ConflictStore:
     def __iter__(self) -> Iterator[Conflict]:
         return (conflict for conflicts in self._by_first.values() for conflict in conflicts)
 
+    def knows(self, assignments: tuple[Assignment, ...]) -> bool:
+        """Whether exactly these assignments are a known conflict."""
+        return assignments in self._known
+
     def learn(self, conflict: Conflict) -> bool:
         """Remember ``conflict``; False if it was known already."""
         if conflict.assignments in self._known:
@@ -120,25 +123,34 @@ class ConflictStore:
 
 
 def collision_conflict(
-    code: Sequence[int], pair: tuple[int, int], positions: dict[int, int], table: CollisionTable, threshold: float
+    code: Sequence[int],
+    pair: tuple[int, int],
+    positions: dict[int, int],
+    table: CollisionTable,
+    known: ConflictStore,
+    threshold: float,
 ) -> Conflict:
     """The conflict of one overlap beyond ``threshold`` metres between bodies ``pair`` (body indices, lower
     first: an object, then an object or a static body; ``positions`` maps the group's object indices to
     their positions).
 
-    Against a static body: {(i, a)}. Between objects i at a and j at b: {(i, a)} alone if i at a
-    overlaps j at every rank of j (then no configuration with i at a is collision-free), else the same
-    for j, else {(i, a), (j, b)}.
+    Against a static body: {(i, a)}. Between objects i at a and j at b: {(i, a)} alone if, at every
+    rank of j, i at a overlaps j or j is ruled out alone (a known one-assignment conflict, or an overlap
+    with a static body): then no configuration with i at a is valid. Else the same for j, else
+    {(i, a), (j, b)}.
     """
     first, second = pair
     i = positions[first]
     if second not in positions:
         return Conflict(((i, code[i]),), "collision")
     j = positions[second]
-    if bool(np.all(table.pair_depths(first, code[i], second) > threshold)):
-        return Conflict(((i, code[i]),), "collision")
-    if bool(np.all(table.pair_depths(second, code[j], first) > threshold)):
-        return Conflict(((j, code[j]),), "collision")
+    for doomed, index, other, other_index in ((i, first, j, second), (j, second, i, first)):
+        depths = table.pair_depths(index, code[doomed], other_index)
+        if all(
+            depth > threshold or known.knows(((other, rank),)) or table.static_depth(other_index, rank) > threshold
+            for rank, depth in enumerate(depths, start=1)
+        ):
+            return Conflict(((doomed, code[doomed]),), "collision")
     return Conflict(((i, code[i]), (j, code[j])), "collision")
 
 
@@ -168,20 +180,23 @@ class Blame:
             )
         return self._envelopes
 
-    def conflict(self, code: Sequence[int], settling: Settling) -> Conflict:
-        """The conflict an unstable settling of configuration ``code`` teaches: of the objects that moved
-        beyond the threshold, the one blamed on the fewest objects (one such object makes C unstable)."""
+    def conflicts(self, code: Sequence[int], settling: Settling) -> list[Conflict]:
+        """The conflicts an unstable settling of configuration ``code`` teaches: one per object that moved
+        beyond the threshold (each alone makes the configuration unstable), smallest first."""
         moved = [p for p, jitter in enumerate(settling.jitters) if jitter > self.threshold]
         if settling.reach is None or not moved:
-            return Conflict(tuple(enumerate(code)), "unstable")
+            return [Conflict(tuple(enumerate(code)), "unstable")]
         low = np.array([low for low, _ in settling.reach]) - self.radii[:, None]
         high = np.array([high for _, high in settling.reach]) + self.radii[:, None]
-        blamed, u = min(((self._blamed(u, low, high), u) for u in moved), key=lambda found: len(found[0]))
-        region: Region = (
-            (float(low[u][0]), float(low[u][1]), float(low[u][2])),
-            (float(high[u][0]), float(high[u][1]), float(high[u][2])),
-        )
-        return Conflict(tuple((p, code[p]) for p in blamed), "unstable", region)
+        found = []
+        for u in moved:
+            region: Region = (
+                (float(low[u][0]), float(low[u][1]), float(low[u][2])),
+                (float(high[u][0]), float(high[u][1]), float(high[u][2])),
+            )
+            blamed = self._blamed(u, low, high)
+            found.append(Conflict(tuple((p, code[p]) for p in blamed), "unstable", region))
+        return sorted(found, key=lambda conflict: len(conflict.assignments))
 
     def _blamed(self, moved: int, low: FloatArray, high: FloatArray) -> list[int]:
         """The object that moved, every object whose swept box meets its swept box, and every object with

@@ -9,9 +9,10 @@ Whenever a settling simulates o with every neighbour placed (simulated, or held 
 hypothesis) and o stays within the jitter threshold, o's context is recorded as *stable*.
 
 The rule. For a candidate C, the *unsettled* objects U are those whose context in C was never
-recorded stable: the objects whose hypotheses differ from every settled configuration around them.
-Rule 2 simulates L = U plus U's neighbours (what U can touch and push), with L's own neighbours
-outside L held fixed at their hypotheses and every other object parked. If an object of L moves
+recorded stable: the objects whose hypotheses differ from every settled configuration around them,
+and those they can touch (a neighbour's context holds the changed rank too). Rule 2 simulates L = U,
+with U's neighbours outside U held fixed at their hypotheses and every other object parked. An object
+outside U is in a context seen stable, next to the same bodies at the same hypotheses. If an object of L moves
 beyond the threshold, C is unstable (its conflict comes from that settling); else every object
 either was just seen stable or is in a context seen stable, and C is *presumed valid*: it gets one
 full settling of its group, which confirms it (and gives its J), or refutes it, and then the search
@@ -72,11 +73,8 @@ class LocalSettling:
         unsettled = [p for p in range(len(code)) if self.context(p, code) not in self._stable]
         if not unsettled or len(unsettled) == len(code):
             return None
-        simulated = set(unsettled).union(*(self.neighbours[p] for p in unsettled))
-        if len(simulated) == len(code):
-            return None
-        fixed = set().union(*(self.neighbours[p] for p in simulated)) - simulated
-        return LocalPlan(tuple(sorted(simulated)), tuple(sorted(fixed)))
+        fixed = set().union(*(self.neighbours[p] for p in unsettled)) - set(unsettled)
+        return LocalPlan(tuple(unsettled), tuple(sorted(fixed)))
 
     def observe(self, code: Sequence[int], simulated: Sequence[int], jitters: Sequence[float]) -> None:
         """Record the contexts of the ``simulated`` positions that stayed within the threshold."""
