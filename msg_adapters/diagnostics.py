@@ -77,9 +77,9 @@ def _group_state(group: GroupResult, names: tuple[str, ...]) -> str:
 
 
 def _group_conflicts(group: GroupResult) -> str:
-    """``<learned> learned, <skipped> skipped, settlings <local> local / <full> full``."""
+    """``<kept> kept, <learned> learned, <skipped> skipped, settlings <local> local / <full> full``."""
     return (
-        f"{group.conflicts} learned, {group.skipped} skipped, "
+        f"{group.conflicts_kept} kept, {group.conflicts} learned, {group.skipped} skipped, "
         f"settlings {group.local_settlings} local / {group.full_settlings} full"
     )
 
@@ -131,6 +131,7 @@ def search_values(report: TickReport) -> list[tuple[str, str]]:
         ("rejected by stability", str(stats.unstable)),
         ("valid configurations", str(stats.valid)),
         ("conflicts learned", str(stats.conflicts)),
+        ("conflicts kept", str(stats.conflicts_kept)),
         ("candidates skipped by conflicts", str(stats.skipped)),
         ("local settlings", str(stats.local_settlings)),
         ("full settlings", str(stats.full_settlings)),

@@ -13,6 +13,8 @@ import pytest
 
 from physics_mapper.bench.crowded import JITTER_TOLERANCE
 from physics_mapper.bench.crowded_suite import CrowdedCase, CrowdedProblem, crowded_problem, truth_is_valid
+from physics_mapper.model.geometry import Pose
+from physics_mapper.model.hypotheses import Hypothesis, RankedHypotheses
 from physics_mapper.model.scene import Bound, SearchParams
 from physics_mapper.physics.checker import PhysicsChecker
 from physics_mapper.search.branch_and_bound import Code, SearchResult
@@ -144,3 +146,32 @@ def test_the_resolving_bound_keeps_a_valid_configuration_the_relative_one_cuts_o
 
 def test_the_default_is_the_conflict_search_with_the_resolving_bound() -> None:
     assert (SearchParams().strategy, SearchParams().bound) == ("conflict", "resolving")
+
+
+def nudged(hypotheses: RankedHypotheses, metres: float) -> RankedHypotheses:
+    """The same hypotheses moved ``metres`` along y: new input, the same outcomes."""
+    moved = [
+        Hypothesis(
+            Pose((h.pose.position[0], h.pose.position[1] + metres, h.pose.position[2]), h.pose.orientation), h.weight
+        )
+        for h in hypotheses.hypotheses
+    ]
+    return RankedHypotheses.from_weighted(moved)
+
+
+def test_new_hypotheses_for_one_object_keep_the_conflicts_of_the_others() -> None:
+    problem = crowded_problem(CrowdedCase("row", 10, 5, 9))
+    scene, hypotheses = problem.problem.scene, problem.problem.hypotheses
+    changed = tuple(nudged(h, 0.0005) if i == 9 else h for i, h in enumerate(hypotheses))
+    with PhysicsChecker(scene) as checker:
+        first = make_search(checker, hypotheses, scene.search)
+        before = first.run(None)
+        second = make_search(checker, changed, scene.search, first)
+        after = second.run(None)
+        assert isinstance(first, ConflictSearch) and isinstance(second, ConflictSearch)
+        old, new = first.groups()[0], second.groups()[0]
+        assert isinstance(old, ConflictGroupSearch) and isinstance(new, ConflictGroupSearch)
+        kept = [c for c in old.conflicts if 9 not in c.positions]
+        assert 0 < new.stats.conflicts_kept <= len(kept) < len(old.conflicts)
+    assert (after.code, after.valid) == (before.code, before.valid) == (problem.answer, True)
+    assert after.stats.visited < before.stats.visited

@@ -115,7 +115,8 @@ class SearchStats:
     ``dropped`` counts queued nodes the queue limit threw away, ``untraced`` visits the trace
     limit left out. ``settle_steps`` are the simulation steps run, ``settle_steps_saved`` those
     early exits spared, ``memo_hits`` settlings reused, ``merges`` escape-guard merges. A
-    conflict-directed search also counts ``conflicts`` learned, candidates ``skipped`` because they
+    conflict-directed search also counts ``conflicts`` learned (and ``conflicts_kept``, carried over
+    from the previous search for objects whose hypotheses did not change), candidates ``skipped`` because they
     contain a known conflict (never checked), and its settlings: ``local_settlings`` (only what changed
     and its neighbours simulated) and ``full_settlings`` (every object of the group).
     """
@@ -137,6 +138,7 @@ class SearchStats:
     memo_hits: int = 0
     merges: int = 0
     conflicts: int = 0
+    conflicts_kept: int = 0
     skipped: int = 0
     local_settlings: int = 0
     full_settlings: int = 0
@@ -181,8 +183,8 @@ class GroupResult:
     ``id`` is the group's id in the trace (None for a search over every object), ``code`` the
     group's ranks (its objects' order), ``valid`` whether that sub-configuration passed both rules.
     ``kept`` says the group's search was carried over unchanged from the previous search. A
-    conflict-directed group's counters (:class:`SearchStats`) come with it: ``conflicts``, ``skipped``,
-    ``local_settlings`` and ``full_settlings``.
+    conflict-directed group's counters (:class:`SearchStats`) come with it: ``conflicts``,
+    ``conflicts_kept``, ``skipped``, ``local_settlings`` and ``full_settlings``.
     """
 
     id: int | None
@@ -195,6 +197,7 @@ class GroupResult:
     end: SearchEnd | None
     kept: bool = False
     conflicts: int = 0
+    conflicts_kept: int = 0
     skipped: int = 0
     local_settlings: int = 0
     full_settlings: int = 0
@@ -588,6 +591,7 @@ class BranchAndBound:
             end=self.stats.end,
             kept=kept,
             conflicts=self.stats.conflicts,
+            conflicts_kept=self.stats.conflicts_kept,
             skipped=self.stats.skipped,
             local_settlings=self.stats.local_settlings,
             full_settlings=self.stats.full_settlings,

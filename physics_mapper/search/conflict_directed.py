@@ -29,10 +29,13 @@ child from the queue (every configuration was visited or contains a conflict), e
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import replace
 
 from physics_mapper.model.geometry import Pose
-from physics_mapper.physics.checker import Collision, PartialSettling, Settling
+from physics_mapper.model.hypotheses import RankedHypotheses
+from physics_mapper.model.scene import SearchParams
+from physics_mapper.physics.checker import Collision, PartialSettling, PhysicsChecker, Settling
 from physics_mapper.search.branch_and_bound import (
     BranchAndBound,
     Candidate,
@@ -42,7 +45,7 @@ from physics_mapper.search.branch_and_bound import (
     early_exit_rule,
 )
 from physics_mapper.search.conflicts import Blame, Conflict, ConflictStore, collision_conflict
-from physics_mapper.search.grouped import GroupedSearch, GroupSearch, SettleMemo
+from physics_mapper.search.grouped import GroupedSearch, GroupSearch, SettleMemo, physics_key
 from physics_mapper.search.local_settling import LocalPlan, LocalSettling
 
 
@@ -162,6 +165,24 @@ class ConflictGroupSearch(GroupSearch):
         BranchAndBound._settled(self, code, settling)  # the step counters only: the memo holds full settlings
         self._guard(code, LocalSettling.whole(self._local[1], settling, self.poses(code)))
 
+    def keep_from(self, old: ConflictGroupSearch, changed: set[int]) -> None:
+        """Take over what ``old`` (a group of the previous search, same physics parameters) learned that
+        still holds: its conflicts and stable contexts among objects of this group whose hypotheses did
+        not change (``changed``: scene indices). An instability's conflict also needs every object
+        that is new here, or changed, unable to reach the swept box it was learned from."""
+        moved = {p: self._object_positions[i] for p, i in enumerate(old.objects) if i in self._object_positions}
+        stale = {p for p, i in enumerate(old.objects) if i in changed}
+        newcomers = [self._object_positions[i] for i in self.objects if i in changed or i not in old.objects]
+        for conflict in old.conflicts:
+            if any(p in stale or p not in moved for p in conflict.positions):
+                continue
+            region = conflict.region
+            if region is not None and any(self.blame.reaches(p, region) for p in newcomers):
+                continue
+            assignments = tuple(sorted((moved[p], rank) for p, rank in conflict.assignments))
+            self.stats.conflicts_kept += self.conflicts.learn(replace(conflict, assignments=assignments))
+        self.local.kept_from(old.local, moved, stale)
+
     def probability(self, code: Code) -> float:
         """p(C), multiplied in the same order as :meth:`BranchAndBound.probability` (the same number)."""
         return math.prod([weights[rank] for weights, rank in zip(self._weights, code, strict=True)])
@@ -203,6 +224,40 @@ class ConflictGroupSearch(GroupSearch):
 
 
 class ConflictSearch(GroupedSearch):
-    """Interaction groups under one deadline (:class:`GroupedSearch`), each searched conflict-directed."""
+    """Interaction groups under one deadline (:class:`GroupedSearch`), each searched conflict-directed.
+
+    A group searched anew because some of its objects got new hypotheses keeps what the previous
+    search's groups learned about the others (:meth:`ConflictGroupSearch.keep_from`).
+    """
 
     group_search = ConflictGroupSearch
+
+    def __init__(
+        self,
+        checker: PhysicsChecker,
+        hypotheses: Sequence[RankedHypotheses],
+        params: SearchParams,
+        previous: GroupedSearch | None = None,
+    ) -> None:
+        # Read by _add while the groups are made, then dropped.
+        self._earlier: list[ConflictGroupSearch] = []
+        self._changed: set[int] = set()
+        if previous is not None and previous.checker is checker and _same_rules(previous.params, params):
+            self._earlier = [g for g in previous.groups() if isinstance(g, ConflictGroupSearch)]
+            pairs = zip(previous.hypotheses, hypotheses, strict=True)
+            self._changed = {i for i, (old, new) in enumerate(pairs) if old != new}
+        super().__init__(checker, hypotheses, params, previous)
+        self._earlier = []
+
+    def _add(self, objects: tuple[int, ...], memo: SettleMemo | None) -> GroupSearch:
+        group = super()._add(objects, memo)
+        assert isinstance(group, ConflictGroupSearch)
+        for old in self._earlier:
+            if set(old.objects) & set(objects):
+                group.keep_from(old, self._changed)
+        return group
+
+
+def _same_rules(a: SearchParams, b: SearchParams) -> bool:
+    """Whether conflicts learned under ``a`` hold under ``b``: the same thresholds and settling."""
+    return physics_key(a) == physics_key(b) and a.penetration_threshold == b.penetration_threshold

@@ -88,6 +88,23 @@ class LocalSettling:
         for position in positions:
             self._stable.discard(self.context(position, code))
 
+    def kept_from(self, old: LocalSettling, moved: dict[int, int], changed: set[int]) -> int:
+        """Take over ``old``'s stable contexts whose objects all kept their hypotheses and their
+        neighbours (``moved``: old position -> position here; ``changed``: old positions whose
+        hypotheses changed); how many."""
+        kept = 0
+        for position, ranks in old._stable:
+            around = sorted((position, *old.neighbours[position]))
+            if any(p in changed or p not in moved for p in around):
+                continue
+            here = moved[position]
+            if sorted(moved[p] for p in around) != sorted((here, *self.neighbours[here])):
+                continue
+            by_position = dict(zip((moved[p] for p in around), ranks, strict=True))
+            self._stable.add((here, tuple(by_position[p] for p in sorted(by_position))))
+            kept += 1
+        return kept
+
     @staticmethod
     def whole(plan: LocalPlan, local: Settling, start: Sequence[Pose]) -> Settling:
         """A local settling as one of the whole group: objects not simulated stayed at ``start`` (J_i = 0)."""
