@@ -10,8 +10,8 @@ Layouts, N objects each:
 
 The true poses are the scene settled for :data:`TRUTH_SETTLE_TIME` (again, up to
 :data:`TRUTH_SETTLINGS` times, until they pass both rules with half the jitter threshold to spare),
-and are checked valid with the suite's parameters (:func:`truth_is_valid`). Each object gets M hypotheses: its true pose and M - 1
-wrong ones, each against a rule whatever the other objects' hypotheses are:
+and are checked valid with the suite's parameters (:func:`truth_is_valid`). Each object gets M
+hypotheses: its true pose and M - 1 wrong ones, each against a rule whatever the other objects' hypotheses are:
 
 - *sunk* 1.5 to 3 cm into what is below it (the floor, a board or the object it rests on: Rule 1);
 - *floating* 2 to 4 cm above its pose (it falls: Rule 2; what is below it can only be lower);

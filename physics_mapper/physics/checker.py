@@ -122,7 +122,8 @@ class Settling:
     ``stopped`` says why the settling ended before ``settle_time`` (None: it ran to the end);
     ``steps`` of ``steps_total`` :data:`TIME_STEP` steps were simulated. ``reach``, when the
     settling was asked to track it, is each object's :data:`PositionRange` over its start and every
-    look at the world (every :data:`CLOCK_CHECK_STEPS` steps, and the end).
+    look at the world (every :data:`CLOCK_CHECK_STEPS` steps, and the end); ``extent`` the smallest
+    box holding the object's body (Bullet's axis-aligned bounding box) at those moments.
     """
 
     settled_poses: tuple[Pose, ...]
@@ -131,6 +132,7 @@ class Settling:
     steps: int = 0
     steps_total: int = 0
     reach: tuple[PositionRange, ...] | None = None
+    extent: tuple[PositionRange, ...] | None = None
 
     @property
     def total_jitter(self) -> float:
@@ -157,7 +159,7 @@ class PartialSettling:
     ``max_speed`` and ``early_exit`` are the settling's (see :meth:`PhysicsChecker.settle`), with
     ``fixed`` are objects held where they are (scene index, pose), with the consecutive looks so far
     with every object at rest (``rest_checks``) and with an object at rest beyond the jitter threshold
-    (``beyond_checks``), and the ``reach`` so far (None: not tracked).
+    (``beyond_checks``), and the ``reach`` and ``extent`` so far (None: not tracked; an extent not begun).
     """
 
     poses: tuple[Pose, ...]
@@ -171,11 +173,12 @@ class PartialSettling:
     rest_checks: int = 0
     beyond_checks: int = 0
     reach: tuple[PositionRange, ...] | None = None
+    extent: tuple[PositionRange, ...] | None = None
 
     def restarted(self) -> PartialSettling:
         """The same settling, not yet begun."""
         start = None if self.reach is None else _start_reach(self.poses)
-        return replace(self, steps_done=0, rest_checks=0, beyond_checks=0, reach=start)
+        return replace(self, steps_done=0, rest_checks=0, beyond_checks=0, reach=start, extent=None)
 
 
 def _start_reach(poses: Sequence[Pose]) -> tuple[PositionRange, ...]:
@@ -184,13 +187,18 @@ def _start_reach(poses: Sequence[Pose]) -> tuple[PositionRange, ...]:
 
 def _widened(reach: tuple[PositionRange, ...], poses: Sequence[Pose]) -> tuple[PositionRange, ...]:
     """Each range grown to hold the matching pose's position."""
+    return _grown(reach, [(pose.position, pose.position) for pose in poses])
+
+
+def _grown(ranges: tuple[PositionRange, ...], boxes: Sequence[PositionRange]) -> tuple[PositionRange, ...]:
+    """Each range grown to hold the matching box."""
     grown = []
-    for (low, high), pose in zip(reach, poses, strict=True):
-        p = pose.position
+    for (low, high), (box_low, box_high) in zip(ranges, boxes, strict=True):
+        p, q = box_low, box_high
         grown.append(
             (
                 (min(low[0], p[0]), min(low[1], p[1]), min(low[2], p[2])),
-                (max(high[0], p[0]), max(high[1], p[1]), max(high[2], p[2])),
+                (max(high[0], q[0]), max(high[1], q[1]), max(high[2], q[2])),
             )
         )
     return tuple(grown)
@@ -694,6 +702,9 @@ class PhysicsChecker:
         uids = self._uids(plan.objects)
         watched = plan.early_exit is not None or plan.reach is not None
         rest_checks, beyond_checks, reach = plan.rest_checks, plan.beyond_checks, plan.reach
+        extent = plan.extent
+        if reach is not None and extent is None:
+            extent = tuple(self._extents(uids))
         while steps_done < steps_total:
             batch_end = min(steps_done + CLOCK_CHECK_STEPS, steps_total)
             for _ in range(steps_done, batch_end):
@@ -703,7 +714,8 @@ class PhysicsChecker:
             steps_done = batch_end
             if watched and steps_done < steps_total:
                 poses = self._poses(plan.objects)
-                reach = None if reach is None else _widened(reach, poses)
+                if reach is not None and extent is not None:
+                    reach, extent = _widened(reach, poses), _grown(extent, self._extents(uids))
                 if plan.early_exit is not None:
                     jitters = self._jitters(plan.poses, poses, plan.angular_weight)
                     at_rest = self._at_rest(uids, plan.angular_weight, plan.early_exit.rest_rate)
@@ -714,20 +726,34 @@ class PhysicsChecker:
                     beyond_checks = beyond_checks + 1 if beyond else 0
                     rest_checks = rest_checks + 1 if all(at_rest) else 0
                     if beyond_checks >= REST_CHECKS:
-                        return Settling(poses, jitters, "beyond_threshold", steps_done, steps_total, reach)
+                        return Settling(poses, jitters, "beyond_threshold", steps_done, steps_total, reach, extent)
                     if rest_checks >= REST_CHECKS:
-                        return Settling(poses, jitters, "rest", steps_done, steps_total, reach)
+                        return Settling(poses, jitters, "rest", steps_done, steps_total, reach, extent)
             if stop_at is not None and steps_done < steps_total and time.monotonic() >= stop_at:
                 self._forget_interrupted()
                 self._interrupted = replace(
-                    plan, steps_done=steps_done, rest_checks=rest_checks, beyond_checks=beyond_checks, reach=reach
+                    plan,
+                    steps_done=steps_done,
+                    rest_checks=rest_checks,
+                    beyond_checks=beyond_checks,
+                    reach=reach,
+                    extent=extent,
                 )
                 self._interrupted_massless = set(self._massless)
                 return self._interrupted
         settled = self._poses(plan.objects)
-        reach = None if reach is None else _widened(reach, settled)
+        if reach is not None and extent is not None:
+            reach, extent = _widened(reach, settled), _grown(extent, self._extents(uids))
         jitters = self._jitters(plan.poses, settled, plan.angular_weight)
-        return Settling(settled, jitters, None, steps_done, steps_total, reach)
+        return Settling(settled, jitters, None, steps_done, steps_total, reach, extent)
+
+    def _extents(self, uids: Sequence[int]) -> list[PositionRange]:
+        """Each body's axis-aligned bounding box now (metres)."""
+        boxes: list[PositionRange] = []
+        for uid in uids:
+            low, high = pybullet.getAABB(uid, physicsClientId=self._client)
+            boxes.append(((low[0], low[1], low[2]), (high[0], high[1], high[2])))
+        return boxes
 
     @staticmethod
     def _jitters(start: Sequence[Pose], now: Sequence[Pose], angular_weight: float) -> tuple[float, ...]:

@@ -121,7 +121,7 @@ class ConflictGroupSearch(GroupSearch):
         if local is not None and local[0] == code and len(settling.jitters) < len(self.objects):
             plan = local[1]
             self.local.observe(code, plan.simulated, settling.jitters)
-            whole = LocalSettling.whole(plan, settling, self.poses(code))
+            whole = self.local.whole(plan, settling, self.poses(code))
             if not whole.is_stable(self.params.jitter_threshold):
                 return whole
             confirmed = super()._settle(code, self.poses(code), stop_at)
@@ -163,7 +163,7 @@ class ConflictGroupSearch(GroupSearch):
             return
         self.stats.local_settlings += 1
         BranchAndBound._settled(self, code, settling)  # the step counters only: the memo holds full settlings
-        self._guard(code, LocalSettling.whole(self._local[1], settling, self.poses(code)))
+        self._guard(code, self.local.whole(self._local[1], settling, self.poses(code)))
 
     def keep_from(self, old: ConflictGroupSearch, changed: set[int]) -> None:
         """Take over what ``old`` (a group of the previous search, same physics parameters) learned that

@@ -33,8 +33,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from physics_mapper.model.extents import FloatArray, body_box
 from physics_mapper.model.geometry import Pose
-from physics_mapper.physics.checker import Settling
+from physics_mapper.physics.checker import PositionRange, Settling
 from physics_mapper.search.conflicts import Blame
 
 #: (position, ranks of the object and its neighbours in position order).
@@ -105,17 +106,25 @@ class LocalSettling:
             kept += 1
         return kept
 
-    @staticmethod
-    def whole(plan: LocalPlan, local: Settling, start: Sequence[Pose]) -> Settling:
-        """A local settling as one of the whole group: objects not simulated stayed at ``start`` (J_i = 0)."""
+    def whole(self, plan: LocalPlan, local: Settling, start: Sequence[Pose]) -> Settling:
+        """A local settling as one of the whole group: objects not simulated stayed at ``start`` (J_i = 0,
+        their body's box at the start as their extent)."""
         settled, jitters = list(start), [0.0] * len(start)
         reach = [(pose.position, pose.position) for pose in start]
+        extent = [_box(body_box(shape, pose)) for shape, pose in zip(self.blame.shapes, start, strict=True)]
         for index, position in enumerate(plan.simulated):
             settled[position] = local.settled_poses[index]
             jitters[position] = local.jitters[index]
-            if local.reach is not None:
-                reach[position] = local.reach[index]
-        return Settling(tuple(settled), tuple(jitters), local.stopped, local.steps, local.steps_total, tuple(reach))
+            if local.reach is not None and local.extent is not None:
+                reach[position], extent[position] = local.reach[index], local.extent[index]
+        return Settling(
+            tuple(settled), tuple(jitters), local.stopped, local.steps, local.steps_total, tuple(reach), tuple(extent)
+        )
+
+
+def _box(box: tuple[FloatArray, FloatArray]) -> PositionRange:
+    low, high = box
+    return (float(low[0]), float(low[1]), float(low[2])), (float(high[0]), float(high[1]), float(high[2]))
 
 
 def neighbours(blame: Blame) -> tuple[tuple[int, ...], ...]:
