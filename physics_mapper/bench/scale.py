@@ -398,8 +398,8 @@ def run_suite(
 
 
 def plot_groups(problem: ScaleProblem, path: Path) -> None:
-    """PNG, seen from above: every object's volume (the cubes of half-edge r + margin around its
-    hypotheses) and its most likely pose, coloured by interaction group."""
+    """PNG, seen from above: every object's volume (its hypotheses' body boxes grown by half the margin)
+    and its most likely pose, coloured by interaction group."""
     import matplotlib
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
@@ -414,21 +414,22 @@ def plot_groups(problem: ScaleProblem, path: Path) -> None:
     for colour_index, members in enumerate(grouping.groups):
         colour = colours(colour_index % 20)
         for index in members:
-            half = grouping.half_edges[index]
-            for x, y, _ in grouping.centres[index]:
-                axes.add_patch(Rectangle((x - half, y - half), 2 * half, 2 * half, fill=False, color=colour, lw=0.5))
+            for low, high in zip(grouping.lows[index], grouping.highs[index], strict=True):
+                size = high - low
+                axes.add_patch(Rectangle((low[0], low[1]), size[0], size[1], fill=False, color=colour, lw=0.5))
             x, y, _ = hypotheses[index].pose(1).position
             edge = CUBE_EDGE
             axes.add_patch(Rectangle((x - edge / 2, y - edge / 2), edge, edge, color=colour, alpha=0.6))
-            stacked = sum(1 for j in members if j < index and math.dist(grouping.centres[j][0][:2], (x, y)) < edge / 2)
+            below = [hypotheses[j].pose(1).position for j in members if j < index]
+            stacked = sum(1 for position in below if math.dist(position[:2], (x, y)) < edge / 2)
             axes.annotate(f"{index}", (x, y + 0.025 * stacked), ha="center", va="center", fontsize=6)
     axes.autoscale_view()
     axes.set_aspect("equal")
     axes.set(xlabel="x [m]", ylabel="y [m]")
     axes.set_title(
         f"{len(scene.objects)} cubes in {problem.case.layout} piles, M = {problem.case.hypotheses}, seen from above: "
-        f"{len(grouping.groups)} interaction groups\noutlines: cubes of half-edge r + margin around every "
-        "hypothesis; filled: most likely pose",
+        f"{len(grouping.groups)} interaction groups\noutlines: every hypothesis's body box grown by half the "
+        "margin; filled: most likely pose",
         fontsize=8,
     )
     figure.savefig(path, dpi=120)

@@ -157,20 +157,19 @@ class GroupSearch(BranchAndBound):
         self.memo.put(code, settling)
 
     def _guard(self, code: Code, settling: Settling) -> None:
-        """Raise :class:`Escape` if an object went where it can reach another group's volume.
+        """Raise :class:`Escape` if an object's body went where it can reach another group's volume.
 
-        An object that stayed within the margin of its start is still inside its own cube, which
-        meets no other group's volume: only objects that went further are looked up.
+        A body that stayed inside its own volume box at its hypothesis meets no other group's volume:
+        only objects that went further are looked up.
         """
-        assert settling.reach is not None  # tracked by every group search
+        assert settling.extent is not None  # tracked by every group search
         if len(self.owner.grouping.groups) == 1:
             return  # no other group to reach
-        margin = self.params.interaction_margin
+        grouping = self.owner.grouping
         intruded: set[int] = set()
-        for index, start, (low, high) in zip(self.objects, self.poses(code), settling.reach, strict=True):
-            x, y, z = start.position
-            if max(x - low[0], y - low[1], z - low[2], high[0] - x, high[1] - y, high[2] - z) > margin:
-                intruded.update(self.owner.grouping.intruded(index, low, high))
+        for index, rank, (low, high) in zip(self.objects, code, settling.extent, strict=True):
+            if not grouping.inside(index, rank, low, high):
+                intruded.update(grouping.intruded(index, low, high))
         if intruded:
             raise Escape(tuple(sorted(intruded)))
 
