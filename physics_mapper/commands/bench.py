@@ -69,6 +69,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=Path("benchmarks/crowded.png"),
         help="time to answer plot (default: benchmarks/crowded.png)",
     )
+    crowded.add_argument(
+        "--search-png",
+        type=Path,
+        default=Path("docs/crowded_search.png"),
+        help="one crowded search, candidate by candidate (default: docs/crowded_search.png)",
+    )
 
 
 def run(args: argparse.Namespace) -> int:
@@ -150,9 +156,13 @@ def run_crowded(args: argparse.Namespace) -> int:
     print(crowded.figures_table(problems))
     print()
     print(crowded.targets_text(problems, reduced))
-    args.crowded_png.parent.mkdir(parents=True, exist_ok=True)
+    from physics_mapper.bench.crowded_picture import plot_search
+
+    for path in (args.crowded_png, args.search_png):
+        path.parent.mkdir(parents=True, exist_ok=True)
     crowded.plot_time_to_answer(problems, args.crowded_png)
-    print(f"\nplot: {args.crowded_png}")
+    plot_search(args.search_png)
+    print(f"\nplots: {args.crowded_png}, {args.search_png}")
     return 0
 
 
