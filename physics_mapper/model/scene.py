@@ -214,7 +214,7 @@ class SearchParams:
     bound: whether T bounds p(C) itself (``absolute``), p(C) / p(root) of the group (``relative``), or
         p(C) / p(first valid configuration of the group) (``resolving``; nothing is bounded before one).
     settle_exit: whether a settling may stop early (``early``) or always runs settle_time (``full``).
-    interaction_margin: metres added around every object's bounding ball when grouping objects.
+    interaction_margin: metres between two hypotheses' body boxes below which their objects share a group.
     queue_limit: nodes the search's queues hold at most (each group an equal share).
     trace_limit: trace entries kept at most (None: all); later visits are counted, not recorded.
     """

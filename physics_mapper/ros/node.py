@@ -125,7 +125,7 @@ PARAMETERS = (
     ParameterSpec("strategy", f"{' or '.join(STRATEGIES)}: one search per interaction group, or the paper's one"),
     ParameterSpec("bound", f"{' or '.join(BOUNDS)}: T bounds p(C) / p(group root), or p(C) itself"),
     ParameterSpec("settle_exit", f"{' or '.join(SETTLE_EXITS)}: settlings may stop at rest or once unstable"),
-    ParameterSpec("interaction_margin", "metres around each object's bounding ball when grouping objects"),
+    ParameterSpec("interaction_margin", "metres between two hypotheses' bodies below which objects share a group"),
     ParameterSpec("queue_limit", "nodes the search's queues hold at most (each group an equal share)"),
     ParameterSpec("trace_limit", "trace entries the search keeps at most"),
     ParameterSpec("max_hypotheses_per_object", "hypotheses kept per object (the heaviest)", 100, (1, 100000)),
