@@ -7,12 +7,22 @@ packed scenes whose only valid configuration is known by construction.
 
 from __future__ import annotations
 
+import json
 from dataclasses import replace
+from pathlib import Path
 
 import pytest
+import yaml
+from core_builders import cli, solve_json
 
 from physics_mapper.bench.crowded import JITTER_TOLERANCE
-from physics_mapper.bench.crowded_suite import CrowdedCase, CrowdedProblem, crowded_problem, truth_is_valid
+from physics_mapper.bench.crowded_suite import (
+    CrowdedCase,
+    CrowdedProblem,
+    crowded_problem,
+    problem_document,
+    truth_is_valid,
+)
 from physics_mapper.model.geometry import Pose
 from physics_mapper.model.hypotheses import Hypothesis, RankedHypotheses
 from physics_mapper.model.scene import Bound, SearchParams
@@ -175,3 +185,21 @@ def test_new_hypotheses_for_one_object_keep_the_conflicts_of_the_others() -> Non
         assert 0 < new.stats.conflicts_kept <= len(kept) < len(old.conflicts)
     assert (after.code, after.valid) == (before.code, before.valid) == (problem.answer, True)
     assert after.stats.visited < before.stats.visited
+
+
+def test_solve_trace_names_each_rejection_s_conflict(tmp_path: Path) -> None:
+    problem = crowded_problem(CrowdedCase("row", 6, 3, 1))
+    problem_file = tmp_path / "row.yaml"
+    problem_file.write_text(yaml.safe_dump(problem_document(problem.problem)))
+    trace_file = tmp_path / "trace.json"
+    found = solve_json(problem_file, "--trace", trace_file)
+    assert found["valid"] and found["code"] == list(problem.answer)
+    trace = json.loads(trace_file.read_text())
+    assert trace == found["trace"]
+    rejected = [entry for entry in trace if entry["outcome"] != "valid"]
+    assert rejected and all(entry["conflict"] for entry in rejected)
+    names = problem.problem.scene.object_names
+    for entry in rejected:
+        assert all(entry["code"][names.index(name)] == rank for name, rank in entry["conflict"])
+    text = cli("solve", problem_file, "--tree")
+    assert text.returncode == 0 and "conflict {" in text.stdout and "candidates skipped" in text.stdout

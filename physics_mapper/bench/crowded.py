@@ -31,6 +31,7 @@ from physics_mapper.bench.crowded_suite import (
     crowded_problem,
     truth_is_valid,
 )
+from physics_mapper.bench.scale_suite import ScaleCase, ScaleProblem, scale_problem
 from physics_mapper.model.scene import SearchParams
 from physics_mapper.physics.checker import PhysicsChecker
 from physics_mapper.search.branch_and_bound import SearchResult
@@ -98,7 +99,7 @@ def params_for(strategy: Strategy, base: SearchParams, trace: bool = False) -> S
 
 
 def time_to_answer(
-    problem: CrowdedProblem, strategy: Strategy, cap: float = ANSWER_CAP
+    problem: CrowdedProblem | ScaleProblem, strategy: Strategy, cap: float = ANSWER_CAP
 ) -> tuple[SearchRun, SearchResult]:
     """Search in :data:`SLICE` slices until the result is the answer, the search ends or ``cap`` seconds pass."""
     scene, hypotheses = problem.problem.scene, problem.problem.hypotheses
@@ -140,7 +141,9 @@ def full_verdicts(problem: CrowdedProblem, result: SearchResult) -> tuple[int, i
     return checked, agreed
 
 
-def exhaustive_agreement(problem: CrowdedProblem, cap: float = EXHAUSTIVE_CAP) -> tuple[bool, bool | None]:
+def exhaustive_agreement(
+    problem: CrowdedProblem | ScaleProblem, cap: float = EXHAUSTIVE_CAP
+) -> tuple[bool, bool | None]:
     """Whether the paper's search per group finishes within ``cap`` s, and then whether the conflict search
     run to the end gives its answer (code, validity; J within :data:`JITTER_TOLERANCE`)."""
     scene, hypotheses = problem.problem.scene, problem.problem.hypotheses
@@ -189,6 +192,40 @@ def run_suite(
         if progress is not None:
             progress(index + 1, len(cases), runs[-1])
     return runs
+
+
+@dataclass(frozen=True)
+class ScaleCheck:
+    """The conflict-directed search on the scale suite: answered within 0.2 s, and agreement where the
+    paper's search per group finishes."""
+
+    problems: int
+    answered: int
+    finished: int
+    agreed: int
+
+
+def scale_check(cases: Sequence[ScaleCase], progress: Callable[[int, int], None] | None = None) -> ScaleCheck:
+    answered = finished = agreed = 0
+    for index, case in enumerate(cases):
+        problem = scale_problem(case)
+        run, _ = time_to_answer(problem, "conflict")
+        answered += run.solved_within(BUDGETS[0])
+        done, same = exhaustive_agreement(problem)
+        finished += done
+        agreed += bool(same)
+        if progress is not None:
+            progress(index + 1, len(cases))
+    return ScaleCheck(len(cases), answered, finished, agreed)
+
+
+def scale_text(check: ScaleCheck) -> str:
+    share = check.answered / check.problems if check.problems else 0.0
+    return (
+        f"- scale suite, conflict-directed search: the answer within 0.2 s in {check.answered} of {check.problems} "
+        f"({share:.1%}); the same answer as the paper's search per group in {check.agreed} of {check.finished} "
+        f"where it finished (target 100 %: {'met' if check.agreed == check.finished else 'missed'})"
+    )
 
 
 # --- figures --------------------------------------------------------------------------------------

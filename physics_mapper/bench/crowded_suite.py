@@ -254,3 +254,15 @@ def scene_document(scene: Scene) -> dict[str, object]:
         "static": [{"name": body.name, **shape(body.shape), "pose": pose(body.pose)} for body in scene.static],
         "objects": [{"name": model.name, **shape(model.shape), "mass": model.mass} for model in scene.objects],
     }
+
+
+def problem_document(problem: Problem) -> dict[str, object]:
+    """A suite problem as the YAML document a problem file holds (scene inline, hypotheses by object name)."""
+    hypotheses = {
+        model.name: [
+            {"position": list(h.pose.position), "orientation": list(h.pose.orientation), "weight": h.weight}
+            for h in ranked.hypotheses
+        ]
+        for model, ranked in zip(problem.scene.objects, problem.hypotheses, strict=True)
+    }
+    return {**scene_document(problem.scene), "hypotheses": hypotheses}

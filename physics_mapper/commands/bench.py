@@ -151,11 +151,20 @@ def run_crowded(args: argparse.Namespace) -> int:
 
     problems = crowded.run_suite(cases, progress)
     reduced = crowded.run_suite(crowded.REDUCED, progress)
+    from physics_mapper.bench import scale
+
+    scale_cases = scale.suite_cases(sizes=(3, 6, 10), hypotheses=(5,), seeds=1) if args.quick else scale.suite_cases()
+
+    def scale_progress(done: int, total: int) -> None:
+        print(f"[scale suite {done}/{total} {time.monotonic() - started:.0f} s]", file=sys.stderr)
+
+    checked = crowded.scale_check(scale_cases, scale_progress)
     print(f"{len(problems)} problems, {1 if args.quick else args.seeds} per (layout, N, M); {_load()}")
     print("Three numbers: conflict / grouped / joint.")
     print(crowded.figures_table(problems))
     print()
     print(crowded.targets_text(problems, reduced))
+    print(crowded.scale_text(checked))
     from physics_mapper.bench.crowded_picture import plot_search
 
     for path in (args.crowded_png, args.search_png):

@@ -188,10 +188,17 @@ def result_summary(result: SearchResult, fallback: Fallback) -> str:
         head = f"no valid configuration; fallback settled {code_text(result.code)}  p={result.probability:.4g}"
     solved = sum(group.valid for group in result.groups)
     groups = f"{len(result.groups)} interaction groups, {solved} solved; " if len(result.groups) > 1 else ""
+    conflicts = (
+        f"conflicts: {stats.conflicts} learned, {stats.conflicts_kept} kept; {stats.skipped} candidates skipped; "
+        f"settlings: {stats.local_settlings} local, {stats.full_settlings} full\n"
+        if stats.conflicts or stats.conflicts_kept
+        else ""
+    )
     return (
         f"{head}\n"
         f"{groups}visited {stats.visited} (expanded {stats.expanded}, bounded {stats.bounded}); "
         f"rejected: {stats.collisions} collision, {stats.unstable} unstable; valid {stats.valid}\n"
+        f"{conflicts}"
         f"search time {stats.search_time * 1000:.1f} ms "
         f"({stats.configurations_per_second:.0f} configurations/s), {search_ending(stats)}"
     )
