@@ -23,9 +23,9 @@ from physics_mapper.model.geometry import pose_displacement
 from physics_mapper.model.hypotheses import RankedHypotheses
 from physics_mapper.model.scene import Scene, SearchParams
 from physics_mapper.model.scene_files import load_problem
-from physics_mapper.physics.checker import Collision, PartialSettling, PhysicsChecker
+from physics_mapper.physics.checker import REST_SHARE, Collision, PartialSettling, PhysicsChecker
 from physics_mapper.physics.collision_table import CollisionTable
-from physics_mapper.search.branch_and_bound import REST_SHARE, BranchAndBound, Code, SearchResult, TraceEntry
+from physics_mapper.search.branch_and_bound import BranchAndBound, Code, SearchResult, TraceEntry
 from physics_mapper.search.grouped import GroupedSearch
 from physics_mapper.search.report import result_dict, trace_tree
 from physics_mapper.search.strategy import make_search

@@ -38,6 +38,7 @@ from physics_mapper.model.scene_files import SceneError, load_problem, scene_fro
 from physics_mapper.physics.checker import TIME_STEP, PhysicsChecker
 from physics_mapper.physics.refine import OVERLAP_TOLERANCE, RefinedMap, Refinement, refine_objects, refinement_start
 from physics_mapper.search.branch_and_bound import BranchAndBound, SearchResult
+from physics_mapper.search.strategy import make_search
 
 REFINE = SearchParams(fallback="refine")
 #: A time.monotonic() instant long past: every deadline-aware call stops as soon as it may.
@@ -296,7 +297,7 @@ def test_the_node_publishes_the_refined_map_and_says_refine(refining_node: RosCl
     assert status is not None and status.level == DiagnosticStatus.WARN
     assert values(status)["fallback"] == "refine" and values(status)["fallback used"] == "true"
     with PhysicsChecker(problem.scene) as checker:
-        offline = BranchAndBound(checker, c111, replace(problem.scene.search, fallback="refine")).run(None)
+        offline = make_search(checker, c111, replace(problem.scene.search, fallback="refine")).run(None)
     assert offline.settled_poses is not None
     settled = next(m for m in client.settled if stamp_ns_of(m) == stamp_ns)
     got = [(p.position.x, p.position.y, p.position.z) for p in settled.poses]

@@ -4,7 +4,7 @@ Every problem of :mod:`physics_mapper.bench.scale_suite` is first searched to th
 search (no deadline): its result is *the answer* (the configuration an exhaustive search returns).
 It is searched to the end once more with ``settle_exit: full``: early exits must give every visited
 configuration the same outcome and the same answer, its settled poses within
-:data:`~physics_mapper.search.branch_and_bound.REST_SHARE` x ``jitter_threshold`` (m + weighted rad).
+:data:`~physics_mapper.physics.checker.REST_SHARE` x ``jitter_threshold`` (m + weighted rad).
 Then each strategy searches it afresh in slices of :data:`SLICE` seconds of wall-clock time, as the
 node's ticks would, until its result is the answer or :data:`ANSWER_CAP` seconds have passed: the
 *time to the answer* counts building the search (grouping, tables) and searching, not assembling
@@ -29,8 +29,8 @@ from typing import Literal
 from physics_mapper.bench.scale_suite import CUBE_EDGE, LAYOUTS, ScaleCase, ScaleProblem, scale_problem
 from physics_mapper.model.geometry import pose_displacement
 from physics_mapper.model.scene import SearchParams
-from physics_mapper.physics.checker import PhysicsChecker
-from physics_mapper.search.branch_and_bound import REST_SHARE, Code, SearchResult
+from physics_mapper.physics.checker import REST_SHARE, PhysicsChecker
+from physics_mapper.search.branch_and_bound import Code, SearchResult
 from physics_mapper.search.groups import interaction_groups
 from physics_mapper.search.strategy import make_search
 

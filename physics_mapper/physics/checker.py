@@ -66,7 +66,7 @@ from physics_mapper.model.geometry import (
     inverse_pose,
     pose_displacement,
 )
-from physics_mapper.model.scene import Box, Cylinder, Mesh, Plane, Scene, Shape, Sphere
+from physics_mapper.model.scene import Box, Cylinder, Mesh, Plane, Scene, SearchParams, Shape, Sphere
 
 #: What pybullet raises when a world fails, e.g. once its physics server is disconnected: the
 #: checker is unusable then, and a new one must be built (:class:`~physics_mapper.mapping.mapper.Mapper` does).
@@ -113,6 +113,24 @@ class EarlyExit:
 
     rest_rate: float
     jitter_threshold: float | None
+
+
+#: An object is at rest while its jitter rate (m/s, |v| + angular_weight * |omega|) would add at most
+#: this share of ``jitter_threshold`` over a whole ``settle_time``.
+REST_SHARE = 0.05
+
+
+def early_exit_rule(params: SearchParams, complete: bool) -> EarlyExit | None:
+    """When a settling may stop early under ``params`` (None: ``settle_exit: full``).
+
+    At rest: jitter rate at most :data:`REST_SHARE` x jitter_threshold / settle_time (1 mm/s with
+    the defaults). ``complete`` keeps a settling going past the jitter threshold (the settling a
+    fallback may report), so it ends at rest or at ``settle_time``.
+    """
+    if params.settle_exit == "full" or params.settle_time <= 0.0:
+        return None
+    rest_rate = REST_SHARE * params.jitter_threshold / params.settle_time
+    return EarlyExit(rest_rate, None if complete else params.jitter_threshold)
 
 
 @dataclass(frozen=True)

@@ -32,6 +32,9 @@ joint search), or one interaction group (:mod:`physics_mapper.search.grouped`);
 :mod:`physics_mapper.search.strategy` picks the search by ``params.strategy``, and every caller goes
 through it.
 
+The settlings' early exit (:func:`~physics_mapper.physics.checker.early_exit_rule`, with its
+:data:`~physics_mapper.physics.checker.REST_SHARE`) is imported from the physics, which owns it.
+
 Bounded memory: the queue holds at most ``queue_limit`` nodes (beyond, the least probable are
 dropped and the search can no longer say it visited everything: it ends ``truncated``); the trace
 holds at most ``trace_limit`` entries (later visits are counted in ``untraced``).
@@ -54,11 +57,11 @@ from physics_mapper.model.scene import Fallback, SearchParams
 from physics_mapper.physics.checker import (
     TIME_STEP,
     Collision,
-    EarlyExit,
     PartialSettling,
     PhysicsChecker,
     SettleStop,
     Settling,
+    early_exit_rule,
 )
 from physics_mapper.physics.refine import RefinedMap, Refinement, refinement_start
 
@@ -70,10 +73,6 @@ Outcome = Literal["collision", "unstable", "valid"]
 #: How a search that emptied its queue ended: ``exhausted`` (every configuration visited), ``bounded``
 #: (configurations below the bound were never queued) or ``truncated`` (the queue limit dropped nodes).
 SearchEnd = Literal["exhausted", "bounded", "truncated"]
-
-#: An object is at rest while its jitter rate (m/s, |v| + angular_weight * |omega|) would add at most
-#: this share of ``jitter_threshold`` over a whole ``settle_time``.
-REST_SHARE = 0.05
 
 
 @dataclass(frozen=True, slots=True)
@@ -243,19 +242,6 @@ class _QueueItem(NamedTuple):
     code: Code
     probability: float
     parent: Code | None
-
-
-def early_exit_rule(params: SearchParams, complete: bool) -> EarlyExit | None:
-    """When a settling may stop early under ``params`` (None: ``settle_exit: full``).
-
-    At rest: jitter rate at most :data:`REST_SHARE` x jitter_threshold / settle_time (1 mm/s with
-    the defaults). ``complete`` keeps a settling going past the jitter threshold (the settling a
-    fallback may report), so it ends at rest or at ``settle_time``.
-    """
-    if params.settle_exit == "full" or params.settle_time <= 0.0:
-        return None
-    rest_rate = REST_SHARE * params.jitter_threshold / params.settle_time
-    return EarlyExit(rest_rate, None if complete else params.jitter_threshold)
 
 
 class BranchAndBound:

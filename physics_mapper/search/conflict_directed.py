@@ -35,14 +35,13 @@ from dataclasses import replace
 from physics_mapper.model.geometry import Pose
 from physics_mapper.model.hypotheses import RankedHypotheses
 from physics_mapper.model.scene import SearchParams
-from physics_mapper.physics.checker import Collision, PartialSettling, PhysicsChecker, Settling
+from physics_mapper.physics.checker import Collision, PartialSettling, PhysicsChecker, Settling, early_exit_rule
 from physics_mapper.search.branch_and_bound import (
     BranchAndBound,
     Candidate,
     Code,
     TraceEntry,
     _QueueItem,
-    early_exit_rule,
 )
 from physics_mapper.search.conflicts import Blame, Conflict, ConflictStore, collision_conflict
 from physics_mapper.search.grouped import GroupedSearch, GroupSearch, SettleMemo, physics_key

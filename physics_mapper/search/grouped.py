@@ -39,6 +39,9 @@ from collections.abc import Sequence
 from dataclasses import replace
 from typing import NamedTuple
 
+import numpy as np
+
+from physics_mapper.model.extents import body_box
 from physics_mapper.model.geometry import Pose
 from physics_mapper.model.hypotheses import RankedHypotheses
 from physics_mapper.model.scene import SearchParams
@@ -172,6 +175,23 @@ class GroupSearch(BranchAndBound):
                 intruded.update(grouping.intruded(index, low, high))
         if intruded:
             raise Escape(tuple(sorted(intruded)))
+
+    def _refine(self, stop_at: float | None) -> bool:
+        """Make the root's refined map; raise :class:`Escape` if one of its bodies went where it can reach
+        another group's volume (a floating object refined onto a neighbouring pile)."""
+        made = super()._refine(stop_at)
+        refined = self.refined
+        if made and refined is not None and len(self.owner.grouping.groups) > 1:
+            intruded: set[int] = set()
+            models = self.checker.scene.objects
+            poses = zip(self.objects, refined.depenetrated_poses, refined.settled_poses, strict=True)
+            for index, start, end in poses:
+                (low_a, high_a), (low_b, high_b) = (body_box(models[index].shape, pose) for pose in (start, end))
+                low, high = np.minimum(low_a, low_b), np.maximum(high_a, high_b)
+                intruded.update(self.owner.grouping.intruded(index, tuple(low), tuple(high)))
+            if intruded:
+                raise Escape(tuple(sorted(intruded)))
+        return made
 
     def _record(self, entry: TraceEntry) -> None:
         self.owner.record(entry)
