@@ -63,7 +63,7 @@ class ConflictGroupSearch(GroupSearch):
         scene = self.checker.scene
         self.names = tuple(scene.objects[i].name for i in self.objects)
         self._object_positions = {index: position for position, index in enumerate(self.objects)}
-        self.conflicts = ConflictStore()
+        self.conflicts = ConflictStore([len(h) for h in self.hypotheses])
         self.blame = Blame([scene.objects[i].shape for i in self.objects], self.hypotheses, self.params)
         self._cut = 0  # children no parent above the bound would queue
         self.local = LocalSettling(self.blame)

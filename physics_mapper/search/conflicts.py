@@ -83,17 +83,26 @@ class Conflict:
 
 
 class ConflictStore:
-    """The conflicts one group's search knows, indexed by their first assignment."""
+    """The conflicts one group's search knows, in learning order, as rows of a 0/1 matrix.
 
-    def __init__(self) -> None:
-        self._by_first: dict[Assignment, list[Conflict]] = {}
+    Row k has a 1 in the column of each assignment (p, r) of conflict k; columns run over the ranks
+    of position 0, then of position 1, ... (``ranks[p]`` of them). A configuration C contains conflict
+    k iff the row's entries at C's N columns add up to the conflict's size.
+    """
+
+    def __init__(self, ranks: Sequence[int]) -> None:
+        self._offsets = np.concatenate(([0], np.cumsum(ranks)[:-1])).astype(np.intp)
+        self._columns = int(np.sum(ranks))
+        self._conflicts: list[Conflict] = []
         self._known: set[tuple[Assignment, ...]] = set()
+        self._rows = np.zeros((0, self._columns), dtype=np.int16)
+        self._sizes = np.zeros(0, dtype=np.int16)
 
     def __len__(self) -> int:
-        return len(self._known)
+        return len(self._conflicts)
 
     def __iter__(self) -> Iterator[Conflict]:
-        return (conflict for conflicts in self._by_first.values() for conflict in conflicts)
+        return iter(self._conflicts)
 
     def knows(self, assignments: tuple[Assignment, ...]) -> bool:
         """Whether exactly these assignments are a known conflict."""
@@ -104,22 +113,31 @@ class ConflictStore:
         if conflict.assignments in self._known:
             return False
         self._known.add(conflict.assignments)
-        self._by_first.setdefault(conflict.assignments[0], []).append(conflict)
+        self._conflicts.append(conflict)
         return True
 
     def contained(self, code: Sequence[int]) -> Conflict | None:
-        """The smallest known conflict that configuration ``code`` contains (None: it resolves every one).
+        """The smallest known conflict that configuration ``code`` contains, the first learned of equal
+        ones (None: it resolves every one). One gather of N columns and a sum over the conflicts."""
+        if not self._conflicts:
+            return None
+        if len(self._sizes) < len(self._conflicts):
+            self._grow()
+        columns = self._offsets + np.asarray(code, dtype=np.intp) - 1
+        held = np.nonzero(self._rows[:, columns].sum(axis=1) == self._sizes)[0]
+        if not len(held):
+            return None
+        return self._conflicts[int(held[np.argmin(self._sizes[held])])]
 
-        O(N) lookups plus one test per conflict starting with one of the configuration's assignments.
-        """
-        smallest: Conflict | None = None
-        for position, rank in enumerate(code):
-            for conflict in self._by_first.get((position, rank), ()):
-                if (smallest is None or len(conflict.assignments) < len(smallest.assignments)) and conflict.holds_in(
-                    code
-                ):
-                    smallest = conflict
-        return smallest
+    def _grow(self) -> None:
+        """Add the rows of the conflicts learned since the matrix was last made."""
+        new = self._conflicts[len(self._sizes) :]
+        rows = np.zeros((len(new), self._columns), dtype=np.int16)
+        for row, conflict in zip(rows, new, strict=True):
+            for position, rank in conflict.assignments:
+                row[self._offsets[position] + rank - 1] = 1
+        self._rows = np.vstack((self._rows, rows))
+        self._sizes = np.concatenate((self._sizes, [len(c.assignments) for c in new])).astype(np.int16)
 
 
 def collision_conflict(
