@@ -253,7 +253,8 @@ class ConflictSearch(GroupedSearch):
     """Interaction groups under one deadline (:class:`GroupedSearch`), each searched conflict-directed.
 
     A group searched anew because some of its objects got new hypotheses keeps what the previous
-    search's groups learned about the others (:meth:`ConflictGroupSearch.keep_from`).
+    search's groups learned about the others (:meth:`ConflictGroupSearch.keep_from`); so does a group
+    the escape guard merged, of the groups it replaces.
     """
 
     group_search = ConflictGroupSearch
@@ -274,6 +275,15 @@ class ConflictSearch(GroupedSearch):
             self._changed = {i for i, (old, new) in enumerate(pairs) if old != new}
         super().__init__(checker, hypotheses, params, previous)
         self._earlier = []
+
+    def _merge(self, escaped: GroupSearch, positions: tuple[int, ...]) -> None:
+        """The escape guard's merge, the merged group keeping what the groups it replaces learned."""
+        merged = [escaped, *(g for g in self.groups() if self.grouping.group_of(g.objects[0]) in positions)]
+        self._earlier = [g for g in merged if isinstance(g, ConflictGroupSearch)]
+        try:
+            super()._merge(escaped, positions)
+        finally:
+            self._earlier = []
 
     def _add(self, objects: tuple[int, ...], memo: SettleMemo | None) -> GroupSearch:
         group = super()._add(objects, memo)
