@@ -82,6 +82,11 @@ class Conflict:
         return all(code[position] == rank for position, rank in self.assignments)
 
 
+#: Conflicts one group's search keeps at most (a row of 2 bytes per hypothesis each: 10 MB for 50
+#: objects of 10 hypotheses); later ones still direct the expansion of the candidate they came from.
+CONFLICT_LIMIT = 10_000
+
+
 class ConflictStore:
     """The conflicts one group's search knows, in learning order, as rows of a 0/1 matrix.
 
@@ -95,8 +100,10 @@ class ConflictStore:
         self._columns = int(np.sum(ranks))
         self._conflicts: list[Conflict] = []
         self._known: set[tuple[Assignment, ...]] = set()
-        self._rows = np.zeros((0, self._columns), dtype=np.int16)
-        self._sizes = np.zeros(0, dtype=np.int16)
+        # Rows made so far (the matrix has room for more: its capacity doubles when full).
+        self._made = 0
+        self._rows = np.zeros((16, self._columns), dtype=np.int16)
+        self._sizes = np.zeros(16, dtype=np.int16)
 
     def __len__(self) -> int:
         return len(self._conflicts)
@@ -109,8 +116,8 @@ class ConflictStore:
         return assignments in self._known
 
     def learn(self, conflict: Conflict) -> bool:
-        """Remember ``conflict``; False if it was known already."""
-        if conflict.assignments in self._known:
+        """Remember ``conflict``; False if it was known already, or :data:`CONFLICT_LIMIT` are kept."""
+        if conflict.assignments in self._known or len(self._conflicts) >= CONFLICT_LIMIT:
             return False
         self._known.add(conflict.assignments)
         self._conflicts.append(conflict)
@@ -121,23 +128,30 @@ class ConflictStore:
         ones (None: it resolves every one). One gather of N columns and a sum over the conflicts."""
         if not self._conflicts:
             return None
-        if len(self._sizes) < len(self._conflicts):
+        if self._made < len(self._conflicts):
             self._grow()
         columns = self._offsets + np.asarray(code, dtype=np.intp) - 1
-        held = np.nonzero(self._rows[:, columns].sum(axis=1) == self._sizes)[0]
+        held = np.nonzero(self._rows[: self._made, columns].sum(axis=1) == self._sizes[: self._made])[0]
         if not len(held):
             return None
         return self._conflicts[int(held[np.argmin(self._sizes[held])])]
 
     def _grow(self) -> None:
         """Add the rows of the conflicts learned since the matrix was last made."""
-        new = self._conflicts[len(self._sizes) :]
-        rows = np.zeros((len(new), self._columns), dtype=np.int16)
-        for row, conflict in zip(rows, new, strict=True):
-            for position, rank in conflict.assignments:
-                row[self._offsets[position] + rank - 1] = 1
-        self._rows = np.vstack((self._rows, rows))
-        self._sizes = np.concatenate((self._sizes, [len(c.assignments) for c in new])).astype(np.int16)
+        count = len(self._conflicts)
+        if count > len(self._sizes):
+            capacity = max(count, 2 * len(self._sizes))
+            rows = np.zeros((capacity, self._columns), dtype=np.int16)
+            rows[: self._made] = self._rows[: self._made]
+            sizes = np.zeros(capacity, dtype=np.int16)
+            sizes[: self._made] = self._sizes[: self._made]
+            self._rows, self._sizes = rows, sizes
+        for index in range(self._made, count):
+            assignments = self._conflicts[index].assignments
+            for position, rank in assignments:
+                self._rows[index, self._offsets[position] + rank - 1] = 1
+            self._sizes[index] = len(assignments)
+        self._made = count
 
 
 def collision_conflict(
