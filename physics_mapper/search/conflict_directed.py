@@ -37,7 +37,14 @@ from dataclasses import replace
 from physics_mapper.model.geometry import Pose
 from physics_mapper.model.hypotheses import RankedHypotheses
 from physics_mapper.model.scene import SearchParams
-from physics_mapper.physics.checker import Collision, PartialSettling, PhysicsChecker, Settling, early_exit_rule
+from physics_mapper.physics.checker import (
+    Collision,
+    PartialSettling,
+    PhysicsChecker,
+    Settling,
+    deepest_collision,
+    early_exit_rule,
+)
 from physics_mapper.search.branch_and_bound import (
     BranchAndBound,
     Candidate,
@@ -68,6 +75,7 @@ class ConflictGroupSearch(GroupSearch):
         self._cut = 0  # children no parent above the bound would queue
         self.local = LocalSettling(self.blame)
         self._local: tuple[Code, LocalPlan] | None = None  # the local settling under way
+        self._depths: dict[tuple[int, int], float] = {}  # the last Rule 1 check's overlaps, by body pair
 
     def step(self, stop_at: float | None) -> bool:
         """Skip every candidate at the head of the queue that contains a known conflict (no physics: many
@@ -121,11 +129,18 @@ class ConflictGroupSearch(GroupSearch):
         self._expand(code, bounded, conflict)
         return entry
 
-    def _learn_collisions(self, code: Code) -> Conflict:
-        """Learn a conflict from every overlap beyond the threshold; the smallest one, to expand by."""
+    def _rule1(self, code: Code, poses: tuple[Pose, ...]) -> Collision | None:
+        """Rule 1 from the table, its overlaps kept for :meth:`_learn_collisions`."""
         assert self.collisions is not None  # a group search always has its table
+        self._depths = self.collisions.depths(self.objects, code)
+        return deepest_collision(self._depths, self.params.penetration_threshold, self.checker.body_name)
+
+    def _learn_collisions(self, code: Code) -> Conflict:
+        """Learn a conflict from every overlap beyond the threshold of the candidate Rule 1 just rejected;
+        the smallest one, to expand by."""
+        assert self.collisions is not None
         threshold = self.params.penetration_threshold
-        depths = self.collisions.depths(self.objects, code)
+        depths = self._depths
         return self._learn(
             [
                 collision_conflict(code, pair, self._object_positions, self.collisions, self.conflicts, threshold)
