@@ -152,7 +152,7 @@ def search_values(report: TickReport) -> list[tuple[str, str]]:
         ]
         names = tuple(o.name for o in report.snapshot.objects)
         values += [(_group_key(group), _group_state(group, names)) for group in groups]
-        values += [(f"{_group_key(group)} conflicts", _group_conflicts(group)) for group in groups]
+        values += [(f"conflicts of {_group_key(group)}", _group_conflicts(group)) for group in groups]
     values += [(f"input {o.name}", f"{o.level.name}: {o.message}") for o in report.snapshot.objects]
     return values
 

@@ -1,8 +1,8 @@
 """The node's conflict-directed search over real DDS: a crowded bin answered at its first tick, and an
 object's new hypotheses at every tick keep what was learned about the others.
 
-A 30-object bin of the crowded suite (boxes and cylinders dropped and settled, one interaction group)
-is fed once; then one object gets new hypotheses at every tick, and the diagnostics show its group
+A 30-object bin of the crowded suite (boxes and cylinders dropped and settled, in few interaction
+groups) is fed once; then one object gets new hypotheses at every tick, and the diagnostics show its group
 searched anew with the conflicts among the other objects kept.
 """
 
@@ -83,11 +83,13 @@ def test_a_crowded_bin_has_a_valid_map_at_the_first_tick_and_keeps_conflicts_whe
     assert node.output().count("Traceback") == 0
 
     at_first = search_values(first)
-    assert at_first["valid"] == "true" and at_first["groups"] == "1"
-    assert int(at_first["conflicts learned"]) > 0 and at_first["conflicts kept"] == "0"
+    assert at_first["valid"] == "true"
+    assert int(at_first["conflicts learned"]) > 0
     for msg in changes:
         found = search_values(msg)
         kept = int(found["conflicts kept"])
         assert kept > 0
-        groups = {key: value for key, value in found.items() if key.startswith("group ") and key.endswith(" conflicts")}
-        assert len(groups) == 1 and next(iter(groups.values())).startswith(f"{kept} kept, ")
+        # Per group, "<kept> kept, <learned> learned, ...": what the groups kept adds up to the total.
+        groups = [value for key, value in found.items() if key.startswith("conflicts of group ")]
+        assert len(groups) == int(found["groups"])
+        assert sum(int(value.split(" kept, ")[0]) for value in groups) == kept
