@@ -458,16 +458,23 @@ def test_meshes_at_the_limits_still_load(tmp_path: Path) -> None:
 # --- pairwise work on hypotheses ------------------------------------------------------------------------------
 
 
-def test_cube_overlaps_compared_in_chunks_agree_with_the_whole_comparison(monkeypatch: pytest.MonkeyPatch) -> None:
+def test_box_overlaps_compared_in_chunks_agree_with_the_whole_comparison(monkeypatch: pytest.MonkeyPatch) -> None:
     from physics_mapper.search import groups
 
     rng = np.random.default_rng(3)
     for trial in range(200):
-        a, b = rng.uniform(-1.0, 1.0, size=(int(rng.integers(1, 40)), 3)), rng.uniform(-1.0, 1.0, size=(30, 3))
-        half_a, half_b = rng.uniform(0.0, 0.1, size=2)
-        whole = bool(np.any(np.all(np.abs(a[:, None, :] - b[None, :, :]) <= half_a + half_b, axis=2)))
+        lows_a, lows_b = (
+            rng.uniform(-1.0, 1.0, size=(int(rng.integers(1, 40)), 3)),
+            rng.uniform(-1.0, 1.0, size=(30, 3)),
+        )
+        highs_a, highs_b = (
+            lows_a + rng.uniform(0.0, 0.2, size=lows_a.shape),
+            lows_b + rng.uniform(0.0, 0.2, size=(30, 3)),
+        )
+        meets = (lows_a[:, None, :] <= highs_b[None, :, :]) & (highs_a[:, None, :] >= lows_b[None, :, :])
+        whole = bool(np.any(np.all(meets, axis=2)))
         monkeypatch.setattr(groups, "PAIRS_PER_CHUNK", int(rng.integers(1, 100)))
-        assert groups._cubes_meet(a, half_a, b, half_b) == whole, trial
+        assert groups._boxes_meet(lows_a, highs_a, lows_b, highs_b) == whole, trial
 
 
 def test_a_search_takes_at_most_the_hard_cap_of_hypotheses_per_object() -> None:

@@ -26,14 +26,16 @@ from physics_mapper.msg_adapters.diagnostics import search_values
 from physics_mapper.physics.checker import PhysicsChecker
 from physics_mapper.physics.collision import Collision
 from physics_mapper.physics.collision_table import CollisionTable
-from physics_mapper.physics.settling import PartialSettling
-from physics_mapper.search.branch_and_bound import REST_SHARE, BranchAndBound
+from physics_mapper.physics.settling import REST_SHARE, PartialSettling
+from physics_mapper.search.branch_and_bound import BranchAndBound
 from physics_mapper.search.grouped import GroupedSearch
 from physics_mapper.search.report import result_dict, trace_tree
 from physics_mapper.search.results import Code, SearchResult, TraceEntry
 from physics_mapper.search.strategy import make_search
 
 SHIPPED = ("stack", "pyramid", "peg_in_hole", "sphere_groove")
+#: The search this file is about: the paper's per interaction group, bounded relative to each group's root.
+GROUPED = SearchParams(strategy="grouped", bound="relative")
 REDUCED_SUITE = (
     ScaleCase("singletons", 4, 3, 0),
     ScaleCase("pairs", 4, 3, 1),
@@ -55,7 +57,7 @@ def run_to_end(scene: Scene, hypotheses: tuple[RankedHypotheses, ...], params: S
 def test_paper_problems_give_the_joint_search_s_trace_and_answer_bit_for_bit(name: str) -> None:
     problem = load_problem(PROBLEMS / f"{name}.yaml")
     params = problem.scene.search
-    assert params.strategy == "grouped"  # the default
+    assert params.strategy == "grouped"  # the shipped paper scenes pin it
     with PhysicsChecker(problem.scene) as checker:
         search = make_search(checker, problem.hypotheses, params)
         grouped = search.run(None)
@@ -82,7 +84,7 @@ class Compared:
 def reduced_suite() -> list[Compared]:
     compared = []
     for case in REDUCED_SUITE:
-        problem = scale_problem(case)
+        problem = scale_problem(case, GROUPED)
         scene, hypotheses = problem.problem.scene, problem.problem.hypotheses
         params = replace(scene.search, trace_limit=None)
         joint = run_to_end(scene, hypotheses, replace(params, strategy="joint", settle_exit="full"))
@@ -168,7 +170,7 @@ def test_each_group_is_searched_as_algorithm_1_on_its_own_objects(reduced_suite:
 
 @pytest.fixture(scope="module")
 def twenty_cubes() -> ScaleProblem:
-    return scale_problem(ScaleCase("singletons", 20, 4, 5))
+    return scale_problem(ScaleCase("singletons", 20, 4, 5), GROUPED)
 
 
 def test_a_20_object_problem_whose_root_is_below_an_absolute_t_is_searched_with_the_relative_bound(
@@ -274,7 +276,7 @@ def test_the_pairwise_table_decides_known_pairs_without_the_engine_and_drops_cha
 
 
 def memo_problem() -> tuple[Scene, tuple[RankedHypotheses, ...]]:
-    problem = scale_problem(ScaleCase("pairs", 4, 3, 6))
+    problem = scale_problem(ScaleCase("pairs", 4, 3, 6), GROUPED)
     return problem.problem.scene, problem.problem.hypotheses
 
 
@@ -326,7 +328,7 @@ def test_unsolved_groups_go_first_and_every_result_combines_each_group_s_best_so
     hypotheses = tuple(
         ranked([unrotated(i * 0.5, 0.0, ON_FLOOR + dz) for dz in row], [0.5, 0.3, 0.2]) for i, row in enumerate(heights)
     )
-    params = SearchParams(trace_limit=None)
+    params = replace(GROUPED, trace_limit=None)
     with PhysicsChecker(scene) as checker:
         search = make_search(checker, hypotheses, params)
         assert isinstance(search, GroupedSearch)
@@ -382,7 +384,7 @@ def test_queue_and_trace_limits_bound_a_search_s_memory() -> None:
 
 
 def test_runs_cut_short_anywhere_resume_to_the_uninterrupted_grouped_search_bit_for_bit() -> None:
-    problem = scale_problem(ScaleCase("pairs", 4, 3, 7))
+    problem = scale_problem(ScaleCase("pairs", 4, 3, 7), GROUPED)
     scene, hypotheses = problem.problem.scene, problem.problem.hypotheses
     # Full 2 s settlings (480 steps): many are cut by the 2 ms budgets, and other groups use the world between.
     params = replace(scene.search, settle_exit="full", settle_time=2.0, trace_limit=None)
@@ -402,7 +404,7 @@ def test_runs_cut_short_anywhere_resume_to_the_uninterrupted_grouped_search_bit_
 
 
 def test_a_group_s_interrupted_settling_resumes_exactly_after_other_groups_used_the_world() -> None:
-    problem = scale_problem(ScaleCase("pairs", 4, 3, 8))
+    problem = scale_problem(ScaleCase("pairs", 4, 3, 8), GROUPED)
     scene, hypotheses = problem.problem.scene, problem.problem.hypotheses
     first, second = (0, 1), (2, 3)
     floating = [hypotheses[i].pose(1) for i in first]

@@ -1,7 +1,7 @@
 """Interaction groups: which objects share a group, and the escape guard that merges groups.
 
-The rule (``physics_mapper.search.groups``): an object's volume is the union of cubes of
-half-edge r + margin around its hypotheses' positions; objects whose volumes meet share a group.
+The rule (``physics_mapper.search.groups``): an object's volume is the union of its hypotheses' body
+boxes grown by half the margin; objects whose volumes meet share a group.
 """
 
 from __future__ import annotations
@@ -21,8 +21,8 @@ from physics_mapper.search.groups import interaction_groups
 from physics_mapper.search.strategy import make_search
 
 MARGIN = SearchParams().interaction_margin
-#: Half-edge of a test cube's volume cubes: its bounding radius plus the margin.
-CUBE_REACH = object_radius(Box((CUBE_SIZE,) * 3)) + MARGIN
+#: Half-edge of a test cube's volume boxes (unrotated): half its edge plus half the margin.
+CUBE_REACH = CUBE_SIZE / 2 + MARGIN / 2
 
 
 def one(pose: Pose) -> RankedHypotheses:
@@ -44,6 +44,23 @@ def test_separate_piles_are_separate_groups_and_a_pile_is_one() -> None:
     assert grouping.groups == ((0, 1), (2,), (3,), (4,))
 
 
+def test_two_items_3_cm_apart_on_a_table_are_two_groups_and_a_domino_leaning_on_a_block_is_one() -> None:
+    domino = ObjectModel("domino", Box((0.01, 0.05, 0.1)), mass=0.05)
+    scene = floor_scene(cube("block"), cube("other"), domino)
+    gap = 0.03
+    # The domino (1 cm x 5 cm x 10 cm) tilted 20 degrees about y, its top resting on the block's side.
+    tilt = quaternion_about_axis((0.0, 1.0, 0.0), math.radians(20.0))
+    lean_x = -CUBE_SIZE / 2 - 0.05 * math.sin(math.radians(20.0)) - 0.006
+    hypotheses = [
+        one(unrotated(0.0, 0.0, ON_FLOOR)),
+        one(unrotated(CUBE_SIZE + gap, 0.0, ON_FLOOR)),
+        one(Pose((lean_x, 0.0, 0.05 * math.cos(math.radians(20.0)) + 0.005 * math.sin(math.radians(20.0))), tilt)),
+    ]
+    assert interaction_groups(scene, hypotheses, MARGIN).groups == ((0, 2), (1,))
+    # With cubes around bounding balls, 3 cm apart was one group: r = 8.7 cm for a 10 cm cube.
+    assert 2 * (object_radius(Box((CUBE_SIZE,) * 3)) + MARGIN) > CUBE_SIZE + gap
+
+
 def test_objects_whose_hypotheses_could_touch_share_a_group() -> None:
     scene = floor_scene(*(cube(f"cube_{i}") for i in range(3)))
     apart = 2 * CUBE_REACH + 0.01
@@ -58,7 +75,7 @@ def test_objects_whose_hypotheses_could_touch_share_a_group() -> None:
     # Without the close hypothesis, three groups; a wider margin joins them again.
     far = [hypotheses[0], one(unrotated(2 * apart, 0.0, ON_FLOOR)), one(unrotated(4 * apart, 0.0, ON_FLOOR))]
     assert interaction_groups(scene, far, MARGIN).groups == ((0,), (1,), (2,))
-    assert interaction_groups(scene, far, MARGIN + apart).groups == ((0, 1, 2),)
+    assert interaction_groups(scene, far, MARGIN + 2 * apart).groups == ((0, 1, 2),)
 
 
 def test_linked_objects_stay_together_whatever_their_volumes() -> None:

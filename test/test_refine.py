@@ -40,6 +40,7 @@ from physics_mapper.physics.refine import OVERLAP_TOLERANCE, RefinedMap, Refinem
 from physics_mapper.physics.world import TIME_STEP
 from physics_mapper.search.branch_and_bound import BranchAndBound
 from physics_mapper.search.results import SearchResult
+from physics_mapper.search.strategy import make_search
 
 REFINE = SearchParams(fallback="refine")
 #: A time.monotonic() instant long past: every deadline-aware call stops as soon as it may.
@@ -298,7 +299,7 @@ def test_the_node_publishes_the_refined_map_and_says_refine(refining_node: RosCl
     assert status is not None and status.level == DiagnosticStatus.WARN
     assert values(status)["fallback"] == "refine" and values(status)["fallback used"] == "true"
     with PhysicsChecker(problem.scene) as checker:
-        offline = BranchAndBound(checker, c111, replace(problem.scene.search, fallback="refine")).run(None)
+        offline = make_search(checker, c111, replace(problem.scene.search, fallback="refine")).run(None)
     assert offline.settled_poses is not None
     settled = next(m for m in client.settled if stamp_ns_of(m) == stamp_ns)
     got = [(p.position.x, p.position.y, p.position.z) for p in settled.poses]

@@ -201,7 +201,7 @@ BAD_FILES = {
         "cube" * MAX_NAME_LENGTH,
     ),
     "unknown strategy": BadFile(
-        "search.strategy", "must be one of grouped, joint, got 'fast'", ("search", "strategy"), "fast"
+        "search.strategy", "must be one of conflict, grouped, joint, got 'fast'", ("search", "strategy"), "fast"
     ),
     "fractional queue limit": BadFile(
         "search.queue_limit", "must be a whole number, got 10.5", ("search", "queue_limit"), 10.5

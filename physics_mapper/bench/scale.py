@@ -4,7 +4,7 @@ Every problem of :mod:`physics_mapper.bench.scale_suite` is first searched to th
 search (no deadline): its result is *the answer* (the configuration an exhaustive search returns).
 It is searched to the end once more with ``settle_exit: full``: early exits must give every visited
 configuration the same outcome and the same answer, its settled poses within
-:data:`~physics_mapper.search.branch_and_bound.REST_SHARE` x ``jitter_threshold`` (m + weighted rad).
+:data:`~physics_mapper.physics.checker.REST_SHARE` x ``jitter_threshold`` (m + weighted rad).
 Then each strategy searches it afresh in slices of :data:`SLICE` seconds of wall-clock time, as the
 node's ticks would, until its result is the answer or :data:`ANSWER_CAP` seconds have passed: the
 *time to the answer* counts building the search (grouping, tables) and searching, not assembling
@@ -30,7 +30,7 @@ from physics_mapper.bench.scale_suite import CUBE_EDGE, LAYOUTS, ScaleCase, Scal
 from physics_mapper.model.geometry import pose_displacement
 from physics_mapper.model.scene import SearchParams
 from physics_mapper.physics.checker import PhysicsChecker
-from physics_mapper.search.branch_and_bound import REST_SHARE
+from physics_mapper.physics.settling import REST_SHARE
 from physics_mapper.search.groups import interaction_groups
 from physics_mapper.search.results import Code, SearchResult
 from physics_mapper.search.strategy import make_search
@@ -399,8 +399,8 @@ def run_suite(
 
 
 def plot_groups(problem: ScaleProblem, path: Path) -> None:
-    """PNG, seen from above: every object's volume (the cubes of half-edge r + margin around its
-    hypotheses) and its most likely pose, coloured by interaction group."""
+    """PNG, seen from above: every object's volume (its hypotheses' body boxes grown by half the margin)
+    and its most likely pose, coloured by interaction group."""
     import matplotlib
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
@@ -415,21 +415,22 @@ def plot_groups(problem: ScaleProblem, path: Path) -> None:
     for colour_index, members in enumerate(grouping.groups):
         colour = colours(colour_index % 20)
         for index in members:
-            half = grouping.half_edges[index]
-            for x, y, _ in grouping.centres[index]:
-                axes.add_patch(Rectangle((x - half, y - half), 2 * half, 2 * half, fill=False, color=colour, lw=0.5))
+            for low, high in zip(grouping.lows[index], grouping.highs[index], strict=True):
+                size = high - low
+                axes.add_patch(Rectangle((low[0], low[1]), size[0], size[1], fill=False, color=colour, lw=0.5))
             x, y, _ = hypotheses[index].pose(1).position
             edge = CUBE_EDGE
             axes.add_patch(Rectangle((x - edge / 2, y - edge / 2), edge, edge, color=colour, alpha=0.6))
-            stacked = sum(1 for j in members if j < index and math.dist(grouping.centres[j][0][:2], (x, y)) < edge / 2)
+            below = [hypotheses[j].pose(1).position for j in members if j < index]
+            stacked = sum(1 for position in below if math.dist(position[:2], (x, y)) < edge / 2)
             axes.annotate(f"{index}", (x, y + 0.025 * stacked), ha="center", va="center", fontsize=6)
     axes.autoscale_view()
     axes.set_aspect("equal")
     axes.set(xlabel="x [m]", ylabel="y [m]")
     axes.set_title(
         f"{len(scene.objects)} cubes in {problem.case.layout} piles, M = {problem.case.hypotheses}, seen from above: "
-        f"{len(grouping.groups)} interaction groups\noutlines: cubes of half-edge r + margin around every "
-        "hypothesis; filled: most likely pose",
+        f"{len(grouping.groups)} interaction groups\noutlines: every hypothesis's body box grown by half the "
+        "margin; filled: most likely pose",
         fontsize=8,
     )
     figure.savefig(path, dpi=120)

@@ -3,6 +3,9 @@
 ``--scale`` runs the scale benchmark instead (``physics_mapper.bench.scale``): the seeded
 suite searched by the joint and the grouped search side by side, a PNG of the time to the answer
 against N, and the memory of a node searching a 50-object scene for ``--node-minutes`` minutes.
+``--crowded`` runs the crowded benchmark (``physics_mapper.bench.crowded``): packed scenes searched by
+the conflict-directed, the grouped and the joint search side by side, with a PNG of the time to the
+answer against N.
 """
 
 from __future__ import annotations
@@ -19,7 +22,10 @@ from physics_mapper.commands.files import load_problem_file
 from physics_mapper.model.errors import InputError
 from physics_mapper.model.shipped import shipped_path
 
-HELP = "time the physics checks and an exhaustive search on a problem file, or (--scale) the scale benchmark"
+HELP = (
+    "time the physics checks and an exhaustive search on a problem file, or (--scale) the scale benchmark, "
+    "or (--crowded) the crowded benchmark"
+)
 
 #: The node memory figure's scene: 50 cubes in small pyramids, 100 hypotheses each (the node's most), T = 0, so the
 #: search goes on for the whole run.
@@ -55,11 +61,27 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="a suite scene's interaction groups (default: benchmarks/scale_groups.png)",
     )
     scale.add_argument("--quick", action="store_true", help="a small suite (N 3, 6, 10; M 5; 1 seed), to try it out")
+    crowded = parser.add_argument_group("crowded benchmark (--crowded; --seeds and --quick apply too)")
+    crowded.add_argument("--crowded", action="store_true", help="run the crowded benchmark instead (no PROBLEM)")
+    crowded.add_argument(
+        "--crowded-png",
+        type=Path,
+        default=Path("benchmarks/crowded.png"),
+        help="time to answer plot (default: benchmarks/crowded.png)",
+    )
+    crowded.add_argument(
+        "--search-png",
+        type=Path,
+        default=Path("docs/crowded_search.png"),
+        help="one crowded search, candidate by candidate (default: docs/crowded_search.png)",
+    )
 
 
 def run(args: argparse.Namespace) -> int:
     if args.scale:
         return run_scale(args)
+    if args.crowded:
+        return run_crowded(args)
     if args.repeats < 1:
         raise InputError(f"--repeats must be at least 1, got {args.repeats}")
     path = args.problem or shipped_path("config/problems/pyramid.yaml")
@@ -108,6 +130,48 @@ def run_scale(args: argparse.Namespace) -> int:
     if args.node_minutes > 0:
         print()
         print(node_memory_text(args.node_minutes))
+    return 0
+
+
+def run_crowded(args: argparse.Namespace) -> int:
+    """The crowded suite's table, the targets and the plot; progress on stderr."""
+    if args.seeds < 1:
+        raise InputError(f"--seeds must be at least 1, got {args.seeds}")
+    from physics_mapper.bench import crowded
+
+    if args.quick:
+        cases = crowded.suite_cases(sizes=(10, 20), hypotheses=(5,), seeds=1)
+    else:
+        cases = crowded.suite_cases(seeds=args.seeds)
+    started = time.monotonic()
+
+    def progress(done: int, total: int, run: crowded.ProblemRun) -> None:
+        times = " ".join(f"{s} {crowded._seconds(run.runs[s].answer_time)}" for s in crowded.STRATEGIES)
+        print(f"[{done}/{total} {time.monotonic() - started:.0f} s] {run.case.label}: {times}", file=sys.stderr)
+
+    problems = crowded.run_suite(cases, progress)
+    reduced = crowded.run_suite(crowded.REDUCED, progress)
+    from physics_mapper.bench import scale
+
+    scale_cases = scale.suite_cases(sizes=(3, 6, 10), hypotheses=(5,), seeds=1) if args.quick else scale.suite_cases()
+
+    def scale_progress(done: int, total: int) -> None:
+        print(f"[scale suite {done}/{total} {time.monotonic() - started:.0f} s]", file=sys.stderr)
+
+    checked = crowded.scale_check(scale_cases, scale_progress)
+    print(f"{len(problems)} problems, {1 if args.quick else args.seeds} per (layout, N, M); {_load()}")
+    print("Three numbers: conflict / grouped / joint.")
+    print(crowded.figures_table(problems))
+    print()
+    print(crowded.targets_text(problems, reduced))
+    print(crowded.scale_text(checked))
+    from physics_mapper.bench.crowded_picture import plot_search
+
+    for path in (args.crowded_png, args.search_png):
+        path.parent.mkdir(parents=True, exist_ok=True)
+    crowded.plot_time_to_answer(problems, args.crowded_png)
+    plot_search(args.search_png)
+    print(f"\nplots: {args.crowded_png}, {args.search_png}")
     return 0
 
 

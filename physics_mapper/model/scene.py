@@ -22,12 +22,14 @@ from physics_mapper.model.meshes import MeshCollision, MeshGeometry
 
 Fallback = Literal["none", "settled", "refine"]
 FALLBACKS: tuple[Fallback, ...] = ("none", "settled", "refine")
+#: ``conflict``: per interaction group, a conflict-directed best-first search (the default);
 #: ``grouped``: Algorithm 1 per interaction group; ``joint``: the paper's single search.
-Strategy = Literal["grouped", "joint"]
-STRATEGIES: tuple[Strategy, ...] = ("grouped", "joint")
-#: How T bounds a node: ``relative`` p(C) / p(root) < T, per group; ``absolute`` p(C) < T (the paper's).
-Bound = Literal["relative", "absolute"]
-BOUNDS: tuple[Bound, ...] = ("relative", "absolute")
+Strategy = Literal["conflict", "grouped", "joint"]
+STRATEGIES: tuple[Strategy, ...] = ("conflict", "grouped", "joint")
+#: How T bounds a node: ``resolving`` p(C) / p(first valid) < T, per group (the default); ``relative``
+#: p(C) / p(root) < T, per group; ``absolute`` p(C) < T (the paper's).
+Bound = Literal["resolving", "relative", "absolute"]
+BOUNDS: tuple[Bound, ...] = ("resolving", "relative", "absolute")
 #: ``early``: a settling may stop at rest or once an object's jitter is beyond the threshold; ``full``: never.
 SettleExit = Literal["early", "full"]
 SETTLE_EXITS: tuple[SettleExit, ...] = ("early", "full")
@@ -237,18 +239,26 @@ class SearchParams:
         ),
     )
     strategy: Strategy = field(
-        default="grouped",
-        metadata=_doc(f"{' or '.join(STRATEGIES)}: one search per interaction group, or the paper's single search"),
+        default="conflict",
+        metadata=_doc(
+            f"{', '.join(STRATEGIES)}: per interaction group, a search that skips what known conflicts rule "
+            "out; the paper's search per group; the paper's single search over all objects"
+        ),
     )
     bound: Bound = field(
-        default="relative", metadata=_doc(f"{' or '.join(BOUNDS)}: T bounds p(C) / p(group root), or p(C) itself")
+        default="resolving",
+        metadata=_doc(
+            f"{', '.join(BOUNDS)}: T bounds p(C) / p(the group's first valid configuration; nothing before "
+            "one), p(C) / p(group root), or p(C) itself"
+        ),
     )
     settle_exit: SettleExit = field(
         default="early",
         metadata=_doc(f"{' or '.join(SETTLE_EXITS)}: settlings may stop at rest or once unstable, or never early"),
     )
     interaction_margin: float = field(
-        default=0.02, metadata=_doc("metres added around every object's bounding ball when grouping objects")
+        default=0.02,
+        metadata=_doc("metres between two hypotheses' body boxes below which their objects share a group"),
     )
     queue_limit: int = field(
         default=20_000, metadata=_doc("nodes the search's queues hold at most (each group an equal share)")

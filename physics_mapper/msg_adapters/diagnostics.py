@@ -76,6 +76,14 @@ def _group_state(group: GroupResult, names: tuple[str, ...]) -> str:
     return f"{objects}: {best}, {progress}, {group.visited} visited, {'kept' if group.kept else 'new'}"
 
 
+def _group_conflicts(group: GroupResult) -> str:
+    """``<kept> kept, <learned> learned, <skipped> skipped, settlings <local> local / <full> full``."""
+    return (
+        f"{group.conflicts_kept} kept, {group.conflicts} learned, {group.skipped} skipped, "
+        f"settlings {group.local_settlings} local / {group.full_settlings} full"
+    )
+
+
 def _search_level_and_message(report: TickReport) -> tuple[Level, str]:
     result = report.result
     if report.engine_fault is not None:
@@ -122,6 +130,11 @@ def search_values(report: TickReport) -> list[tuple[str, str]]:
         ("rejected by collision", str(stats.collisions)),
         ("rejected by stability", str(stats.unstable)),
         ("valid configurations", str(stats.valid)),
+        ("conflicts learned", str(stats.conflicts)),
+        ("conflicts kept", str(stats.conflicts_kept)),
+        ("candidates skipped by conflicts", str(stats.skipped)),
+        ("local settlings", str(stats.local_settlings)),
+        ("full settlings", str(stats.full_settlings)),
         ("search time [s]", f"{report.search_time:.6f}"),
         ("total search time [s]", f"{stats.search_time:.6f}"),
         ("deadline [s]", f"{report.settings.search.deadline:g}"),
@@ -139,6 +152,7 @@ def search_values(report: TickReport) -> list[tuple[str, str]]:
         ]
         names = tuple(o.name for o in report.snapshot.objects)
         values += [(_group_key(group), _group_state(group, names)) for group in groups]
+        values += [(f"conflicts of {_group_key(group)}", _group_conflicts(group)) for group in groups]
     values += [(f"input {o.name}", f"{o.level.name}: {o.message}") for o in report.snapshot.objects]
     return values
 

@@ -102,6 +102,11 @@ class CollisionTable:
     ) -> Collision | None:
         """Rule 1 for objects ``objects`` (scene indices, ascending) at ranks ``code``: the deepest
         overlap beyond ``penetration_threshold`` metres, or None (as ``PhysicsChecker.find_collision``)."""
+        return deepest_collision(self.depths(objects, code), penetration_threshold, self.checker.body_name)
+
+    def depths(self, objects: Sequence[int], code: Sequence[int]) -> dict[tuple[int, int], float]:
+        """Every overlapping body pair's depth (m) of a configuration, pairs named as
+        :meth:`~physics_mapper.physics.checker.PhysicsChecker.contact_depths` names them."""
         near = self._near(objects, code)
         rows, pairs = self._entries(objects, code, near)
         if any(math.isnan(row[-1]) for _, row in rows) or any(math.isnan(depth) for _, _, depth in pairs):
@@ -115,7 +120,33 @@ class CollisionTable:
             if depth != NO_CONTACT
         }
         depths.update({(i, j): float(depth) for i, j, depth in pairs if depth != NO_CONTACT})
-        return deepest_collision(depths, penetration_threshold, self.checker.body_name)
+        return depths
+
+    def static_depth(self, i: int, a: int) -> float:
+        """Object ``i`` at rank ``a``: its deepest overlap (m, -inf: no contact) with any static body,
+        filled by a collision pass of that object alone if unknown."""
+        row = self._static_rows(i)[a - 1]
+        if math.isnan(row[-1]):
+            self._fill((i,), (a,), [])
+        return float(np.max(row[:-1])) if self._static_count else NO_CONTACT
+
+    def pair_depths(self, i: int, a: int, j: int) -> NDArray[np.float64]:
+        """Object ``i`` at rank ``a`` against object ``j`` at each of its ranks: the deepest overlaps (m,
+        -inf: no contact), missing entries filled by a collision pass of the two objects alone."""
+        low, high = min(i, j), max(i, j)
+        table = self._pair_table(low, high)
+        row = table[a - 1, :] if i == low else table[:, a - 1]
+        pose_i = self.hypotheses[i].pose(a)
+        for b in range(1, len(self.hypotheses[j]) + 1):
+            if math.isnan(row[b - 1]):
+                pose_j = self.hypotheses[j].pose(b)
+                if math.dist(pose_i.position, pose_j.position) >= self._radii[i] + self._radii[j]:
+                    row[b - 1] = NO_CONTACT
+                    continue
+                depths = self.checker.contact_depths((low, high), (pose_i, pose_j) if i == low else (pose_j, pose_i))
+                self.engine_checks += 1
+                row[b - 1] = depths.get((low, high), NO_CONTACT)
+        return np.array(row)
 
     def _entries(
         self, objects: Sequence[int], code: Sequence[int], near: list[tuple[int, int, int, int]]

@@ -38,7 +38,9 @@ rule, the refinement repairs the most probable configuration instead of rejectin
 3. **Settling.** From rest at the depenetrated poses, ``settle_time`` seconds under gravity,
    each object's linear speed capped at ``refine_max_speed`` after every simulation step
    (within a step gravity adds at most 0.04 m/s), so that an overlap the depenetration left
-   (not converged) is not resolved by Bullet throwing the bodies apart.
+   (not converged) is not resolved by Bullet throwing the bodies apart. It stops once every object
+   is at rest (``settle_exit: early``, as a fallback's settling in the search:
+   :func:`~physics_mapper.physics.checker.early_exit_rule` with ``complete``).
 
 The map is the settled poses; each object's J_i is measured from its most likely hypothesis.
 Only the given objects take part (a subset of the scene's, e.g. one interaction group); the
@@ -62,7 +64,7 @@ from physics_mapper.model.hypotheses import RankedHypotheses
 from physics_mapper.model.scene import SearchParams
 from physics_mapper.physics.checker import PhysicsChecker
 from physics_mapper.physics.collision import Proximity
-from physics_mapper.physics.settling import PartialSettling, Settling
+from physics_mapper.physics.settling import PartialSettling, Settling, early_exit_rule
 from physics_mapper.physics.world import TIME_STEP
 
 FloatArray = NDArray[np.float64]
@@ -322,6 +324,7 @@ class Refinement:
                 stop_at,
                 objects=self.objects,
                 max_speed=params.refine_max_speed,
+                early_exit=early_exit_rule(params, complete=True),
             )
         else:
             outcome = checker.resume_settling(self._settling, stop_at)

@@ -37,6 +37,7 @@ from typing import Literal, TypedDict, Unpack, overload
 
 from physics_mapper.model.bullet import pybullet
 from physics_mapper.model.geometry import Pose, Vector3, pose_displacement
+from physics_mapper.model.scene import SearchParams
 from physics_mapper.physics.world import TIME_STEP, PhysicsWorld
 
 #: Simulation steps between two looks at the wall clock during settling: an interrupted settling
@@ -69,6 +70,24 @@ class EarlyExit:
     jitter_threshold: float | None
 
 
+#: An object is at rest while its jitter rate (m/s, |v| + angular_weight * |omega|) would add at most
+#: this share of ``jitter_threshold`` over a whole ``settle_time``.
+REST_SHARE = 0.05
+
+
+def early_exit_rule(params: SearchParams, complete: bool) -> EarlyExit | None:
+    """When a settling may stop early under ``params`` (None: ``settle_exit: full``).
+
+    At rest: jitter rate at most :data:`REST_SHARE` x jitter_threshold / settle_time (1 mm/s with
+    the defaults). ``complete`` keeps a settling going past the jitter threshold (the settling a
+    fallback may report), so it ends at rest or at ``settle_time``.
+    """
+    if params.settle_exit == "full" or params.settle_time <= 0.0:
+        return None
+    rest_rate = REST_SHARE * params.jitter_threshold / params.settle_time
+    return EarlyExit(rest_rate, None if complete else params.jitter_threshold)
+
+
 @dataclass(frozen=True)
 class Settling:
     """Rule 2 measurement: poses after ``settle_time`` and each object's jitter J_i.
@@ -76,7 +95,8 @@ class Settling:
     ``stopped`` says why the settling ended before ``settle_time`` (None: it ran to the end);
     ``steps`` of ``steps_total`` :data:`TIME_STEP` steps were simulated. ``reach``, when the
     settling was asked to track it, is each object's :data:`PositionRange` over its start and every
-    look at the world (every :data:`CLOCK_CHECK_STEPS` steps, and the end).
+    look at the world (every :data:`CLOCK_CHECK_STEPS` steps, and the end); ``extent`` the smallest
+    box holding the object's body (Bullet's axis-aligned bounding box) at those moments.
     """
 
     settled_poses: tuple[Pose, ...]
@@ -85,6 +105,7 @@ class Settling:
     steps: int = 0
     steps_total: int = 0
     reach: tuple[PositionRange, ...] | None = None
+    extent: tuple[PositionRange, ...] | None = None
 
     @property
     def total_jitter(self) -> float:
@@ -109,8 +130,9 @@ class PartialSettling:
     ``poses`` (the start, from which the jitters are measured). Compared by identity: the
     checker that interrupted it recognises it as the settling it kept. ``objects``,
     ``max_speed`` and ``early_exit`` are the settling's (see :meth:`PhysicsChecker.settle`), with
-    the consecutive looks so far with every object at rest (``rest_checks``) and with an object at
-    rest beyond the jitter threshold (``beyond_checks``), and the ``reach`` so far (None: not tracked).
+    ``fixed`` are objects held where they are (scene index, pose), with the consecutive looks so far
+    with every object at rest (``rest_checks``) and with an object at rest beyond the jitter threshold
+    (``beyond_checks``), and the ``reach`` and ``extent`` so far (None: not tracked; an extent not begun).
     """
 
     poses: tuple[Pose, ...]
@@ -120,14 +142,16 @@ class PartialSettling:
     objects: tuple[int, ...] | None = None
     max_speed: float | None = None
     early_exit: EarlyExit | None = None
+    fixed: tuple[tuple[int, Pose], ...] = ()
     rest_checks: int = 0
     beyond_checks: int = 0
     reach: tuple[PositionRange, ...] | None = None
+    extent: tuple[PositionRange, ...] | None = None
 
     def restarted(self) -> PartialSettling:
         """The same settling, not yet begun."""
         start = None if self.reach is None else _start_reach(self.poses)
-        return replace(self, steps_done=0, rest_checks=0, beyond_checks=0, reach=start)
+        return replace(self, steps_done=0, rest_checks=0, beyond_checks=0, reach=start, extent=None)
 
 
 def _start_reach(poses: Sequence[Pose]) -> tuple[PositionRange, ...]:
@@ -136,13 +160,17 @@ def _start_reach(poses: Sequence[Pose]) -> tuple[PositionRange, ...]:
 
 def _widened(reach: tuple[PositionRange, ...], poses: Sequence[Pose]) -> tuple[PositionRange, ...]:
     """Each range grown to hold the matching pose's position."""
+    return _grown(reach, [(pose.position, pose.position) for pose in poses])
+
+
+def _grown(ranges: tuple[PositionRange, ...], boxes: Sequence[PositionRange]) -> tuple[PositionRange, ...]:
+    """Each range grown to hold the matching box."""
     grown = []
-    for (low, high), pose in zip(reach, poses, strict=True):
-        p = pose.position
+    for (low, high), (box_low, box_high) in zip(ranges, boxes, strict=True):
         grown.append(
             (
-                (min(low[0], p[0]), min(low[1], p[1]), min(low[2], p[2])),
-                (max(high[0], p[0]), max(high[1], p[1]), max(high[2], p[2])),
+                (min(low[0], box_low[0]), min(low[1], box_low[1]), min(low[2], box_low[2])),
+                (max(high[0], box_high[0]), max(high[1], box_high[1]), max(high[2], box_high[2])),
             )
         )
     return tuple(grown)
@@ -150,12 +178,14 @@ def _widened(reach: tuple[PositionRange, ...], poses: Sequence[Pose]) -> tuple[P
 
 class SettleOptions(TypedDict, total=False):
     """Keyword options of :meth:`PhysicsChecker.settle` (see there): which objects settle (scene
-    indices; the others stay parked), a speed cap (m/s), an early exit, and whether to record reach."""
+    indices; the others stay parked), a speed cap (m/s), an early exit, whether to record reach, and
+    objects held fixed at given poses (scene index, pose) while the others settle."""
 
     objects: Sequence[int] | None
     max_speed: float | None
     early_exit: EarlyExit | None
     track_reach: bool
+    fixed: Sequence[tuple[int, Pose]]
 
 
 @dataclass(frozen=True)
@@ -210,10 +240,12 @@ class Settler:
         stay parked. ``max_speed`` (m/s) caps each object's linear speed after every step (within a
         step, gravity adds at most g * TIME_STEP = 0.04 m/s to it). ``early_exit`` may end the
         settling before ``settle_time`` (:class:`EarlyExit`); ``track_reach`` records where each
-        object went (:attr:`Settling.reach`).
+        object went (:attr:`Settling.reach`). ``fixed`` (scene index, pose) places further objects that
+        do not move (massless, as parked ones) and are not measured: the others rest against them.
         """
         objects = options.get("objects")
-        self.world.place(poses, objects)
+        fixed = tuple(options.get("fixed", ()))
+        self.world.place(poses, objects, fixed)
         plan = PartialSettling(
             poses=tuple(poses),
             angular_weight=angular_weight,
@@ -222,6 +254,7 @@ class Settler:
             objects=None if objects is None else tuple(objects),
             max_speed=options.get("max_speed"),
             early_exit=options.get("early_exit"),
+            fixed=fixed,
             reach=_start_reach(poses) if options.get("track_reach", False) else None,
         )
         return self._simulate(plan, stop_at)
@@ -242,16 +275,16 @@ class Settler:
         another settler's, or objects were parked or placed since) is simulated again from its start.
         """
         if partial is not self._interrupted:
-            self.world.place(partial.poses, partial.objects)
+            self.world.place(partial.poses, partial.objects, partial.fixed)
             return self._simulate(partial.restarted(), stop_at)
         if self.world.kept_was_saved() and self.world.massless != self._interrupted_massless:
             # Objects were parked or placed since (their masses changed): Bullet re-entered them into
             # its world, so the saved contact points would not come back as they were. Start over.
             self._forget_interrupted()
-            self.world.place(partial.poses, partial.objects)
+            self.world.place(partial.poses, partial.objects, partial.fixed)
             return self._simulate(partial.restarted(), stop_at)
         if self.world.kept_was_saved():
-            self.world.restore_kept(partial.objects)
+            self.world.restore_kept(partial.objects, partial.fixed)
         self._forget_interrupted()
         return self._simulate(partial, stop_at)
 
@@ -262,6 +295,9 @@ class Settler:
         uids = self.world.uids(plan.objects)
         watched = plan.early_exit is not None or plan.reach is not None
         rest_checks, beyond_checks, reach = plan.rest_checks, plan.beyond_checks, plan.reach
+        extent = plan.extent
+        if reach is not None and extent is None:
+            extent = tuple(self.world.extents(uids))
         while steps_done < steps_total:
             batch_end = min(steps_done + CLOCK_CHECK_STEPS, steps_total)
             for _ in range(steps_done, batch_end):
@@ -271,7 +307,8 @@ class Settler:
             steps_done = batch_end
             if watched and steps_done < steps_total:
                 poses = self.world.poses(plan.objects)
-                reach = None if reach is None else _widened(reach, poses)
+                if reach is not None and extent is not None:
+                    reach, extent = _widened(reach, poses), _grown(extent, self.world.extents(uids))
                 if plan.early_exit is not None:
                     jitters = self._jitters(plan.poses, poses, plan.angular_weight)
                     at_rest = self._at_rest(uids, plan.angular_weight, plan.early_exit.rest_rate)
@@ -282,20 +319,26 @@ class Settler:
                     beyond_checks = beyond_checks + 1 if beyond else 0
                     rest_checks = rest_checks + 1 if all(at_rest) else 0
                     if beyond_checks >= REST_CHECKS:
-                        return Settling(poses, jitters, "beyond_threshold", steps_done, steps_total, reach)
+                        return Settling(poses, jitters, "beyond_threshold", steps_done, steps_total, reach, extent)
                     if rest_checks >= REST_CHECKS:
-                        return Settling(poses, jitters, "rest", steps_done, steps_total, reach)
+                        return Settling(poses, jitters, "rest", steps_done, steps_total, reach, extent)
             if stop_at is not None and steps_done < steps_total and time.monotonic() >= stop_at:
                 self.world.keep_simulation()
                 self._interrupted = replace(
-                    plan, steps_done=steps_done, rest_checks=rest_checks, beyond_checks=beyond_checks, reach=reach
+                    plan,
+                    steps_done=steps_done,
+                    rest_checks=rest_checks,
+                    beyond_checks=beyond_checks,
+                    reach=reach,
+                    extent=extent,
                 )
                 self._interrupted_massless = set(self.world.massless)
                 return self._interrupted
         settled = self.world.poses(plan.objects)
-        reach = None if reach is None else _widened(reach, settled)
+        if reach is not None and extent is not None:
+            reach, extent = _widened(reach, settled), _grown(extent, self.world.extents(uids))
         jitters = self._jitters(plan.poses, settled, plan.angular_weight)
-        return Settling(settled, jitters, None, steps_done, steps_total, reach)
+        return Settling(settled, jitters, None, steps_done, steps_total, reach, extent)
 
     def _forget_interrupted(self) -> None:
         self.world.forget_kept()

@@ -30,7 +30,7 @@ from __future__ import annotations
 from collections.abc import Iterable, Sequence
 
 from physics_mapper.model.bullet import pybullet
-from physics_mapper.model.geometry import IDENTITY, ORIGIN, Pose, compose_poses, inverse_pose
+from physics_mapper.model.geometry import IDENTITY, ORIGIN, Pose, Vector3, compose_poses, inverse_pose
 from physics_mapper.model.scene import Box, Cylinder, Mesh, Plane, Scene, Shape, Sphere
 
 #: What pybullet raises when a world fails, e.g. once its physics server is disconnected: the
@@ -211,8 +211,11 @@ class PhysicsWorld:
         objects, statics = self.scene.objects, self.scene.static
         return objects[index].name if index < len(objects) else statics[index - len(objects)].name
 
-    def place(self, poses: Sequence[Pose], objects: Sequence[int] | None = None) -> None:
-        """Put ``objects`` (None: all) at ``poses``, from rest; every other object stays parked, massless."""
+    def place(
+        self, poses: Sequence[Pose], objects: Sequence[int] | None = None, fixed: Sequence[tuple[int, Pose]] = ()
+    ) -> None:
+        """Put ``objects`` (None: all) at ``poses``, from rest, and the ``fixed`` ones (scene index, pose)
+        massless where given; every other object stays parked, massless."""
         indices = tuple(self.indices(objects))
         if len(poses) != len(indices):
             raise ValueError(f"{len(poses)} poses for {len(indices)} objects")
@@ -220,9 +223,9 @@ class PhysicsWorld:
         pybullet.restoreState(self._initial_state, physicsClientId=self.client)
         self.empty_contact_caches()
         self.simulate_only(indices)
-        for index, pose in zip(indices, poses, strict=True):
+        for index, pose in (*zip(indices, poses, strict=True), *fixed):
             self.set_pose(index, pose)
-        self.placed = indices
+        self.placed = (*indices, *(index for index, _ in fixed))
 
     def simulate_only(self, objects: tuple[int, ...]) -> None:
         """Give ``objects`` their masses back and every other object zero mass (no call when nothing changes)."""
@@ -290,18 +293,26 @@ class PhysicsWorld:
         """True iff the kept simulation was saved: the world was used for something else since."""
         return self._kept_state is not None
 
-    def restore_kept(self, objects: Sequence[int] | None) -> None:
-        """Bring back the saved kept simulation of ``objects`` (None: all), which were placed then."""
+    def restore_kept(self, objects: Sequence[int] | None, fixed: Sequence[tuple[int, Pose]] = ()) -> None:
+        """Bring back the saved kept simulation of ``objects`` (None: all) and ``fixed``, placed then."""
         assert self._kept_state is not None
         self.empty_contact_caches()
         pybullet.restoreState(self._kept_state, physicsClientId=self.client)
-        self.placed = tuple(self.indices(objects))
+        self.placed = (*self.indices(objects), *(index for index, _ in fixed))
 
     def forget_kept(self) -> None:
         """Drop the kept simulation and free its saved state, if any."""
         if self._kept_state is not None:
             pybullet.removeState(self._kept_state, physicsClientId=self.client)
         self._keeping, self._kept_state = False, None
+
+    def extents(self, uids: Sequence[int]) -> list[tuple[Vector3, Vector3]]:
+        """Each body's axis-aligned bounding box now (low and high corners, metres)."""
+        boxes: list[tuple[Vector3, Vector3]] = []
+        for uid in uids:
+            low, high = pybullet.getAABB(uid, physicsClientId=self.client)
+            boxes.append(((low[0], low[1], low[2]), (high[0], high[1], high[2])))
+        return boxes
 
     def step(self) -> None:
         """Advance the simulation by one :data:`TIME_STEP`."""

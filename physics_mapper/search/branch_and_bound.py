@@ -9,7 +9,11 @@ the product of the chosen normalised weights,
 The root is (1, ..., 1); a node's children each advance one object's rank by one, so
 p(child) <= p(parent) and visits come in non-increasing p(C). A node below the bound is
 still checked but not expanded ("bounded"): with ``bound: absolute`` (the paper's reading)
-when p(C) < T, with ``bound: relative`` when p(C) / p(root) < T. Rule 1 is tested first, and
+when p(C) < T, with ``bound: relative`` when p(C) / p(root) < T, with ``bound: resolving`` (the
+default) when p(C) / p(V) < T, V the first valid node found (no node is bounded before one is).
+V is the most probable configuration that resolves every known conflict, once found: every more
+probable one was rejected (:mod:`physics_mapper.search.conflicts`), so invalid first hypotheses do not
+push the valid configuration below T, however many objects have one. Rule 1 is tested first, and
 only collision-free nodes are simulated. Among valid nodes the least total jitter J wins.
 
 With ``fallback: refine``, once the root has failed a rule and while no node is valid, the
@@ -27,6 +31,9 @@ to hold the queued nodes.
 joint search), or one interaction group (:mod:`physics_mapper.search.grouped`);
 :mod:`physics_mapper.search.strategy` picks the search by ``params.strategy``, and every caller goes
 through it.
+
+The settlings' early exit (:func:`~physics_mapper.physics.settling.early_exit_rule`, with its
+:data:`~physics_mapper.physics.settling.REST_SHARE`) is imported from the physics, which owns it.
 
 Bounded memory: the queue holds at most ``queue_limit`` nodes (beyond, the least probable are
 dropped and the search can no longer say it visited everything: it ends ``truncated``); the trace
@@ -50,17 +57,12 @@ from physics_mapper.model.scene import SearchParams
 from physics_mapper.physics.checker import PhysicsChecker
 from physics_mapper.physics.collision import Collision
 from physics_mapper.physics.refine import RefinedMap, Refinement, refinement_start
-from physics_mapper.physics.settling import EarlyExit, PartialSettling, Settling
+from physics_mapper.physics.settling import PartialSettling, Settling, early_exit_rule
 from physics_mapper.physics.world import TIME_STEP
 from physics_mapper.search.results import Candidate, Code, GroupResult, SearchResult, SearchStats, TraceEntry
 
 if TYPE_CHECKING:
     from physics_mapper.physics.collision_table import CollisionTable
-
-
-#: An object is at rest while its jitter rate (m/s, |v| + angular_weight * |omega|) would add at most
-#: this share of ``jitter_threshold`` over a whole ``settle_time``.
-REST_SHARE = 0.05
 
 
 def _tie_key(probability: float) -> float:
@@ -74,19 +76,6 @@ class _QueueItem(NamedTuple):
     code: Code
     probability: float
     parent: Code | None
-
-
-def early_exit_rule(params: SearchParams, complete: bool) -> EarlyExit | None:
-    """When a settling may stop early under ``params`` (None: ``settle_exit: full``).
-
-    At rest: jitter rate at most :data:`REST_SHARE` x jitter_threshold / settle_time (1 mm/s with
-    the defaults). ``complete`` keeps a settling going past the jitter threshold (the settling a
-    fallback may report), so it ends at rest or at ``settle_time``.
-    """
-    if params.settle_exit == "full" or params.settle_time <= 0.0:
-        return None
-    rest_rate = REST_SHARE * params.jitter_threshold / params.settle_time
-    return EarlyExit(rest_rate, None if complete else params.jitter_threshold)
 
 
 class BranchAndBound:
@@ -137,6 +126,8 @@ class BranchAndBound:
         self._refined: RefinedMap | None = None
         self._root: Code = tuple(1 for _ in self.hypotheses)
         self.root_probability = self.probability(self._root)
+        #: p(C) of the first valid node found (the reference of ``bound: resolving``).
+        self.first_valid_probability: float | None = None
         self._configurations = math.prod(len(h) for h in self.hypotheses)
         self._push(self._root, None)
 
@@ -153,6 +144,9 @@ class BranchAndBound:
         threshold = self.params.probability_threshold
         if self.params.bound == "relative":
             return probability / self.root_probability < threshold
+        if self.params.bound == "resolving":
+            reference = self.first_valid_probability
+            return reference is not None and probability / reference < threshold
         return probability < threshold
 
     def _push(self, code: Code, parent: Code | None) -> None:
@@ -359,6 +353,8 @@ class BranchAndBound:
                 candidate.code, candidate.probability, "unstable", bounded, moved=moved, jitter=settling.total_jitter
             )
         else:
+            if self.first_valid_probability is None:
+                self.first_valid_probability = candidate.probability
             if self._best is None or settling.total_jitter < self._best.settling.total_jitter:
                 self._best = candidate
             entry = TraceEntry(candidate.code, candidate.probability, "valid", bounded, jitter=settling.total_jitter)
@@ -426,6 +422,11 @@ class BranchAndBound:
             visited=self.stats.visited,
             end=self.stats.end,
             kept=kept,
+            conflicts=self.stats.conflicts,
+            conflicts_kept=self.stats.conflicts_kept,
+            skipped=self.stats.skipped,
+            local_settlings=self.stats.local_settlings,
+            full_settlings=self.stats.full_settlings,
         )
 
     @property

@@ -39,6 +39,9 @@ from collections.abc import Sequence
 from dataclasses import replace
 from typing import NamedTuple
 
+import numpy as np
+
+from physics_mapper.model.extents import body_box
 from physics_mapper.model.geometry import Pose
 from physics_mapper.model.hypotheses import RankedHypotheses
 from physics_mapper.model.scene import SearchParams
@@ -149,22 +152,38 @@ class GroupSearch(BranchAndBound):
         self.memo.put(code, settling)
 
     def _guard(self, code: Code, settling: Settling) -> None:
-        """Raise :class:`Escape` if an object went where it can reach another group's volume.
+        """Raise :class:`Escape` if an object's body went where it can reach another group's volume.
 
-        An object that stayed within the margin of its start is still inside its own cube, which
-        meets no other group's volume: only objects that went further are looked up.
+        A body that stayed inside its own volume box at its hypothesis meets no other group's volume:
+        only objects that went further are looked up.
         """
-        assert settling.reach is not None  # tracked by every group search
+        assert settling.extent is not None  # tracked by every group search
         if len(self.owner.grouping.groups) == 1:
             return  # no other group to reach
-        margin = self.params.interaction_margin
+        grouping = self.owner.grouping
         intruded: set[int] = set()
-        for index, start, (low, high) in zip(self.objects, self.poses(code), settling.reach, strict=True):
-            x, y, z = start.position
-            if max(x - low[0], y - low[1], z - low[2], high[0] - x, high[1] - y, high[2] - z) > margin:
-                intruded.update(self.owner.grouping.intruded(index, low, high))
+        for index, rank, (low, high) in zip(self.objects, code, settling.extent, strict=True):
+            if not grouping.inside(index, rank, low, high):
+                intruded.update(grouping.intruded(index, low, high))
         if intruded:
             raise Escape(tuple(sorted(intruded)))
+
+    def _refine(self, stop_at: float | None) -> bool:
+        """Make the root's refined map; raise :class:`Escape` if one of its bodies went where it can reach
+        another group's volume (a floating object refined onto a neighbouring pile)."""
+        made = super()._refine(stop_at)
+        refined = self.refined
+        if made and refined is not None and len(self.owner.grouping.groups) > 1:
+            intruded: set[int] = set()
+            models = self.checker.scene.objects
+            poses = zip(self.objects, refined.depenetrated_poses, refined.settled_poses, strict=True)
+            for index, start, end in poses:
+                (low_a, high_a), (low_b, high_b) = (body_box(models[index].shape, pose) for pose in (start, end))
+                low, high = np.minimum(low_a, low_b), np.maximum(high_a, high_b)
+                intruded.update(self.owner.grouping.intruded(index, tuple(low), tuple(high)))
+            if intruded:
+                raise Escape(tuple(sorted(intruded)))
+        return made
 
     def record(self, entry: TraceEntry) -> None:
         self.owner.record(entry)
@@ -175,8 +194,12 @@ class GroupedSearch:
     """Algorithm 1 per interaction group, anytime and resumable like :class:`BranchAndBound` (module docstring).
 
     Build one with :func:`~physics_mapper.search.strategy.make_search` (``strategy: grouped``), or
-    :meth:`following` to carry over a previous search's groups.
+    :meth:`following` to carry over a previous search's groups. Subclasses search each group with
+    :attr:`group_search`.
     """
+
+    #: The search each interaction group gets.
+    group_search: type[GroupSearch] = GroupSearch
 
     def __init__(
         self,
@@ -237,7 +260,7 @@ class GroupedSearch:
         """A search for ``hypotheses``: ``previous`` itself, resumed, if nothing but the deadline or the
         fallback changed; else a new one that keeps every group of ``previous`` still valid."""
         hypotheses = tuple(hypotheses)
-        if not isinstance(previous, GroupedSearch):
+        if not isinstance(previous, cls) or type(previous) is not cls:  # another class searches its groups otherwise
             return cls(checker, hypotheses, params)
         if resumable(previous, checker, hypotheses, params):
             previous.params = params
@@ -253,7 +276,7 @@ class GroupedSearch:
         hypotheses = tuple(self.hypotheses[i] for i in objects)
         if memo is None or not memo.serves(hypotheses, physics_key(self.params)):
             memo = SettleMemo(hypotheses, physics_key(self.params), SETTLE_MEMO_LIMIT)
-        group = GroupSearch(self, self._next_id, objects, memo)
+        group = self.group_search(self, self._next_id, objects, memo)
         self._next_id += 1
         self._groups[group.group_id] = group
         self._reschedule(group)

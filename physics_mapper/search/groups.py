@@ -1,26 +1,22 @@
 """Interaction groups: which objects can influence each other's Rule 1 and Rule 2 outcomes.
 
-The rule. Object i's *volume* is the union, over its hypotheses h, of the axis-aligned cube centred on
-h's position with half-edge
+The rule. Object i's *volume* is the union, over its hypotheses h, of the box of its body at h
+(:func:`~physics_mapper.model.extents.body_box`: the smallest axis-aligned box holding the posed
+shape: a rotated box, a tilted cylinder, a mesh's rotated points) grown by m / 2 on every side, m being
+the search's ``interaction_margin`` in metres. Two objects *interact* when a box of one overlaps a box
+of the other (closed boxes: touching counts), i.e. when two of their hypotheses' bodies come within m
+of each other; the *groups* are the connected components of that relation. Static bodies belong to
+no group: every group is checked with all of them. Each box lies inside the cube of half-edge r + m / 2
+around h's position (r the shape's bounding radius), so groups are never coarser than with cubes.
 
-    a_i = r_i + m,
-
-where r_i is the bounding radius of the object's shape (:func:`~physics_mapper.model.scene.bounding_radius`:
-the body lies in the ball of that radius around its pose's origin, whatever its orientation; for a
-mesh, around its file's origin) and m is the search's
-``interaction_margin`` in metres. Two objects *interact* when a cube of one overlaps a cube of the
-other (closed cubes: touching counts); the *groups* are the connected components of that relation.
-Static bodies belong to no group: every group is checked with all of them.
-
-Why it holds. At any of its hypotheses an object's body lies inside its cube, so bodies of different
+Why it holds. At any of its hypotheses an object's body lies inside its box, so bodies of different
 groups never overlap, whatever hypotheses are chosen: Rule 1 outcomes factorise. During a settling an
-object that moves less than m stays inside its cube, so it cannot touch an object of another group
-either, and the groups' Rule 2 outcomes are those of separate simulations: a scene is valid iff every
-group is, and J is the sum of the groups' J. Settling can move objects further (a ball rolls off a
-slope, a top cube falls off its pile), which the *escape guard* catches: a settling tracks where each
-object went (:attr:`~physics_mapper.physics.checker.Settling.reach`), and if the object's body there can
-reach another group's volume (:meth:`Grouping.intruded`), the groups concerned are merged and
-searched again as one.
+object whose body stays inside its grown box cannot touch an object of another group either, and the
+groups' Rule 2 outcomes are those of separate simulations: a scene is valid iff every group is, and J
+is the sum of the groups' J. Settling can move objects further (a ball rolls off a slope, a top cube
+falls off its pile), which the *escape guard* catches: a settling tracks the box its body swept
+(:attr:`~physics_mapper.physics.checker.Settling.extent`), and if that box meets another group's
+volume (:meth:`Grouping.intruded`), the groups concerned are merged and searched again as one.
 """
 
 from __future__ import annotations
@@ -30,77 +26,88 @@ from collections.abc import Iterable, Sequence
 import numpy as np
 from numpy.typing import NDArray
 
+from physics_mapper.model.extents import body_box
 from physics_mapper.model.geometry import Vector3
 from physics_mapper.model.hypotheses import RankedHypotheses
-from physics_mapper.model.scene import Scene, object_radius
+from physics_mapper.model.scene import Scene
 
 
 class Grouping:
     """A partition of a scene's objects into interaction groups, and the volumes it was built from.
 
     ``groups`` hold scene object indices, each group sorted, groups ordered by their first object.
-    ``centres[i]`` (M_i x 3, metres) are object i's hypothesis positions and ``half_edges[i]`` its
-    cubes' half-edge a_i = r_i + margin; ``radii[i]`` is r_i.
+    ``lows[i]`` and ``highs[i]`` (M_i x 3, metres) are the corners of object i's boxes, one per
+    hypothesis in rank order, grown by half the margin.
     """
 
     def __init__(
         self,
         groups: tuple[tuple[int, ...], ...],
-        centres: tuple[NDArray[np.float64], ...],
-        half_edges: tuple[float, ...],
-        radii: tuple[float, ...],
+        lows: tuple[NDArray[np.float64], ...],
+        highs: tuple[NDArray[np.float64], ...],
     ) -> None:
         self.groups = groups
-        self.centres = centres
-        self.half_edges = half_edges
-        self.radii = radii
+        self.lows = lows
+        self.highs = highs
         self._group_of = {index: g for g, members in enumerate(groups) for index in members}
-        # Every cube of every object, flattened: centres, half-edges and the group each belongs to.
-        sizes = [len(c) for c in centres]
-        self._all_centres = np.concatenate(centres)
-        self._all_halves = np.repeat(half_edges, sizes)[:, None]
+        # Every box of every object, flattened, and the group each belongs to.
+        sizes = [len(low) for low in lows]
+        self._all_lows = np.concatenate(lows)
+        self._all_highs = np.concatenate(highs)
         self._all_groups = np.repeat([self._group_of[i] for i in range(len(sizes))], sizes)
 
     def group_of(self, index: int) -> int:
         """The position in :attr:`groups` of the group holding object ``index``."""
         return self._group_of[index]
 
+    def inside(self, index: int, rank: int, low: Vector3, high: Vector3) -> bool:
+        """Whether the box [``low``, ``high``] (metres) lies in object ``index``'s volume box at ``rank``."""
+        own_low, own_high = self.lows[index][rank - 1], self.highs[index][rank - 1]
+        return bool(np.all(own_low <= np.asarray(low)) and np.all(np.asarray(high) <= own_high))
+
     def intruded(self, index: int, low: Vector3, high: Vector3) -> tuple[int, ...]:
-        """Groups other than object ``index``'s whose volume the object's body can reach from the
-        positions in the box [``low``, ``high``] (metres): the box grown by r_index overlaps one of their cubes.
-        """
-        radius = self.radii[index]
-        reach_low = np.asarray(low) - radius
-        reach_high = np.asarray(high) + radius
-        centres, halves = self._all_centres, self._all_halves
-        met = np.all((centres - halves <= reach_high) & (centres + halves >= reach_low), axis=1)
+        """Groups other than object ``index``'s whose volume the box [``low``, ``high``] (metres) meets."""
+        reach_low, reach_high = np.asarray(low), np.asarray(high)
+        met = np.all((self._all_lows <= reach_high) & (self._all_highs >= reach_low), axis=1)
         groups = {int(g) for g in self._all_groups[met]} - {self.group_of(index)}
         return tuple(sorted(groups))
 
 
-#: Pairs of cubes compared at once: the comparison's arrays stay within a few MB, however many hypotheses.
+#: Pairs of boxes compared at once: the comparison's arrays stay within a few MB, however many hypotheses.
 PAIRS_PER_CHUNK = 1 << 18
 
 
-def _cubes_meet(centres_a: NDArray[np.float64], half_a: float, centres_b: NDArray[np.float64], half_b: float) -> bool:
-    """Whether some cube of one set overlaps some cube of the other (closed cubes).
+def _boxes_meet(
+    lows_a: NDArray[np.float64], highs_a: NDArray[np.float64], lows_b: NDArray[np.float64], highs_b: NDArray[np.float64]
+) -> bool:
+    """Whether some box of one set overlaps some box of the other (closed boxes).
 
-    Compared in chunks of :data:`PAIRS_PER_CHUNK` pairs; a search's sets are capped before this
+    Only b's boxes that meet the box around all of a's can meet one of them; those are compared in
+    chunks of :data:`PAIRS_PER_CHUNK` pairs. A search's sets are capped before this
     (:data:`~physics_mapper.model.limits.MAX_SEARCHED_HYPOTHESES`), which bounds the time.
     """
-    reach = half_a + half_b
-    # Only cubes of b within reach of a's bounding box can meet one of a's (and the other way round).
-    near_b = centres_b[
-        np.all((centres_b >= centres_a.min(axis=0) - reach) & (centres_b <= centres_a.max(axis=0) + reach), axis=1)
-    ]
-    if len(near_b) == 0:
+    near = np.all((lows_b <= highs_a.max(axis=0)) & (highs_b >= lows_a.min(axis=0)), axis=1)
+    lows_b, highs_b = lows_b[near], highs_b[near]
+    if len(lows_b) == 0:
         return False
-    rows = max(1, PAIRS_PER_CHUNK // len(near_b))
-    for start in range(0, len(centres_a), rows):
-        gaps = np.abs(centres_a[start : start + rows, None, :] - near_b[None, :, :])
-        if np.any(np.all(gaps <= reach, axis=2)):
+    rows = max(1, PAIRS_PER_CHUNK // len(lows_b))
+    for start in range(0, len(lows_a), rows):
+        low_a, high_a = lows_a[start : start + rows, None, :], highs_a[start : start + rows, None, :]
+        if np.any(np.all((low_a <= highs_b[None, :, :]) & (high_a >= lows_b[None, :, :]), axis=2)):
             return True
     return False
+
+
+def volumes(
+    scene: Scene, hypotheses: Sequence[RankedHypotheses], margin: float
+) -> tuple[tuple[NDArray[np.float64], ...], tuple[NDArray[np.float64], ...]]:
+    """Per object, the low and high corners (M x 3, metres) of its hypotheses' body boxes grown by ``margin`` / 2."""
+    lows, highs = [], []
+    for model, ranked in zip(scene.objects, hypotheses, strict=True):
+        boxes = [body_box(model.shape, h.pose) for h in ranked.hypotheses]
+        lows.append(np.array([low for low, _ in boxes]) - margin / 2.0)
+        highs.append(np.array([high for _, high in boxes]) + margin / 2.0)
+    return tuple(lows), tuple(highs)
 
 
 def interaction_groups(
@@ -113,10 +120,8 @@ def interaction_groups(
     """
     if len(hypotheses) != len(scene.objects):
         raise ValueError(f"{len(hypotheses)} hypothesis sets for {len(scene.objects)} objects")
-    radii = tuple(object_radius(model.shape) for model in scene.objects)
-    centres = tuple(np.array([h.pose.position for h in ranked.hypotheses], dtype=float) for ranked in hypotheses)
-    half_edges = tuple(radius + margin for radius in radii)
-    count = len(radii)
+    lows, highs = volumes(scene, hypotheses, margin)
+    count = len(lows)
     parent = list(range(count))
 
     def root(i: int) -> int:
@@ -129,11 +134,11 @@ def interaction_groups(
         parent[max(root(i), root(j))] = min(root(i), root(j))
 
     # Each object's whole volume in one box first: only objects whose boxes overlap can interact.
-    low = np.array([c.min(axis=0) - a for c, a in zip(centres, half_edges, strict=True)])
-    high = np.array([c.max(axis=0) + a for c, a in zip(centres, half_edges, strict=True)])
+    low = np.array([box.min(axis=0) for box in lows])
+    high = np.array([box.max(axis=0) for box in highs])
     near = np.all((low[:, None, :] <= high[None, :, :]) & (high[:, None, :] >= low[None, :, :]), axis=2)
     for i, j in zip(*np.nonzero(np.triu(near, k=1)), strict=True):
-        if root(i) != root(j) and _cubes_meet(centres[i], half_edges[i], centres[j], half_edges[j]):
+        if root(i) != root(j) and _boxes_meet(lows[i], highs[i], lows[j], highs[j]):
             join(int(i), int(j))
     for members in linked:
         first, *rest = members
@@ -143,4 +148,4 @@ def interaction_groups(
     for i in range(count):
         components.setdefault(root(i), []).append(i)
     groups = tuple(sorted(tuple(members) for members in components.values()))
-    return Grouping(groups, centres, half_edges, radii)
+    return Grouping(groups, lows, highs)

@@ -117,6 +117,8 @@ def describe_entry(entry: TraceEntry) -> str:
         evidence = f"J={entry.jitter:.4f}"
         if entry.settle_stop is not None:
             evidence += f" (settling stopped {_STOPS[entry.settle_stop]} at {entry.settled_time:.3f} s)"
+    if entry.conflict is not None:
+        evidence += " conflict {" + ", ".join(f"{name}:{rank}" for name, rank in entry.conflict) + "}"
     return f"{outcome_kind(entry)} {evidence}" + (" [bounded]" if entry.bounded else "")
 
 
@@ -186,10 +188,17 @@ def result_summary(result: SearchResult, fallback: Fallback) -> str:
         head = f"no valid configuration; fallback settled {code_text(result.code)}  p={result.probability:.4g}"
     solved = sum(group.valid for group in result.groups)
     groups = f"{len(result.groups)} interaction groups, {solved} solved; " if len(result.groups) > 1 else ""
+    conflicts = (
+        f"conflicts: {stats.conflicts} learned, {stats.conflicts_kept} kept; {stats.skipped} candidates skipped; "
+        f"settlings: {stats.local_settlings} local, {stats.full_settlings} full\n"
+        if stats.conflicts or stats.conflicts_kept
+        else ""
+    )
     return (
         f"{head}\n"
         f"{groups}visited {stats.visited} (expanded {stats.expanded}, bounded {stats.bounded}); "
         f"rejected: {stats.collisions} collision, {stats.unstable} unstable; valid {stats.valid}\n"
+        f"{conflicts}"
         f"search time {stats.search_time * 1000:.1f} ms "
         f"({stats.configurations_per_second:.0f} configurations/s), {search_ending(stats)}"
     )

@@ -32,7 +32,9 @@ class TraceEntry:
     ``group`` is the interaction group's id when the code covers that group's objects only
     (None: every object). ``settle_stop`` says why the settling stopped early (``rest`` or
     ``beyond_threshold``: the jitter is then the one at that moment) after ``settled_time``
-    simulated seconds (both None for a settling of the whole ``settle_time``).
+    simulated seconds (both None for a settling of the whole ``settle_time``). ``conflict`` names the
+    assignments (object name, rank) a conflict-directed search learned from the rejection
+    (:mod:`physics_mapper.search.conflicts`).
     """
 
     code: Code
@@ -47,6 +49,7 @@ class TraceEntry:
     group: int | None = None
     settle_stop: SettleStop | None = None
     settled_time: float | None = None
+    conflict: tuple[tuple[str, int], ...] | None = None
 
 
 @dataclass
@@ -56,7 +59,11 @@ class SearchStats:
     ``end`` is None while nodes are queued (``queued`` of them when the result was made);
     ``dropped`` counts queued nodes the queue limit threw away, ``untraced`` visits the trace
     limit left out. ``settle_steps`` are the simulation steps run, ``settle_steps_saved`` those
-    early exits spared, ``memo_hits`` settlings reused, ``merges`` escape-guard merges.
+    early exits spared, ``memo_hits`` settlings reused, ``merges`` escape-guard merges. A
+    conflict-directed search also counts ``conflicts`` learned (and ``conflicts_kept``, carried over
+    from the previous search for objects whose hypotheses did not change), candidates ``skipped`` because
+    they contain a known conflict (never checked), and its settlings: ``local_settlings`` (only what
+    changed and its neighbours simulated) and ``full_settlings`` (every object of the group).
     """
 
     visited: int = 0
@@ -75,6 +82,11 @@ class SearchStats:
     settle_steps_saved: int = 0
     memo_hits: int = 0
     merges: int = 0
+    conflicts: int = 0
+    conflicts_kept: int = 0
+    skipped: int = 0
+    local_settlings: int = 0
+    full_settlings: int = 0
 
     @property
     def exhausted(self) -> bool:
@@ -115,7 +127,9 @@ class GroupResult:
 
     ``id`` is the group's id in the trace (None for a search over every object), ``code`` the
     group's ranks (its objects' order), ``valid`` whether that sub-configuration passed both rules.
-    ``kept`` says the group's search was carried over unchanged from the previous search.
+    ``kept`` says the group's search was carried over unchanged from the previous search. A
+    conflict-directed group's counters (:class:`SearchStats`) come with it: ``conflicts``,
+    ``conflicts_kept``, ``skipped``, ``local_settlings`` and ``full_settlings``.
     """
 
     id: int | None
@@ -127,6 +141,11 @@ class GroupResult:
     visited: int
     end: SearchEnd | None
     kept: bool = False
+    conflicts: int = 0
+    conflicts_kept: int = 0
+    skipped: int = 0
+    local_settlings: int = 0
+    full_settlings: int = 0
 
 
 @dataclass(frozen=True)

@@ -1,7 +1,8 @@
-"""The search ``strategy`` asks for: the paper's joint search or one per interaction group.
+"""The search ``strategy`` asks for: conflict-directed per interaction group, the paper's per group, or joint.
 
 :func:`make_search` builds (or carries over) a search; :func:`solve` runs a fresh one to its
-deadline. Every caller goes through them, so ``strategy: joint|grouped`` means the same everywhere.
+deadline. Every caller goes through them, so ``strategy: conflict|grouped|joint`` means the same
+everywhere.
 """
 
 from __future__ import annotations
@@ -14,6 +15,7 @@ from physics_mapper.model.scene import SearchParams
 from physics_mapper.physics.checker import PhysicsChecker
 from physics_mapper.physics.refine import load_solver
 from physics_mapper.search.branch_and_bound import BranchAndBound, Search, resumable
+from physics_mapper.search.conflict_directed import ConflictSearch
 from physics_mapper.search.grouped import GroupedSearch
 from physics_mapper.search.results import SearchResult
 
@@ -26,8 +28,9 @@ def make_search(
 ) -> BranchAndBound | GroupedSearch:
     """The search ``params.strategy`` asks for, carrying over what ``previous`` found that still holds.
 
-    ``joint``: the paper's single search (:class:`BranchAndBound`); ``grouped``: one per interaction
-    group (:class:`~physics_mapper.search.grouped.GroupedSearch`). With the same hypotheses and
+    ``joint``: the paper's single search (:class:`BranchAndBound`); ``grouped``: the paper's search per
+    interaction group (:class:`~physics_mapper.search.grouped.GroupedSearch`); ``conflict``: per group,
+    conflict-directed (:class:`~physics_mapper.search.conflict_directed.ConflictSearch`). With the same hypotheses and
     parameters that only change the deadline or the fallback, ``previous`` itself is returned, to be
     resumed; a grouped search also keeps every group whose objects' hypotheses are unchanged.
     """
@@ -40,7 +43,9 @@ def make_search(
             previous.params = params
             return previous
         return BranchAndBound(checker, hypotheses, params)
-    return GroupedSearch.following(checker, hypotheses, params, previous)
+    if params.strategy == "grouped":
+        return GroupedSearch.following(checker, hypotheses, params, previous)
+    return ConflictSearch.following(checker, hypotheses, params, previous)
 
 
 def solve(checker: PhysicsChecker, hypotheses: Sequence[RankedHypotheses], params: SearchParams) -> SearchResult:

@@ -1,0 +1,66 @@
+"""Axis-aligned boxes that hold an object's body at a pose: tighter than a cube around its bounding ball.
+
+For a body whose points p (in its own frame) lie in a set P, posed at (t, R), the world body is
+t + R P, and its axis-aligned bounding box is
+
+    [t + c - e, t + c + e],   c = R c_P,   e_k = max over p in P of |(R (p - c_P))_k|
+
+with c_P the centre of P's own bounding box. Per shape, in metres:
+
+- box of half-size s: c_P = 0, e = |R| s (|R| the element-wise absolute rotation matrix);
+- sphere of radius r: c_P = 0, e = (r, r, r);
+- cylinder of radius r and half-length l along its z axis a = R e_z: c_P = 0,
+  e_k = l |a_k| + r sqrt(1 - a_k^2) (the exact box of a disc swept along the axis);
+- mesh: the exact box of its collision points (surface and convex parts) rotated.
+
+Each box lies inside the cube of half-edge r_bound (the bounding radius) around t, so volumes made of
+these boxes are never larger than those made of the cubes.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+from physics_mapper.model.geometry import Pose, Quaternion, rotate_vector
+from physics_mapper.model.scene import Box, Cylinder, Mesh, ObjectShape, Sphere
+
+FloatArray = NDArray[np.float64]
+
+
+def rotation_matrix(orientation: Quaternion) -> FloatArray:
+    """The 3 x 3 matrix of a unit quaternion's rotation: its columns are the rotated unit axes."""
+    axes = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
+    return np.array([rotate_vector(orientation, axis) for axis in axes]).T
+
+
+def body_box(shape: ObjectShape, pose: Pose) -> tuple[FloatArray, FloatArray]:
+    """The axis-aligned box (low corner, high corner), metres, of ``shape``'s body at ``pose`` (module docstring)."""
+    rotation = rotation_matrix(pose.orientation)
+    position = np.asarray(pose.position, dtype=float)
+    if isinstance(shape, Box):
+        half = np.abs(rotation) @ (np.asarray(shape.size, dtype=float) / 2.0)
+        return position - half, position + half
+    if isinstance(shape, Sphere):
+        half = np.full(3, shape.radius)
+        return position - half, position + half
+    if isinstance(shape, Cylinder):
+        axis = rotation[:, 2]
+        half = shape.length / 2.0 * np.abs(axis) + shape.radius * np.sqrt(np.clip(1.0 - axis**2, 0.0, 1.0))
+        return position - half, position + half
+    assert isinstance(shape, Mesh)
+    geometry = shape.geometry
+    points = np.vstack([geometry.vertices, *(part.vertices for part in geometry.parts)]) @ rotation.T
+    return position + points.min(axis=0), position + points.max(axis=0)
+
+
+def stable_growth(radius: float, jitter_threshold: float, angular_weight: float) -> float:
+    """Metres any point of a body of bounding radius ``radius`` can move while its jitter stays within
+    ``jitter_threshold``.
+
+    J_i = |dt| + w * angle <= tau; a point at distance <= r from the origin moves at most
+    |dt| + r * angle <= max(1, r / w) * tau (with w = 0 the angle is unbounded: |dt| + 2 r).
+    """
+    if angular_weight <= 0.0:
+        return jitter_threshold + 2.0 * radius
+    return max(1.0, radius / angular_weight) * jitter_threshold

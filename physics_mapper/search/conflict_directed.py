@@ -1,0 +1,304 @@
+"""A conflict-directed best-first search in each interaction group (``strategy: conflict``, the default).
+
+The idea of conflict-directed A* (Williams & Ragno 2007) on the paper's Algorithm 1. Every rejection
+teaches a *conflict* K, a few (object, rank) assignments no valid configuration holds together
+(:mod:`physics_mapper.search.conflicts`). Candidates are still visited in the paper's order, decreasing
+p(C) with its tie rule, from one max-priority queue with the same dedup set, but:
+
+- a candidate that contains a known conflict is *skipped*: never checked, it is invalid;
+- a candidate rejected or skipped because of conflict K is expanded by advancing only the objects of
+  K (a collision: two objects, not N), since every other child still contains K; a valid candidate
+  is expanded by every object, as in the paper;
+- a child is queued only if one of its parents, the configurations one rank lower on one object, is
+  above the bound: exactly the nodes the paper's search queues, since there a node is queued iff some
+  parent is visited and not bounded, and a parent's p(C) is at least its child's. A node below the
+  bound is therefore still expanded here (its children are kept only if another parent is above it).
+
+Why the answer is the paper's. Take a valid configuration D that the paper's search visits (some
+parent of D, or D itself, is above the bound). Every X <= D (rank by rank) is then queued here too:
+each parent of X is at least as probable as X or as a parent of D. Follow X from the root towards D:
+if X is valid, every child is queued; if X contains a conflict K, D does not (D is valid), so D
+advances some object of K beyond X, and that child of X is queued. So every valid configuration the
+paper's search visits is visited here, in the same order, and no other (nothing below the bound is
+queued); the least J among them, the first of equal ones, is the same answer. The same argument
+with collision conflicts only gives the ``settled`` fallback's configuration, the first collision-free
+one: before it, every rejection was a collision. The search ends ``exhausted`` when the bound kept no
+child from the queue (every configuration was visited or contains a conflict), else ``bounded``.
+"""
+
+from __future__ import annotations
+
+import heapq
+import math
+import time
+from collections.abc import Sequence
+from dataclasses import replace
+
+from physics_mapper.model.geometry import Pose
+from physics_mapper.model.hypotheses import RankedHypotheses
+from physics_mapper.model.scene import SearchParams
+from physics_mapper.physics.checker import PhysicsChecker
+from physics_mapper.physics.collision import Collision, deepest_collision
+from physics_mapper.physics.settling import PartialSettling, Settling, early_exit_rule
+from physics_mapper.search.branch_and_bound import BranchAndBound, _QueueItem
+from physics_mapper.search.conflicts import Blame, Conflict, ConflictStore, collision_conflict
+from physics_mapper.search.grouped import GroupedSearch, GroupSearch, SettleMemo, physics_key
+from physics_mapper.search.local_settling import LocalPlan, LocalSettling
+from physics_mapper.search.results import Candidate, Code, TraceEntry
+
+#: Candidates skipped between two looks at the clock (a skip costs tens of microseconds).
+SKIPS_PER_CLOCK_CHECK = 64
+
+
+class ConflictGroupSearch(GroupSearch):
+    """One interaction group searched conflict-directed (module docstring); its conflicts in :attr:`conflicts`."""
+
+    def __init__(self, owner: GroupedSearch, group_id: int, objects: tuple[int, ...], memo: SettleMemo) -> None:
+        # Per object, its weights by rank (index 0 unused): p(C) is queried for every child and parent.
+        self._weights = tuple((0.0, *(h.weight for h in owner.hypotheses[i].hypotheses)) for i in objects)
+        super().__init__(owner, group_id, objects, memo)
+        scene = self.checker.scene
+        self.names = tuple(scene.objects[i].name for i in self.objects)
+        self._object_positions = {index: position for position, index in enumerate(self.objects)}
+        self.conflicts = ConflictStore([len(h) for h in self.hypotheses])
+        self.blame = Blame([scene.objects[i].shape for i in self.objects], self.hypotheses, self.params)
+        self._cut = 0  # children no parent above the bound would queue
+        self.local = LocalSettling(self.blame)
+        self._local: tuple[Code, LocalPlan] | None = None  # the local settling under way
+        self._depths: dict[tuple[int, int], float] = {}  # the last Rule 1 check's overlaps, by body pair
+
+    def step(self, stop_at: float | None) -> bool:
+        """Skip every candidate at the head of the queue that contains a known conflict (no physics: many
+        per step, the clock read every :data:`SKIPS_PER_CLOCK_CHECK`), then check the next one as
+        :meth:`BranchAndBound.step` does; False if the deadline ``stop_at`` came first."""
+        skipped = 0
+        while self._queue and self._interrupted is None and not self.refinement_due and self._skip_head():
+            skipped += 1
+            if skipped % SKIPS_PER_CLOCK_CHECK == 0 and stop_at is not None and time.monotonic() >= stop_at:
+                break
+        if skipped:
+            self._update_end()
+            return True
+        return super().step(stop_at)
+
+    def _skip_head(self) -> bool:
+        """Skip the head of the queue if it contains a known conflict (expanding it by that conflict)."""
+        item = self._queue[0]
+        known = self.conflicts.contained(item.code)
+        if known is None:
+            return False
+        heapq.heappop(self._queue)
+        self._enqueued.discard(item.code)
+        self.stats.skipped += 1
+        self._expand(item.code, self.is_bounded(item.probability), known)
+        return True
+
+    def _visit(self, item: _QueueItem, stop_at: float | None) -> TraceEntry | None:
+        """Check a candidate that resolves every known conflict (:meth:`step` skipped the others), learn
+        from a rejection, and expand by the conflict learned (None: the deadline cut a settling short)."""
+        code, probability = item.code, item.probability
+        bounded = self.is_bounded(probability)
+        check = self._check(code, stop_at)
+        if isinstance(check, PartialSettling):
+            self._interrupted = (code, check)
+            return None
+        conflict: Conflict | None
+        if isinstance(check, Collision):
+            entry = TraceEntry(code, probability, "collision", bounded, pair=check.pair, depth=check.depth)
+            conflict = self._learn_collisions(code)
+        else:
+            settling = self._verdict(code, check, stop_at)
+            if isinstance(settling, PartialSettling):
+                self._interrupted = (code, settling)
+                return None
+            entry = self._judge(Candidate(code, probability, settling), bounded)
+            conflict = None if entry.outcome == "valid" else self._learn(self.blame.conflicts(code, settling))
+        named = None if conflict is None else self.named(conflict)
+        entry = replace(entry, parent=item.parent, group=self.trace_group, conflict=named)
+        self.record(entry)
+        self._expand(code, bounded, conflict)
+        return entry
+
+    def _rule1(self, code: Code, poses: tuple[Pose, ...]) -> Collision | None:
+        """Rule 1 from the table, its overlaps kept for :meth:`_learn_collisions`."""
+        assert self.collisions is not None  # a group search always has its table
+        self._depths = self.collisions.depths(self.objects, code)
+        return deepest_collision(self._depths, self.params.penetration_threshold, self.checker.body_name)
+
+    def _learn_collisions(self, code: Code) -> Conflict:
+        """Learn a conflict from every overlap beyond the threshold of the candidate Rule 1 just rejected;
+        the smallest one, to expand by."""
+        assert self.collisions is not None
+        threshold = self.params.penetration_threshold
+        depths = self._depths
+        return self._learn(
+            [
+                collision_conflict(code, pair, self._object_positions, self.collisions, self.conflicts, threshold)
+                for pair, depth in sorted(depths.items())
+                if depth > threshold
+            ]
+        )
+
+    def _learn(self, learned: list[Conflict]) -> Conflict:
+        """Remember every conflict of ``learned``; the smallest, to expand by."""
+        for conflict in learned:
+            self.stats.conflicts += self.conflicts.learn(conflict)
+        return min(learned, key=lambda conflict: len(conflict.assignments))
+
+    def _verdict(self, code: Code, settling: Settling, stop_at: float | None) -> Settling | PartialSettling:
+        """Rule 2's settling of ``code`` for the judge: a local one that shows an instability, else a full
+        one (a local settling that shows none is confirmed by a full one first), contexts recorded."""
+        local, self._local = self._local, None
+        if local is not None and local[0] == code and len(settling.jitters) < len(self.objects):
+            plan = local[1]
+            self.local.observe(code, plan.simulated, settling.jitters)
+            whole = self.local.whole(plan, settling, self.poses(code))
+            if not whole.is_stable(self.params.jitter_threshold):
+                return whole
+            confirmed = super().settle_node(code, self.poses(code), stop_at)
+            if isinstance(confirmed, PartialSettling):
+                return confirmed
+            settling = confirmed
+        positions = range(len(self.objects))
+        self.local.observe(code, positions, settling.jitters)
+        self.local.forget(code, [p for p in positions if settling.jitters[p] > self.params.jitter_threshold])
+        return settling
+
+    def settle_node(self, code: Code, poses: tuple[Pose, ...], stop_at: float | None) -> Settling | PartialSettling:
+        """Rule 2 of one node: locally where the contexts allow (:mod:`~physics_mapper.search.local_settling`),
+        else of the whole group (always for the node a fallback may report)."""
+        plan = None if self.settling_completely else self.local.plan(code)
+        if plan is None:
+            return super().settle_node(code, poses, stop_at)
+        self._local = (code, plan)
+        params = self.params
+        outcome = self.checker.settle(
+            [poses[p] for p in plan.simulated],
+            params.settle_time,
+            params.angular_weight,
+            stop_at,
+            objects=[self.objects[p] for p in plan.simulated],
+            fixed=[(self.objects[p], poses[p]) for p in plan.fixed],
+            early_exit=early_exit_rule(params, complete=False),
+            track_reach=True,
+        )
+        if isinstance(outcome, Settling):
+            self.on_settled(code, outcome)
+        return outcome
+
+    def on_settled(self, code: Code, settling: Settling) -> None:
+        """Count the settling; a local one is guarded as one of the whole group and kept out of the memo."""
+        if self._local is None or self._local[0] != code or len(settling.jitters) == len(self.objects):
+            self.stats.full_settlings += 1
+            super().on_settled(code, settling)
+            return
+        self.stats.local_settlings += 1
+        BranchAndBound.on_settled(self, code, settling)  # the step counters only: the memo holds full settlings
+        self._guard(code, self.local.whole(self._local[1], settling, self.poses(code)))
+
+    def keep_from(self, old: ConflictGroupSearch, changed: set[int]) -> None:
+        """Take over what ``old`` (a group of the previous search, same physics parameters) learned that
+        still holds: its conflicts and stable contexts among objects of this group whose hypotheses did
+        not change (``changed``: scene indices). An instability's conflict also needs every object
+        that is new here, or changed, unable to reach the swept box it was learned from."""
+        moved = {p: self._object_positions[i] for p, i in enumerate(old.objects) if i in self._object_positions}
+        stale = {p for p, i in enumerate(old.objects) if i in changed}
+        newcomers = [self._object_positions[i] for i in self.objects if i in changed or i not in old.objects]
+        for conflict in old.conflicts:
+            if any(p in stale or p not in moved for p in conflict.positions):
+                continue
+            region = conflict.region
+            if region is not None and any(self.blame.reaches(p, region) for p in newcomers):
+                continue
+            assignments = tuple(sorted((moved[p], rank) for p, rank in conflict.assignments))
+            self.stats.conflicts_kept += self.conflicts.learn(replace(conflict, assignments=assignments))
+        self.local.kept_from(old.local, moved, stale)
+
+    def probability(self, code: Code) -> float:
+        """p(C), multiplied in the same order as :meth:`BranchAndBound.probability` (the same number)."""
+        return math.prod([weights[rank] for weights, rank in zip(self._weights, code, strict=True)])
+
+    def named(self, conflict: Conflict) -> tuple[tuple[str, int], ...]:
+        """A conflict's assignments as (object name, rank)."""
+        return tuple((self.names[position], rank) for position, rank in conflict.assignments)
+
+    def _expand(self, code: Code, bounded: bool, conflict: Conflict | None) -> None:
+        """Queue the children that advance an object of ``conflict`` (None: every object) and have a
+        parent above the bound."""
+        positions = range(len(code)) if conflict is None else conflict.positions
+        for position in positions:
+            if code[position] < len(self.hypotheses[position]):
+                child = (*code[:position], code[position] + 1, *code[position + 1 :])
+                if not bounded or self._has_parent_above_bound(child):
+                    self._push(child, code)
+                else:
+                    self._cut += 1
+        if not bounded:
+            self.stats.expanded += 1
+
+    def _has_parent_above_bound(self, code: Code) -> bool:
+        """Whether some configuration one rank lower on one object is not bounded."""
+        for position, rank in enumerate(code):
+            if rank > 1:
+                parent = (*code[:position], rank - 1, *code[position + 1 :])
+                if not self.is_bounded(self.probability(parent)):
+                    return True
+        return False
+
+    def _update_end(self) -> None:
+        if self._queue:
+            self.stats.end = None
+        elif self.stats.dropped:
+            self.stats.end = "truncated"
+        else:
+            self.stats.end = "bounded" if self._cut else "exhausted"
+
+
+class ConflictSearch(GroupedSearch):
+    """Interaction groups under one deadline (:class:`GroupedSearch`), each searched conflict-directed.
+
+    A group searched anew because some of its objects got new hypotheses keeps what the previous
+    search's groups learned about the others (:meth:`ConflictGroupSearch.keep_from`); so does a group
+    the escape guard merged, of the groups it replaces.
+    """
+
+    group_search = ConflictGroupSearch
+
+    def __init__(
+        self,
+        checker: PhysicsChecker,
+        hypotheses: Sequence[RankedHypotheses],
+        params: SearchParams,
+        previous: GroupedSearch | None = None,
+    ) -> None:
+        # Read by _add while the groups are made, then dropped.
+        self._earlier: list[ConflictGroupSearch] = []
+        self._changed: set[int] = set()
+        if previous is not None and previous.checker is checker and _same_rules(previous.params, params):
+            self._earlier = [g for g in previous.groups() if isinstance(g, ConflictGroupSearch)]
+            pairs = zip(previous.hypotheses, hypotheses, strict=True)
+            self._changed = {i for i, (old, new) in enumerate(pairs) if old != new}
+        super().__init__(checker, hypotheses, params, previous)
+        self._earlier = []
+
+    def _merge(self, escaped: GroupSearch, positions: tuple[int, ...]) -> None:
+        """The escape guard's merge, the merged group keeping what the groups it replaces learned."""
+        merged = [escaped, *(g for g in self.groups() if self.grouping.group_of(g.objects[0]) in positions)]
+        self._earlier = [g for g in merged if isinstance(g, ConflictGroupSearch)]
+        try:
+            super()._merge(escaped, positions)
+        finally:
+            self._earlier = []
+
+    def _add(self, objects: tuple[int, ...], memo: SettleMemo | None) -> GroupSearch:
+        group = super()._add(objects, memo)
+        assert isinstance(group, ConflictGroupSearch)
+        for old in self._earlier:
+            if set(old.objects) & set(objects):
+                group.keep_from(old, self._changed)
+        return group
+
+
+def _same_rules(a: SearchParams, b: SearchParams) -> bool:
+    """Whether conflicts learned under ``a`` hold under ``b``: the same thresholds and settling."""
+    return physics_key(a) == physics_key(b) and a.penetration_threshold == b.penetration_threshold

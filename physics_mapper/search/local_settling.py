@@ -1,0 +1,143 @@
+"""Local settling: Rule 2 of a candidate simulates only what changed and its neighbours, the rest held fixed.
+
+Neighbours. Objects p and q of a group are neighbours when some stable envelope of p meets some
+stable envelope of q (:class:`~physics_mapper.search.conflicts.Blame`): in a stable configuration,
+whatever their ranks, bodies that are not neighbours never touch.
+
+Contexts. The *context* of object o in configuration C is the ranks, in C, of o and its neighbours.
+Whenever a settling simulates o with every neighbour placed (simulated, or held fixed at its
+hypothesis) and o stays within the jitter threshold, o's context is recorded as *stable*.
+
+The rule. For a candidate C, the *unsettled* objects U are those whose context in C was never
+recorded stable: the objects whose hypotheses differ from every settled configuration around them,
+and those they can touch (a neighbour's context holds the changed rank too). Rule 2 simulates L = U,
+with U's neighbours outside U held fixed at their hypotheses and every other object parked. An object
+outside U is in a context seen stable, next to the same bodies at the same hypotheses. If an object of L moves
+beyond the threshold, C is unstable (its conflict comes from that settling); else every object
+either was just seen stable or is in a context seen stable, and C is *presumed valid*: it gets one
+full settling of its group, which confirms it (and gives its J), or refutes it, and then the search
+learns the conflict and drops the contexts of the objects that moved. A candidate with every object
+unsettled (the first ones), or whose L is the whole group, is settled in full at once. The local
+verdict is a judgement; a refuted presumption costs one settling; agreement of local and full
+verdicts is measured on the crowded suite (BENCHMARKS.md).
+
+Why this is cheap: the contexts are the memo. In a crowded group, a candidate differs from the
+settled ones in the few objects of a conflict, so L is those objects and their neighbours, a handful
+of bodies, whatever N is.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from physics_mapper.model.extents import FloatArray, body_box
+from physics_mapper.model.geometry import Pose
+from physics_mapper.physics.settling import PositionRange, Settling
+from physics_mapper.search.conflicts import Blame
+
+#: (position, ranks of the object and its neighbours in position order).
+Context = tuple[int, tuple[int, ...]]
+
+
+@dataclass(frozen=True)
+class LocalPlan:
+    """A local settling: positions ``simulated`` and positions ``fixed`` at their hypotheses."""
+
+    simulated: tuple[int, ...]
+    fixed: tuple[int, ...]
+
+
+class LocalSettling:
+    """One group's neighbours and stable contexts (module docstring)."""
+
+    def __init__(self, blame: Blame) -> None:
+        self.blame = blame
+        self._neighbours: tuple[tuple[int, ...], ...] | None = None
+        self._stable: set[Context] = set()
+
+    @property
+    def neighbours(self) -> tuple[tuple[int, ...], ...]:
+        """Per position, its neighbours' positions (made on first use)."""
+        if self._neighbours is None:
+            self._neighbours = neighbours(self.blame)
+        return self._neighbours
+
+    def context(self, position: int, code: Sequence[int]) -> Context:
+        around = (position, *self.neighbours[position])
+        return position, tuple(code[p] for p in sorted(around))
+
+    def plan(self, code: Sequence[int]) -> LocalPlan | None:
+        """The local settling of ``code`` (None: settle the whole group)."""
+        unsettled = [p for p in range(len(code)) if self.context(p, code) not in self._stable]
+        if not unsettled or len(unsettled) == len(code):
+            return None
+        fixed = set().union(*(self.neighbours[p] for p in unsettled)) - set(unsettled)
+        return LocalPlan(tuple(unsettled), tuple(sorted(fixed)))
+
+    def observe(self, code: Sequence[int], simulated: Sequence[int], jitters: Sequence[float]) -> None:
+        """Record the contexts of the ``simulated`` positions that stayed within the threshold."""
+        threshold = self.blame.threshold
+        for position, jitter in zip(simulated, jitters, strict=True):
+            if jitter <= threshold:
+                self._stable.add(self.context(position, code))
+
+    def forget(self, code: Sequence[int], positions: Sequence[int]) -> None:
+        """Drop the contexts of ``positions`` in ``code`` (a full settling moved them beyond the threshold)."""
+        for position in positions:
+            self._stable.discard(self.context(position, code))
+
+    def kept_from(self, old: LocalSettling, moved: dict[int, int], changed: set[int]) -> int:
+        """Take over ``old``'s stable contexts whose objects all kept their hypotheses and their
+        neighbours (``moved``: old position -> position here; ``changed``: old positions whose
+        hypotheses changed); how many."""
+        kept = 0
+        for position, ranks in old._stable:
+            around = sorted((position, *old.neighbours[position]))
+            if any(p in changed or p not in moved for p in around):
+                continue
+            here = moved[position]
+            if sorted(moved[p] for p in around) != sorted((here, *self.neighbours[here])):
+                continue
+            by_position = dict(zip((moved[p] for p in around), ranks, strict=True))
+            self._stable.add((here, tuple(by_position[p] for p in sorted(by_position))))
+            kept += 1
+        return kept
+
+    def whole(self, plan: LocalPlan, local: Settling, start: Sequence[Pose]) -> Settling:
+        """A local settling as one of the whole group: objects not simulated stayed at ``start`` (J_i = 0,
+        their body's box at the start as their extent)."""
+        settled, jitters = list(start), [0.0] * len(start)
+        reach = [(pose.position, pose.position) for pose in start]
+        extent = [_box(body_box(shape, pose)) for shape, pose in zip(self.blame.shapes, start, strict=True)]
+        for index, position in enumerate(plan.simulated):
+            settled[position] = local.settled_poses[index]
+            jitters[position] = local.jitters[index]
+            if local.reach is not None and local.extent is not None:
+                reach[position], extent[position] = local.reach[index], local.extent[index]
+        return Settling(
+            tuple(settled), tuple(jitters), local.stopped, local.steps, local.steps_total, tuple(reach), tuple(extent)
+        )
+
+
+def _box(box: tuple[FloatArray, FloatArray]) -> PositionRange:
+    low, high = box
+    return (float(low[0]), float(low[1]), float(low[2])), (float(high[0]), float(high[1]), float(high[2]))
+
+
+def neighbours(blame: Blame) -> tuple[tuple[int, ...], ...]:
+    """Per object, the objects one of whose stable envelopes meets one of its own."""
+    envelopes = blame.envelopes
+    low = np.array([env_low.min(axis=0) for env_low, _ in envelopes])
+    high = np.array([env_high.max(axis=0) for _, env_high in envelopes])
+    near = np.all((low[:, None, :] <= high[None, :, :]) & (high[:, None, :] >= low[None, :, :]), axis=2)
+    found: list[set[int]] = [set() for _ in envelopes]
+    for p, q in zip(*np.nonzero(np.triu(near, k=1)), strict=True):
+        (low_p, high_p), (low_q, high_q) = envelopes[p], envelopes[q]
+        meets = (low_p[:, None, :] <= high_q[None, :, :]) & (high_p[:, None, :] >= low_q[None, :, :])
+        if np.any(np.all(meets, axis=2)):
+            found[int(p)].add(int(q))
+            found[int(q)].add(int(p))
+    return tuple(tuple(sorted(members)) for members in found)

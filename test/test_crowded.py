@@ -1,0 +1,205 @@
+"""The conflict-directed search (``strategy: conflict``) against the paper's search on crowded scenes.
+
+Real pybullet throughout. The reduced suite is the crowded benchmark's generator
+(``physics_mapper.bench.crowded_suite``) at sizes where the paper's search, per group, finishes:
+packed scenes whose only valid configuration is known by construction.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import replace
+from pathlib import Path
+
+import pytest
+import yaml
+from core_builders import cli, solve_json
+
+from physics_mapper.bench.crowded import same_answer
+from physics_mapper.bench.crowded_suite import (
+    CrowdedCase,
+    CrowdedProblem,
+    crowded_problem,
+    problem_document,
+    truth_is_valid,
+)
+from physics_mapper.model.geometry import Pose
+from physics_mapper.model.hypotheses import Hypothesis, RankedHypotheses
+from physics_mapper.model.scene import Bound, SearchParams
+from physics_mapper.physics.checker import PhysicsChecker
+from physics_mapper.search.conflict_directed import ConflictGroupSearch, ConflictSearch
+from physics_mapper.search.conflicts import Conflict
+from physics_mapper.search.results import Code, SearchResult
+from physics_mapper.search.strategy import make_search
+
+REDUCED_SUITE = (
+    CrowdedCase("row", 5, 3, 0),
+    CrowdedCase("row", 6, 3, 1),
+    CrowdedCase("wall", 6, 3, 2),
+    CrowdedCase("tower", 6, 3, 3),
+    CrowdedCase("shelf", 6, 3, 4),
+    CrowdedCase("bin", 5, 3, 5),
+)
+
+Outcomes = dict[tuple[tuple[int, ...], Code], str]
+#: A problem, the paper's search of it per group, the conflict-directed one, and its groups.
+CaseRuns = tuple[CrowdedProblem, SearchResult, SearchResult, list[ConflictGroupSearch]]
+
+
+def searched(problem: CrowdedProblem, **changes: object) -> tuple[SearchResult, list[ConflictGroupSearch]]:
+    """``problem`` searched to the end with the defaults changed by ``changes``, and its conflict groups."""
+    params = replace(problem.problem.scene.search, trace_limit=None, **changes)  # type: ignore[arg-type]
+    with PhysicsChecker(problem.problem.scene) as checker:
+        search = make_search(checker, problem.problem.hypotheses, params)
+        result = search.run(None)
+    groups = search.groups() if isinstance(search, ConflictSearch) else []
+    return result, [g for g in groups if isinstance(g, ConflictGroupSearch)]
+
+
+def outcomes(result: SearchResult) -> Outcomes:
+    """Every checked configuration's outcome, by (its group's objects, its code)."""
+    objects = {group.id: group.objects for group in result.groups}
+    return {(objects[entry.group], entry.code): entry.outcome for entry in result.trace}
+
+
+@pytest.fixture(scope="module", params=REDUCED_SUITE, ids=lambda case: case.label)
+def case_runs(request: pytest.FixtureRequest) -> CaseRuns:
+    problem = crowded_problem(request.param)
+    paper, _ = searched(problem, strategy="grouped")
+    conflict, groups = searched(problem)
+    return problem, paper, conflict, groups
+
+
+def test_the_suite_s_configuration_is_valid_by_construction() -> None:
+    for case in REDUCED_SUITE:
+        assert truth_is_valid(crowded_problem(case)), case.label
+
+
+def test_the_answer_is_the_exhaustive_paper_search_s(case_runs: CaseRuns) -> None:
+    problem, paper, conflict, _ = case_runs
+    assert paper.stats.finished and conflict.stats.finished
+    assert (conflict.code, conflict.valid) == (paper.code, paper.valid) == (problem.answer, True)
+    assert same_answer(conflict, paper)  # and every J_i within the early exit's tolerance
+    assert conflict.stats.visited < paper.stats.visited  # the point of it
+
+
+def test_conflicts_are_sound(case_runs: CaseRuns) -> None:
+    """No configuration that contains a learned conflict is valid when the paper's search checks it in full."""
+    _, paper, _, groups = case_runs
+    checked = outcomes(paper)
+    contained = 0
+    for group in groups:
+        conflicts: list[Conflict] = list(group.conflicts)
+        assert conflicts
+        for (objects, code), outcome in checked.items():
+            if objects == group.objects and any(conflict.holds_in(code) for conflict in conflicts):
+                contained += 1
+                assert outcome != "valid", code
+    assert contained > 0
+
+
+def test_every_checked_configuration_has_the_paper_s_outcome(case_runs: CaseRuns) -> None:
+    """Local settlings (and early exits) decide as the paper's full settlings do, wherever both check."""
+    _, paper, conflict, _ = case_runs
+    expected = outcomes(paper)
+    found = outcomes(conflict)
+    assert all(expected[key] == outcome for key, outcome in found.items())
+
+
+def test_local_settlings_decide_as_full_ones() -> None:
+    problem = crowded_problem(CrowdedCase("row", 8, 2, 8))
+    paper, _ = searched(problem, strategy="grouped")
+    conflict, _ = searched(problem)
+    assert conflict.stats.local_settlings > 0
+    expected = outcomes(paper)
+    assert all(expected[key] == outcome for key, outcome in outcomes(conflict).items())
+    assert (conflict.code, conflict.valid) == (paper.code, paper.valid) == (problem.answer, True)
+
+
+def test_rejections_name_their_conflict(case_runs: CaseRuns) -> None:
+    problem, _, conflict, _ = case_runs
+    names = problem.problem.scene.object_names
+    for entry in conflict.trace:
+        assert (entry.conflict is None) == (entry.outcome == "valid")
+        for name, rank in entry.conflict or ():
+            group = next(g for g in conflict.groups if g.id == entry.group)
+            position = [names[i] for i in group.objects].index(name)
+            assert entry.code[position] == rank
+
+
+@pytest.mark.parametrize("bound", ["relative", "absolute"])
+def test_the_same_answer_under_the_older_bounds(bound: Bound) -> None:
+    problem = crowded_problem(CrowdedCase("wall", 6, 3, 6))
+    threshold = 0.02 if bound == "relative" else 1e-4
+    paper, _ = searched(problem, strategy="grouped", bound=bound, probability_threshold=threshold)
+    conflict, _ = searched(problem, bound=bound, probability_threshold=threshold)
+    assert (conflict.code, conflict.valid) == (paper.code, paper.valid)
+    valid = {key for key, outcome in outcomes(paper).items() if outcome == "valid"}
+    assert valid == {key for key, outcome in outcomes(conflict).items() if outcome == "valid"}
+
+
+def test_the_resolving_bound_keeps_a_valid_configuration_the_relative_one_cuts_off() -> None:
+    """Invalid first hypotheses put p(valid) / p(root) below T; relative to the first valid one it is 1."""
+    problem = crowded_problem(CrowdedCase("row", 8, 3, 7))
+    paper = problem.problem
+    p_answer = 1.0
+    p_root = 1.0
+    for ranked, rank in zip(paper.hypotheses, problem.answer, strict=True):
+        p_answer *= ranked.weight(rank)
+        p_root *= ranked.weight(1)
+    threshold = 2.0 * p_answer / p_root
+    relative, _ = searched(problem, bound="relative", probability_threshold=threshold)
+    resolving, _ = searched(problem, probability_threshold=threshold)
+    assert not relative.valid and relative.stats.end == "bounded"
+    assert (resolving.code, resolving.valid) == (problem.answer, True)
+
+
+def test_the_default_is_the_conflict_search_with_the_resolving_bound() -> None:
+    assert (SearchParams().strategy, SearchParams().bound) == ("conflict", "resolving")
+
+
+def nudged(hypotheses: RankedHypotheses, metres: float) -> RankedHypotheses:
+    """The same hypotheses moved ``metres`` along y: new input, the same outcomes."""
+    moved = [
+        Hypothesis(
+            Pose((h.pose.position[0], h.pose.position[1] + metres, h.pose.position[2]), h.pose.orientation), h.weight
+        )
+        for h in hypotheses.hypotheses
+    ]
+    return RankedHypotheses.from_weighted(moved)
+
+
+def test_new_hypotheses_for_one_object_keep_the_conflicts_of_the_others() -> None:
+    problem = crowded_problem(CrowdedCase("row", 10, 5, 9))
+    scene, hypotheses = problem.problem.scene, problem.problem.hypotheses
+    changed = tuple(nudged(h, 0.0005) if i == 9 else h for i, h in enumerate(hypotheses))
+    with PhysicsChecker(scene) as checker:
+        first = make_search(checker, hypotheses, scene.search)
+        before = first.run(None)
+        second = make_search(checker, changed, scene.search, first)
+        after = second.run(None)
+        assert isinstance(first, ConflictSearch) and isinstance(second, ConflictSearch)
+        old, new = first.groups()[0], second.groups()[0]
+        assert isinstance(old, ConflictGroupSearch) and isinstance(new, ConflictGroupSearch)
+        kept = [c for c in old.conflicts if 9 not in c.positions]
+        assert 0 < new.stats.conflicts_kept <= len(kept) < len(old.conflicts)
+    assert (after.code, after.valid) == (before.code, before.valid) == (problem.answer, True)
+    assert after.stats.visited < before.stats.visited
+
+
+def test_solve_trace_names_each_rejection_s_conflict(tmp_path: Path) -> None:
+    problem = crowded_problem(CrowdedCase("row", 6, 3, 1))
+    problem_file = tmp_path / "row.yaml"
+    problem_file.write_text(yaml.safe_dump(problem_document(problem.problem)))
+    trace_file = tmp_path / "trace.json"
+    found = solve_json(problem_file, "--trace", trace_file)
+    assert found["valid"] and found["code"] == list(problem.answer)
+    trace = json.loads(trace_file.read_text())
+    assert trace == found["trace"]
+    rejected = [entry for entry in trace if entry["outcome"] != "valid"]
+    assert rejected and all(entry["conflict"] for entry in rejected)
+    names = problem.problem.scene.object_names
+    for entry in rejected:
+        assert all(entry["code"][names.index(name)] == rank for name, rank in entry["conflict"])
+    text = cli("solve", problem_file, "--tree")
+    assert text.returncode == 0 and "conflict {" in text.stdout and "candidates skipped" in text.stdout
