@@ -69,7 +69,7 @@ def _tie_key(probability: float) -> float:
     return float(f"{probability:.12g}")
 
 
-class _QueueItem(NamedTuple):
+class QueueItem(NamedTuple):
     """A queued node; compared as a tuple, by (-p(C) rounded, code), which are unique in the queue."""
 
     neg_probability: float
@@ -81,10 +81,14 @@ class _QueueItem(NamedTuple):
 class BranchAndBound:
     """Anytime best-first search; :meth:`run` may be called again to resume it.
 
-    Extension surface: a search over part of a scene (one interaction group) specialises how a
-    node is settled and what is done with results by overriding :meth:`settle_node`,
-    :meth:`on_settled` and :meth:`record`, and asks for reach tracking with :attr:`tracks_reach`.
-    Everything else (queue, bound, tie rule, trace order) stays the paper's.
+    Extension surface, for searches built on this one (one interaction group; the conflict-directed
+    search): overridable steps :meth:`step` (one unit of work), :meth:`visit` (check and expand a
+    node), :meth:`check` (Rule 1 then Rule 2), :meth:`rule1`, :meth:`settle_node`,
+    :meth:`on_settled`, :meth:`record` and :meth:`update_end`; and the tools they use:
+    :meth:`head`, :meth:`drop_head` and :meth:`push` (the queue, in the paper's order and tie
+    rule), :meth:`judge` (a settled node's outcome), :meth:`interrupt` (a settling its deadline
+    cut), :meth:`is_bounded`, :attr:`tracks_reach`. The queue's order, the bound and the trace stay
+    the paper's whatever a subclass does.
 
     The physics checker must hold the same scene the hypotheses are for. ``objects`` are the scene
     indices the hypotheses belong to (default: every object, in order); codes then rank those objects
@@ -115,7 +119,7 @@ class BranchAndBound:
         #: The group id trace entries carry (None: the codes rank every object).
         self.trace_group: int | None = None
         self._trace: list[TraceEntry] = []
-        self._queue: list[_QueueItem] = []
+        self._queue: list[QueueItem] = []
         self._enqueued: set[Code] = set()  # the queued codes (visited ones never come back)
         self._best: Candidate | None = None
         self._first_collision_free: Candidate | None = None
@@ -129,7 +133,7 @@ class BranchAndBound:
         #: p(C) of the first valid node found (the reference of ``bound: resolving``).
         self.first_valid_probability: float | None = None
         self._configurations = math.prod(len(h) for h in self.hypotheses)
-        self._push(self._root, None)
+        self.push(self._root, None)
 
     def probability(self, code: Code) -> float:
         """p(C): product of the chosen hypotheses' normalised weights."""
@@ -149,12 +153,13 @@ class BranchAndBound:
             return reference is not None and probability / reference < threshold
         return probability < threshold
 
-    def _push(self, code: Code, parent: Code | None) -> None:
+    def push(self, code: Code, parent: Code | None) -> None:
+        """Queue node ``code`` (first queued by expanding ``parent``), unless it is queued already."""
         if code in self._enqueued:
             return
         self._enqueued.add(code)
         probability = self.probability(code)
-        heapq.heappush(self._queue, _QueueItem(-_tie_key(probability), code, probability, parent))
+        heapq.heappush(self._queue, QueueItem(-_tie_key(probability), code, probability, parent))
         if len(self._queue) > self.queue_limit:
             self._trim_queue()
 
@@ -229,14 +234,27 @@ class BranchAndBound:
         came first (the work goes on at the next step)."""
         if self.refinement_due:
             return self._refine(stop_at)
-        item = heapq.heappop(self._queue)
-        self._enqueued.discard(item.code)
-        entry = self._visit(item, stop_at)
+        item = self.drop_head()
+        entry = self.visit(item, stop_at)
         if entry is None:
             heapq.heappush(self._queue, item)
             self._enqueued.add(item.code)
-        self._update_end()
+        self.update_end()
         return entry is not None
+
+    def head(self) -> QueueItem:
+        """The node the search visits next (the queue must not be empty)."""
+        return self._queue[0]
+
+    def drop_head(self) -> QueueItem:
+        """Take the next node off the queue (extension point: a search that rules it out unchecked)."""
+        item = heapq.heappop(self._queue)
+        self._enqueued.discard(item.code)
+        return item
+
+    def interrupt(self, code: Code, partial: PartialSettling) -> None:
+        """Keep the settling of node ``code`` its deadline interrupted: the next run continues it first."""
+        self._interrupted = (code, partial)
 
     @property
     def refinement_due(self) -> bool:
@@ -259,7 +277,8 @@ class BranchAndBound:
         self._refined = self._refinement.run(stop_at)
         return self._refined is not None
 
-    def _update_end(self) -> None:
+    def update_end(self) -> None:
+        """Say how the search ended once its queue is empty (:attr:`SearchStats.end`; extension point)."""
         if self._queue:
             self.stats.end = None
         elif self.stats.dropped:
@@ -267,27 +286,27 @@ class BranchAndBound:
         else:
             self.stats.end = "exhausted" if self.stats.visited == self._configurations else "bounded"
 
-    def _visit(self, item: _QueueItem, stop_at: float | None) -> TraceEntry | None:
+    def visit(self, item: QueueItem, stop_at: float | None) -> TraceEntry | None:
         """Check one node and expand it; None if the deadline interrupted its settling."""
         code, probability = item.code, item.probability
         bounded = self.is_bounded(probability)
-        check = self._check(code, stop_at)
+        check = self.check(code, stop_at)
         if isinstance(check, PartialSettling):
-            self._interrupted = (code, check)
+            self.interrupt(code, check)
             return None
         if isinstance(check, Collision):
             entry = TraceEntry(code, probability, "collision", bounded, pair=check.pair, depth=check.depth)
         else:
-            entry = self._judge(Candidate(code, probability, check), bounded)
+            entry = self.judge(Candidate(code, probability, check), bounded)
         entry = replace(entry, parent=item.parent, group=self.trace_group)
         self.record(entry)
         if not bounded:
             for child in self._children(code):
-                self._push(child, code)
+                self.push(child, code)
             self.stats.expanded += 1
         return entry
 
-    def _check(self, code: Code, stop_at: float | None) -> Collision | Settling | PartialSettling:
+    def check(self, code: Code, stop_at: float | None) -> Collision | Settling | PartialSettling:
         """Rule 1, then Rule 2 if no collision; an interrupted node's settling is continued."""
         interrupted, self._interrupted = self._interrupted, None
         if interrupted is not None and interrupted[0] == code:
@@ -296,12 +315,13 @@ class BranchAndBound:
                 self.on_settled(code, outcome)
             return outcome
         poses = self.poses(code)
-        collision = self._rule1(code, poses)
+        collision = self.rule1(code, poses)
         if collision is not None:
             return collision
         return self.settle_node(code, poses, stop_at)
 
-    def _rule1(self, code: Code, poses: tuple[Pose, ...]) -> Collision | None:
+    def rule1(self, code: Code, poses: tuple[Pose, ...]) -> Collision | None:
+        """Rule 1 of node ``code`` at ``poses``: the deepest overlap beyond the threshold, or None (extension point)."""
         threshold = self.params.penetration_threshold
         if self.collisions is not None:
             return self.collisions.find_collision(self.objects, code, threshold)
@@ -343,7 +363,8 @@ class BranchAndBound:
         self.stats.settle_steps += settling.steps
         self.stats.settle_steps_saved += settling.steps_total - settling.steps
 
-    def _judge(self, candidate: Candidate, bounded: bool) -> TraceEntry:
+    def judge(self, candidate: Candidate, bounded: bool) -> TraceEntry:
+        """A settled node's outcome (unstable or valid) as its trace entry; keeps the best valid one."""
         settling = candidate.settling
         if self._first_collision_free is None:
             self._first_collision_free = candidate

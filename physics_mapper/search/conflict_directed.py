@@ -28,7 +28,6 @@ child from the queue (every configuration was visited or contains a conflict), e
 
 from __future__ import annotations
 
-import heapq
 import math
 import time
 from collections.abc import Sequence
@@ -40,7 +39,7 @@ from physics_mapper.model.scene import SearchParams
 from physics_mapper.physics.checker import PhysicsChecker
 from physics_mapper.physics.collision import Collision, deepest_collision
 from physics_mapper.physics.settling import PartialSettling, Settling, early_exit_rule
-from physics_mapper.search.branch_and_bound import BranchAndBound, _QueueItem
+from physics_mapper.search.branch_and_bound import BranchAndBound, QueueItem
 from physics_mapper.search.conflicts import Blame, Conflict, ConflictStore, collision_conflict
 from physics_mapper.search.grouped import GroupedSearch, GroupSearch, SettleMemo, physics_key
 from physics_mapper.search.local_settling import LocalPlan, LocalSettling
@@ -72,35 +71,34 @@ class ConflictGroupSearch(GroupSearch):
         per step, the clock read every :data:`SKIPS_PER_CLOCK_CHECK`), then check the next one as
         :meth:`BranchAndBound.step` does; False if the deadline ``stop_at`` came first."""
         skipped = 0
-        while self._queue and self._interrupted is None and not self.refinement_due and self._skip_head():
+        while self.queued and self.settling_in_progress is None and not self.refinement_due and self._skip_head():
             skipped += 1
             if skipped % SKIPS_PER_CLOCK_CHECK == 0 and stop_at is not None and time.monotonic() >= stop_at:
                 break
         if skipped:
-            self._update_end()
+            self.update_end()
             return True
         return super().step(stop_at)
 
     def _skip_head(self) -> bool:
         """Skip the head of the queue if it contains a known conflict (expanding it by that conflict)."""
-        item = self._queue[0]
+        item = self.head()
         known = self.conflicts.contained(item.code)
         if known is None:
             return False
-        heapq.heappop(self._queue)
-        self._enqueued.discard(item.code)
+        self.drop_head()
         self.stats.skipped += 1
         self._expand(item.code, self.is_bounded(item.probability), known)
         return True
 
-    def _visit(self, item: _QueueItem, stop_at: float | None) -> TraceEntry | None:
+    def visit(self, item: QueueItem, stop_at: float | None) -> TraceEntry | None:
         """Check a candidate that resolves every known conflict (:meth:`step` skipped the others), learn
         from a rejection, and expand by the conflict learned (None: the deadline cut a settling short)."""
         code, probability = item.code, item.probability
         bounded = self.is_bounded(probability)
-        check = self._check(code, stop_at)
+        check = self.check(code, stop_at)
         if isinstance(check, PartialSettling):
-            self._interrupted = (code, check)
+            self.interrupt(code, check)
             return None
         conflict: Conflict | None
         if isinstance(check, Collision):
@@ -109,9 +107,9 @@ class ConflictGroupSearch(GroupSearch):
         else:
             settling = self._verdict(code, check, stop_at)
             if isinstance(settling, PartialSettling):
-                self._interrupted = (code, settling)
+                self.interrupt(code, settling)
                 return None
-            entry = self._judge(Candidate(code, probability, settling), bounded)
+            entry = self.judge(Candidate(code, probability, settling), bounded)
             conflict = None if entry.outcome == "valid" else self._learn(self.blame.conflicts(code, settling))
         named = None if conflict is None else self.named(conflict)
         entry = replace(entry, parent=item.parent, group=self.trace_group, conflict=named)
@@ -119,7 +117,7 @@ class ConflictGroupSearch(GroupSearch):
         self._expand(code, bounded, conflict)
         return entry
 
-    def _rule1(self, code: Code, poses: tuple[Pose, ...]) -> Collision | None:
+    def rule1(self, code: Code, poses: tuple[Pose, ...]) -> Collision | None:
         """Rule 1 from the table, its overlaps kept for :meth:`_learn_collisions`."""
         assert self.collisions is not None  # a group search always has its table
         self._depths = self.collisions.depths(self.objects, code)
@@ -194,7 +192,7 @@ class ConflictGroupSearch(GroupSearch):
             return
         self.stats.local_settlings += 1
         BranchAndBound.on_settled(self, code, settling)  # the step counters only: the memo holds full settlings
-        self._guard(code, self.local.whole(self._local[1], settling, self.poses(code)))
+        self.guard(code, self.local.whole(self._local[1], settling, self.poses(code)))
 
     def keep_from(self, old: ConflictGroupSearch, changed: set[int]) -> None:
         """Take over what ``old`` (a group of the previous search, same physics parameters) learned that
@@ -230,7 +228,7 @@ class ConflictGroupSearch(GroupSearch):
             if code[position] < len(self.hypotheses[position]):
                 child = (*code[:position], code[position] + 1, *code[position + 1 :])
                 if not bounded or self._has_parent_above_bound(child):
-                    self._push(child, code)
+                    self.push(child, code)
                 else:
                     self._cut += 1
         if not bounded:
@@ -245,8 +243,8 @@ class ConflictGroupSearch(GroupSearch):
                     return True
         return False
 
-    def _update_end(self) -> None:
-        if self._queue:
+    def update_end(self) -> None:
+        if self.queued:
             self.stats.end = None
         elif self.stats.dropped:
             self.stats.end = "truncated"
@@ -271,7 +269,7 @@ class ConflictSearch(GroupedSearch):
         params: SearchParams,
         previous: GroupedSearch | None = None,
     ) -> None:
-        # Read by _add while the groups are made, then dropped.
+        # Read by add_group while the groups are made, then dropped.
         self._earlier: list[ConflictGroupSearch] = []
         self._changed: set[int] = set()
         if previous is not None and previous.checker is checker and _same_rules(previous.params, params):
@@ -281,17 +279,17 @@ class ConflictSearch(GroupedSearch):
         super().__init__(checker, hypotheses, params, previous)
         self._earlier = []
 
-    def _merge(self, escaped: GroupSearch, positions: tuple[int, ...]) -> None:
+    def merge_groups(self, escaped: GroupSearch, positions: tuple[int, ...]) -> None:
         """The escape guard's merge, the merged group keeping what the groups it replaces learned."""
         merged = [escaped, *(g for g in self.groups() if self.grouping.group_of(g.objects[0]) in positions)]
         self._earlier = [g for g in merged if isinstance(g, ConflictGroupSearch)]
         try:
-            super()._merge(escaped, positions)
+            super().merge_groups(escaped, positions)
         finally:
             self._earlier = []
 
-    def _add(self, objects: tuple[int, ...], memo: SettleMemo | None) -> GroupSearch:
-        group = super()._add(objects, memo)
+    def add_group(self, objects: tuple[int, ...], memo: SettleMemo | None) -> GroupSearch:
+        group = super().add_group(objects, memo)
         assert isinstance(group, ConflictGroupSearch)
         for old in self._earlier:
             if set(old.objects) & set(objects):

@@ -148,10 +148,10 @@ class GroupSearch(BranchAndBound):
 
     def on_settled(self, code: Code, settling: Settling) -> None:
         super().on_settled(code, settling)
-        self._guard(code, settling)
+        self.guard(code, settling)
         self.memo.put(code, settling)
 
-    def _guard(self, code: Code, settling: Settling) -> None:
+    def guard(self, code: Code, settling: Settling) -> None:
         """Raise :class:`Escape` if an object's body went where it can reach another group's volume.
 
         A body that stayed inside its own volume box at its hypothesis meets no other group's volume:
@@ -243,7 +243,7 @@ class GroupedSearch:
                 self._adopt(old)
             else:
                 memo = old.memo if old is not None and same else None
-                self._add(objects, memo)
+                self.add_group(objects, memo)
         if previous is not None:
             kept = {group.trace_group for group in self._groups.values() if group.kept}
             self._trace = [entry for entry in previous.trace if entry.group in kept]
@@ -272,7 +272,8 @@ class GroupedSearch:
 
     # --- groups -----------------------------------------------------------------------------------
 
-    def _add(self, objects: tuple[int, ...], memo: SettleMemo | None) -> GroupSearch:
+    def add_group(self, objects: tuple[int, ...], memo: SettleMemo | None) -> GroupSearch:
+        """A new group search of ``objects``, scheduled (extension point: a subclass seeds it)."""
         hypotheses = tuple(self.hypotheses[i] for i in objects)
         if memo is None or not memo.serves(hypotheses, physics_key(self.params)):
             memo = SettleMemo(hypotheses, physics_key(self.params), SETTLE_MEMO_LIMIT)
@@ -298,8 +299,9 @@ class GroupedSearch:
             group.queue_limit = max(1, self.params.queue_limit // count)
             group.memo.limit = max(1, SETTLE_MEMO_LIMIT // count)
 
-    def _merge(self, escaped: GroupSearch, positions: tuple[int, ...]) -> None:
-        """The escape guard's answer: replace ``escaped`` and the groups at ``positions`` by one, searched anew."""
+    def merge_groups(self, escaped: GroupSearch, positions: tuple[int, ...]) -> None:
+        """The escape guard's answer: replace ``escaped`` and the groups at ``positions`` by one, searched
+        anew (extension point: a subclass carries over what they learned)."""
         by_objects = {group.objects: group for group in self._groups.values()}
         merged = [escaped, *(by_objects[self.grouping.groups[p]] for p in positions)]
         objects = tuple(sorted(i for group in merged for i in group.objects))
@@ -313,7 +315,7 @@ class GroupedSearch:
             self.checker.scene, self.hypotheses, self.params.interaction_margin, self.links
         )
         self._merges += 1
-        self._add(objects, None)
+        self.add_group(objects, None)
         self._share_limits()
 
     def record(self, entry: TraceEntry) -> None:
@@ -391,7 +393,7 @@ class GroupedSearch:
                 try:
                     finished = group.step(stop_at)
                 except Escape as escape:
-                    self._merge(group, escape.groups)
+                    self.merge_groups(group, escape.groups)
                     continue
                 self._reschedule(group)
                 if not finished:  # the deadline cut a settling (or a refinement) short
