@@ -188,3 +188,33 @@ def test_the_cli_s_interrupted_exit_code_is_the_core_s() -> None:
     from physics_mapper.model.errors import EXIT_INTERRUPTED
 
     assert cli.EXIT_INTERRUPTED == EXIT_INTERRUPTED
+
+
+def test_ctrl_c_while_a_mesh_loads_is_never_lost(tmp_path: Path) -> None:
+    """trimesh swallows KeyboardInterrupt in its import guards and parsers: a signal then must still
+    stop ``solve`` (exit 130, no result), whenever it comes: loading, or the long search after it."""
+    import trimesh
+
+    trimesh.creation.icosphere(subdivisions=5).apply_scale(0.05).export(tmp_path / "ball.obj")
+    names = ("ball_a", "ball_b", "ball_c")
+    objects = "".join(f"  - {{name: {name}, shape: mesh, file: ball.obj, mass: 0.1}}\n" for name in names)
+    floating = "".join(
+        f"  {name}:\n"
+        + "".join(f"    - {{position: [{0.2 * i - 0.2:.1f}, 0, {0.2 + 0.01 * k:.2f}]}}\n" for k in range(10))
+        for i, name in enumerate(names)
+    )
+    problem = tmp_path / "problem.yaml"
+    problem.write_text(  # the paper's joint search of 1000 floating configurations: busy for seconds
+        f"objects:\n{objects}static:\n  - {{name: floor, shape: plane}}\n"
+        "search: {deadline: 60.0, settle_exit: full, settle_time: 2.0, strategy: joint, bound: absolute, "
+        "probability_threshold: 0.0}\n"
+        f"hypotheses:\n{floating}"
+    )
+    for delay in (0.2, 0.5, 0.8, 1.2, 2.0):
+        process = subprocess.Popen(
+            [sys.executable, "-m", "physics_mapper", "solve", str(problem)], stdout=subprocess.PIPE, text=True
+        )
+        time.sleep(delay)  # when the signal comes, not how long anything takes
+        process.send_signal(signal.SIGINT)
+        out, _ = process.communicate(timeout=60)
+        assert (process.returncode, out) == (130, ""), delay

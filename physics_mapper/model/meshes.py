@@ -48,6 +48,7 @@ from physics_mapper.model.decomposition import (
     stderr_progress,
 )
 from physics_mapper.model.geometry import Quaternion, Vector3
+from physics_mapper.model.interrupts import signals_kept
 from physics_mapper.model.limits import MAX_COORDINATE
 
 if TYPE_CHECKING:
@@ -194,7 +195,8 @@ def load_mesh_geometry(request: MeshRequest, progress: Progress = stderr_progres
 
 def _read_surface(path: Path) -> trimesh.Trimesh:
     """The file's triangles with coincident vertices merged (texture seams do not open a surface)."""
-    import trimesh
+    with signals_kept():  # trimesh's import guards catch BaseException: a Ctrl-C in them would be lost
+        import trimesh
 
     kind = MESH_FORMATS.get(path.suffix.lower())
     if kind is None:
@@ -217,7 +219,8 @@ def _read_surface(path: Path) -> trimesh.Trimesh:
     if faces_given > MAX_MESH_FACES:
         raise MeshError(path, f"too many faces: {faces_given} (at most {MAX_MESH_FACES}; simplify the mesh)")
     try:
-        loaded: Any = trimesh.load(io.BytesIO(data), file_type=kind, force="mesh", process=False)
+        with signals_kept():  # so do its parsers
+            loaded: Any = trimesh.load(io.BytesIO(data), file_type=kind, force="mesh", process=False)
         vertices = np.asarray(loaded.vertices, dtype=np.float64)
         faces = np.asarray(loaded.faces, dtype=np.int64)
     except Exception as error:  # trimesh's parsers raise anything on malformed input
