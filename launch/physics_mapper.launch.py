@@ -25,6 +25,15 @@ def generate_launch_description() -> LaunchDescription:
     managed = LaunchConfiguration("managed")
     remappings = [("detections", LaunchConfiguration("detections_topic"))]
     parameters = [params_file, {"scene_file": scene_file}]
+    # The same node either way: plain, or managed (a lifecycle node).
+    node = {
+        "package": PACKAGE,
+        "name": node_name,
+        "namespace": namespace,
+        "parameters": parameters,
+        "remappings": remappings,
+        "output": "screen",
+    }
     return LaunchDescription(
         [
             DeclareLaunchArgument(
@@ -43,25 +52,7 @@ def generate_launch_description() -> LaunchDescription:
                 "detections_topic", default_value="detections", description="the estimator's Detection3DArray topic"
             ),
             DeclareLaunchArgument("managed", default_value="false", description="start the lifecycle node"),
-            Node(
-                package=PACKAGE,
-                executable="node",
-                name=node_name,
-                namespace=namespace,
-                parameters=parameters,
-                remappings=remappings,
-                output="screen",
-                condition=UnlessCondition(managed),
-            ),
-            LifecycleNode(
-                package=PACKAGE,
-                executable="managed_node",
-                name=node_name,
-                namespace=namespace,
-                parameters=parameters,
-                remappings=remappings,
-                output="screen",
-                condition=IfCondition(managed),
-            ),
+            Node(executable="node", condition=UnlessCondition(managed), **node),
+            LifecycleNode(executable="managed_node", condition=IfCondition(managed), **node),
         ]
     )

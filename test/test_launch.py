@@ -52,21 +52,37 @@ def ros_run_executables() -> set[str]:
     return set(declared) - {"physics"}
 
 
+def node_keywords() -> dict[str, ast.expr]:
+    """The keywords both node actions share (the ``node`` dict they are given as ``**node``)."""
+    tree = ast.parse(LAUNCH.read_text())
+    (shared,) = [
+        n.value
+        for n in ast.walk(tree)
+        if isinstance(n, ast.Assign) and [getattr(t, "id", None) for t in n.targets] == ["node"]
+    ]
+    assert isinstance(shared, ast.Dict)
+    return {str(constant(k)): v for k, v in zip(shared.keys, shared.values, strict=True) if k is not None}
+
+
 def test_every_executable_it_starts_is_installed_for_ros2_run() -> None:
     nodes = calls("Node") + calls("LifecycleNode")
     executables = {constant(keyword(call, "executable")) for call in nodes}
     assert executables == {"node", "managed_node"}
     assert executables <= ros_run_executables()
-    assert {constant(keyword(call, "package")) for call in nodes} == {"physics_mapper"}
+    assert constant(node_keywords()["package"]) == "physics_mapper"
 
 
 def test_every_parameter_it_sets_is_one_the_node_declares() -> None:
     declared = {"scene_file", *(spec.name for spec in PARAMETERS)}
-    for call in calls("Node") + calls("LifecycleNode"):
-        parameters = keyword(call, "parameters")
-        assert isinstance(parameters, ast.Name)  # the shared list: a params file and a dict
+    assert isinstance(node_keywords()["parameters"], ast.Name)  # the list: a params file and a dict
     tree = ast.parse(LAUNCH.read_text())
-    dicts = [n for n in ast.walk(tree) if isinstance(n, ast.Dict)]
+    (listed,) = [
+        n.value
+        for n in ast.walk(tree)
+        if isinstance(n, ast.Assign) and [getattr(t, "id", None) for t in n.targets] == ["parameters"]
+    ]
+    assert isinstance(listed, ast.List)
+    dicts = [element for element in listed.elts if isinstance(element, ast.Dict)]
     named = {ast.literal_eval(k) for d in dicts for k in d.keys if k is not None}
     assert named and named <= declared
 

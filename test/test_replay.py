@@ -281,26 +281,17 @@ def test_replay_without_a_node_says_so(handmade_bag: Path, tmp_path: Path) -> No
     assert "Traceback" not in completed.stderr
 
 
+def replay_live(bag: Path, out: Path, namespace: str, *options: str) -> subprocess.CompletedProcess[str]:
+    """``replay`` of ``bag`` into the node running in ``namespace``, exhaustive, recorded into ``out``."""
+    arguments = ["replay", str(bag), "--scene", str(SCENE), "-o", str(out), "--namespace", namespace]
+    return run_cli(*arguments, *options, "--wait", "60", "--exhaustive", timeout=180)
+
+
 def test_live_replay_reaches_a_renamed_node(handmade_bag: Path, tmp_path: Path) -> None:
     """A launch file's ``name=`` renames the node (``-r __node:=mapper``): --node-name finds it."""
     node = NodeProcess(SCENE, {}, tmp_path / "node.log", "/renamed", remaps={"__node": "mapper"})
     try:
-        completed = run_cli(
-            "replay",
-            str(handmade_bag),
-            "--scene",
-            str(SCENE),
-            "-o",
-            str(tmp_path / "out"),
-            "--namespace",
-            "/renamed",
-            "--node-name",
-            "mapper",
-            "--wait",
-            "60",
-            "--exhaustive",
-            timeout=180,
-        )
+        completed = replay_live(handmade_bag, tmp_path / "out", "/renamed", "--node-name", "mapper")
     finally:
         node.stop()
     assert completed.returncode == 0, completed.stderr
@@ -326,22 +317,7 @@ def live(handmade_bag: Path, tmp_path_factory: pytest.TempPathFactory) -> tuple[
     folder = tmp_path_factory.mktemp("live")
     node = NodeProcess(SCENE, {"diagnostics_period": 0.1}, folder / "node.log", NAMESPACE)
     try:
-        completed = run_cli(
-            "replay",
-            str(handmade_bag),
-            "--scene",
-            str(SCENE),
-            "-o",
-            str(folder / "out"),
-            "--json",
-            str(folder / "result.json"),
-            "--namespace",
-            NAMESPACE,
-            "--wait",
-            "60",
-            "--exhaustive",
-            timeout=180,
-        )
+        completed = replay_live(handmade_bag, folder / "out", NAMESPACE, "--json", str(folder / "result.json"))
         assert node.alive, node.output()
     finally:
         node.stop()
