@@ -238,6 +238,11 @@ def run_method(vertices: FloatArray, faces: IntArray, settings: DecompositionSet
     return _coacd(vertices, faces, settings) if settings.method == "coacd" else _vhacd(vertices, faces)
 
 
+#: The child's CPU-time backstop: this many times the wall-clock limit, plus a margin (seconds).
+CPU_LIMIT_FACTOR = 2
+CPU_LIMIT_MARGIN = 2
+
+
 def decomposition_limits() -> tuple[float, int]:
     """The wall-clock seconds and bytes of memory a decomposition may take (module constants, or the
     environment's :data:`TIME_LIMIT_VARIABLE` and :data:`MEMORY_LIMIT_VARIABLE`)."""
@@ -265,7 +270,9 @@ def _in_child_process(
             "method": settings.method,
             "threshold": settings.threshold,
             "memory_bytes": memory,
-            "cpu_seconds": max(1, math.ceil(seconds)),
+            # The wall clock decides; the CPU limit is the child's own backstop, should the parent be gone:
+            # above it, so that a decomposition on two cores meets the wall-clock limit first.
+            "cpu_seconds": CPU_LIMIT_FACTOR * math.ceil(seconds) + CPU_LIMIT_MARGIN,
         }
         (folder / "request.json").write_text(json.dumps(request), encoding="utf-8")
         np.savez(folder / "mesh.npz", vertices=np.asarray(vertices, dtype=np.float64), faces=np.asarray(faces))
