@@ -217,4 +217,5 @@ def test_ctrl_c_while_a_mesh_loads_is_never_lost(tmp_path: Path) -> None:
         time.sleep(delay)  # when the signal comes, not how long anything takes
         process.send_signal(signal.SIGINT)
         out, _ = process.communicate(timeout=60)
-        assert (process.returncode, out) == (130, ""), delay
+        # 130: stopped by the KeyboardInterrupt; -SIGINT: the signal came before Python's handler was set up.
+        assert process.returncode in (130, -signal.SIGINT) and out == "", (delay, process.returncode)
