@@ -15,7 +15,7 @@ import pytest
 import yaml
 from core_builders import cli, solve_json
 
-from physics_mapper.bench.crowded import same_answer
+from physics_mapper.bench.crowded import REDUCED, same_answer
 from physics_mapper.bench.crowded_suite import (
     CrowdedCase,
     CrowdedProblem,
@@ -31,15 +31,6 @@ from physics_mapper.search.conflict_directed import ConflictGroupSearch, Conflic
 from physics_mapper.search.conflicts import Conflict
 from physics_mapper.search.results import Code, SearchResult
 from physics_mapper.search.strategy import make_search
-
-REDUCED_SUITE = (
-    CrowdedCase("row", 5, 3, 0),
-    CrowdedCase("row", 6, 3, 1),
-    CrowdedCase("wall", 6, 3, 2),
-    CrowdedCase("tower", 6, 3, 3),
-    CrowdedCase("shelf", 6, 3, 4),
-    CrowdedCase("bin", 5, 3, 5),
-)
 
 Outcomes = dict[tuple[tuple[int, ...], Code], str]
 #: A problem, the paper's search of it per group, the conflict-directed one, and its groups.
@@ -62,7 +53,7 @@ def outcomes(result: SearchResult) -> Outcomes:
     return {(objects[entry.group], entry.code): entry.outcome for entry in result.trace}
 
 
-@pytest.fixture(scope="module", params=REDUCED_SUITE, ids=lambda case: case.label)
+@pytest.fixture(scope="module", params=REDUCED, ids=lambda case: case.label)
 def case_runs(request: pytest.FixtureRequest) -> CaseRuns:
     problem = crowded_problem(request.param)
     paper, _ = searched(problem, strategy="grouped")
@@ -71,7 +62,7 @@ def case_runs(request: pytest.FixtureRequest) -> CaseRuns:
 
 
 def test_the_suite_s_configuration_is_valid_by_construction() -> None:
-    for case in REDUCED_SUITE:
+    for case in REDUCED:
         assert truth_is_valid(crowded_problem(case)), case.label
 
 

@@ -85,7 +85,7 @@ class BranchAndBound:
     search): overridable steps :meth:`step` (one unit of work), :meth:`visit` (check and expand a
     node), :meth:`check` (Rule 1 then Rule 2), :meth:`rule1`, :meth:`settle_node`,
     :meth:`on_settled`, :meth:`record` and :meth:`update_end`; and the tools they use:
-    :meth:`head`, :meth:`drop_head` and :meth:`push` (the queue, in the paper's order and tie
+    :meth:`bound_cut_some`; :meth:`head`, :meth:`drop_head` and :meth:`push` (the queue, in the paper's order and tie
     rule), :meth:`judge` (a settled node's outcome), :meth:`interrupt` (a settling its deadline
     cut), :meth:`is_bounded`, :attr:`tracks_reach`. The queue's order, the bound and the trace stay
     the paper's whatever a subclass does.
@@ -284,7 +284,12 @@ class BranchAndBound:
         elif self.stats.dropped:
             self.stats.end = "truncated"
         else:
-            self.stats.end = "exhausted" if self.stats.visited == self._configurations else "bounded"
+            self.stats.end = "bounded" if self.bound_cut_some() else "exhausted"
+
+    def bound_cut_some(self) -> bool:
+        """Whether the bound kept some configuration from the queue (extension point: a search that
+        skips configurations unchecked counts the cut ones itself)."""
+        return self.stats.visited != self._configurations
 
     def visit(self, item: QueueItem, stop_at: float | None) -> TraceEntry | None:
         """Check one node and expand it; None if the deadline interrupted its settling."""

@@ -243,13 +243,9 @@ class ConflictGroupSearch(GroupSearch):
                     return True
         return False
 
-    def update_end(self) -> None:
-        if self.queued:
-            self.stats.end = None
-        elif self.stats.dropped:
-            self.stats.end = "truncated"
-        else:
-            self.stats.end = "bounded" if self._cut else "exhausted"
+    def bound_cut_some(self) -> bool:
+        """Whether the bound kept a child from the queue (skipped candidates were not checked but are decided)."""
+        return self._cut > 0
 
 
 class ConflictSearch(GroupedSearch):
