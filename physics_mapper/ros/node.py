@@ -409,9 +409,11 @@ class MapperNodeBase(Node):
 
         try:
             return [
-                self._input_subscription(PoseArray, poses_topic(name), on_poses, name, "poses", reliability, raw=True),
                 self._input_subscription(
-                    Float64MultiArray, weights_topic(name), on_weights, name, "weights", reliability
+                    PoseArray, poses_topic(name), on_poses, reliability, lost_as=(name, "poses"), raw=True
+                ),
+                self._input_subscription(
+                    Float64MultiArray, weights_topic(name), on_weights, reliability, lost_as=(name, "weights")
                 ),
             ]
         except InvalidTopicNameException:
@@ -438,15 +440,8 @@ class MapperNodeBase(Node):
             for note in detected.unused:
                 self._log_input_once(DETECTIONS_TOPIC, note)
 
-        subscription = self.create_subscription(
-            Detection3DArray,
-            DETECTIONS_TOPIC,
-            cast(Callable[[Any], None], on_detections),  # rclpy passes two-parameter callbacks the message info
-            input_qos(reliability),
-            callback_group=self._inputs_group,
-        )
-        self._entities.append(subscription)
-        return [str(subscription.topic_name)]
+        # A lost array cannot be laid to one object: the middleware's losses are not counted for it.
+        return [self._input_subscription(Detection3DArray, DETECTIONS_TOPIC, on_detections, reliability)]
 
     def _log_input_once(self, name: str, what: str) -> None:
         """Log what became of an object's input, once per object and text: a stream of bad messages
@@ -466,21 +461,21 @@ class MapperNodeBase(Node):
         msg_type: type,
         topic: str,
         callback: Callable[[Any, Mapping[str, Any]], None],
-        name: str,
-        kind: MessageKind,
         reliability: InputReliability,
         *,
+        lost_as: tuple[str, MessageKind] | None = None,
         raw: bool = False,
     ) -> str:
-        """A hypothesis subscription: its callback gets the message info, lost messages are counted;
-        returns the topic's resolved name."""
+        """A hypothesis subscription: its callback gets the message info, and with ``lost_as``
+        (object name, kind) the middleware's lost messages are counted; returns the topic's resolved name."""
+        events = None if lost_as is None else SubscriptionEventCallbacks(message_lost=self._on_lost(*lost_as))
         subscription = self.create_subscription(
             msg_type,
             topic,
             cast(Callable[[Any], None], callback),  # rclpy passes two-parameter callbacks the message info
             input_qos(reliability),
             callback_group=self._inputs_group,
-            event_callbacks=SubscriptionEventCallbacks(message_lost=self._on_lost(name, kind)),
+            event_callbacks=events,
             raw=raw,
         )
         self._entities.append(subscription)
