@@ -7,13 +7,14 @@ packed scenes whose only valid configuration is known by construction.
 
 from __future__ import annotations
 
+import itertools
 import json
 from dataclasses import replace
 from pathlib import Path
 
 import pytest
 import yaml
-from core_builders import cli, solve_json
+from core_builders import cli, cube, floor_scene, solve_json, unrotated
 
 from physics_mapper.bench.crowded import REDUCED, same_answer
 from physics_mapper.bench.crowded_suite import (
@@ -27,8 +28,9 @@ from physics_mapper.model.geometry import Pose
 from physics_mapper.model.hypotheses import Hypothesis, RankedHypotheses
 from physics_mapper.model.scene import Bound, SearchParams
 from physics_mapper.physics.checker import PhysicsChecker
+from physics_mapper.physics.settling import early_exit_rule
 from physics_mapper.search.conflict_directed import ConflictGroupSearch, ConflictSearch
-from physics_mapper.search.conflicts import Conflict
+from physics_mapper.search.conflicts import Conflict, ConflictStore
 from physics_mapper.search.results import Code, SearchResult
 from physics_mapper.search.strategy import make_search
 
@@ -194,3 +196,64 @@ def test_solve_trace_names_each_rejection_s_conflict(tmp_path: Path) -> None:
         assert all(entry["code"][names.index(name)] == rank for name, rank in entry["conflict"])
     text = cli("solve", problem_file, "--tree")
     assert text.returncode == 0 and "conflict {" in text.stdout and "candidates skipped" in text.stdout
+    # The root holds a rank ruled out alone: skipped, so its children head the tree and name it.
+    assert f"(queued by C{'1' * 6}, skipped)" in text.stdout
+
+
+def test_ranks_ruled_out_alone_are_in_collision_in_every_configuration() -> None:
+    """Before its first candidate, a group's search knows the ranks Rule 1 rules out alone; each is in
+    collision (checked in full, every object placed) whatever the other objects' ranks."""
+    problem = crowded_problem(CrowdedCase("tower", 6, 3, 3))
+    scene, hypotheses, params = problem.problem.scene, problem.problem.hypotheses, problem.problem.scene.search
+    with PhysicsChecker(scene) as checker:
+        search = make_search(checker, hypotheses, params)
+        assert isinstance(search, ConflictSearch)
+        (group,) = search.groups()
+        assert isinstance(group, ConflictGroupSearch) and group.objects == checker.all_objects
+        ruled_out = list(group.conflicts)
+        assert ruled_out and group.stats.visited == 0
+        for conflict in ruled_out:
+            ((position, rank),) = conflict.assignments
+            assert rank not in group.conflicts.live_ranks(position)
+            for code in itertools.product(*(range(1, len(h) + 1) for h in group.hypotheses)):
+                if code[position] == rank:
+                    poses = [hypotheses[i].pose(r) for i, r in zip(group.objects, code, strict=True)]
+                    assert checker.find_collision(poses, params.penetration_threshold) is not None, code
+        assert problem.answer[position] in group.conflicts.live_ranks(position)
+        assert (search.run(None).code, True) == (problem.answer, True)
+
+
+def test_the_conflict_store_finds_the_smallest_conflict_and_the_ranks_left() -> None:
+    store = ConflictStore([3, 3, 4])
+    assert store.contained((1, 1, 1)) is None
+    pair = Conflict(((0, 1), (2, 2)), "collision")
+    triple = Conflict(((0, 1), (1, 1), (2, 2)), "unstable")
+    assert store.learn(triple) and store.learn(pair) and not store.learn(pair)
+    assert store.contained((1, 1, 2)) is pair  # the smaller of the two it holds
+    assert store.contained((1, 2, 2)) is pair and store.contained((2, 1, 2)) is None
+    assert store.next_rank(2, 1) == 2 and store.live_ranks(2) == [1, 2, 3, 4]
+    store.learn(Conflict(((2, 2),), "collision"))
+    store.learn(Conflict(((2, 3),), "collision"))
+    assert store.next_rank(2, 1) == 4 and store.next_rank(2, 4) is None
+    assert store.live_ranks(2) == [1, 4]
+    assert store.contained((3, 3, 3)) == Conflict(((2, 3),), "collision")
+
+
+def test_a_moving_settling_stops_a_falling_object_sooner_with_the_same_verdict() -> None:
+    """``moving``: an object far off and still falling ends the settling before it comes to rest."""
+    scene = floor_scene(cube("a"))
+    params = scene.search
+    floating = [unrotated(0.0, 0.0, 0.25)]  # 20 cm above its resting height
+    with PhysicsChecker(scene) as checker:
+        at_rest = checker.settle(
+            floating, params.settle_time, params.angular_weight, early_exit=early_exit_rule(params, complete=False)
+        )
+        moving = checker.settle(
+            floating,
+            params.settle_time,
+            params.angular_weight,
+            early_exit=early_exit_rule(params, complete=False, moving=True),
+        )
+    assert moving.stopped == "beyond_threshold" and moving.steps < at_rest.steps
+    assert not moving.is_stable(params.jitter_threshold) and not at_rest.is_stable(params.jitter_threshold)
+    assert early_exit_rule(params, complete=True, moving=True) == early_exit_rule(params, complete=True)

@@ -23,7 +23,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from physics_mapper.model.geometry import Pose, Quaternion, rotate_vector
-from physics_mapper.model.scene import Box, Cylinder, Mesh, ObjectShape, Sphere
+from physics_mapper.model.scene import Box, Cylinder, Mesh, ObjectShape, Plane, Sphere, StaticBody
 
 FloatArray = NDArray[np.float64]
 
@@ -64,3 +64,21 @@ def stable_growth(radius: float, jitter_threshold: float, angular_weight: float)
     if angular_weight <= 0.0:
         return jitter_threshold + 2.0 * radius
     return max(1.0, radius / angular_weight) * jitter_threshold
+
+
+def may_overlap_static(body: StaticBody, lows: FloatArray, highs: FloatArray, depth: float) -> NDArray[np.bool_]:
+    """Per box [``lows[k]``, ``highs[k]``] (K x 3, metres), whether a body inside it can overlap the static
+    ``body`` deeper than ``depth`` metres.
+
+    An overlap's depth is the shortest translation that separates the two bodies, so it is at most
+    what separates their boxes: the boxes' overlap along any axis, or for a plane of normal n
+    through t, how far the box's lowest point along n, (c - t) . n - e . |n| (c its centre, e its
+    half-size), lies below the plane. False where the overlap cannot be deeper.
+    """
+    if isinstance(body.shape, Plane):
+        normal = rotation_matrix(body.pose.orientation)[:, 2]
+        centres, halves = (lows + highs) / 2.0, (highs - lows) / 2.0
+        lowest = (centres - np.asarray(body.pose.position)) @ normal - halves @ np.abs(normal)
+        return np.asarray(lowest < -depth)
+    low, high = body_box(body.shape, body.pose)
+    return np.asarray(np.all(np.minimum(highs, high) - np.maximum(lows, low) > depth, axis=1))

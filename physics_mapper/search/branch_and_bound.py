@@ -57,7 +57,7 @@ from physics_mapper.model.scene import SearchParams
 from physics_mapper.physics.checker import PhysicsChecker
 from physics_mapper.physics.collision import Collision
 from physics_mapper.physics.refine import RefinedMap, Refinement, refinement_start
-from physics_mapper.physics.settling import PartialSettling, Settling, early_exit_rule
+from physics_mapper.physics.settling import EarlyExit, PartialSettling, Settling, early_exit_rule
 from physics_mapper.physics.world import TIME_STEP
 from physics_mapper.search.results import Candidate, Code, GroupResult, SearchResult, SearchStats, TraceEntry
 
@@ -152,6 +152,11 @@ class BranchAndBound:
             reference = self.first_valid_probability
             return reference is not None and probability / reference < threshold
         return probability < threshold
+
+    @property
+    def bounds_any(self) -> bool:
+        """Whether some node can be below the bound yet (``bound: resolving`` bounds none before a valid one)."""
+        return self.params.bound != "resolving" or self.first_valid_probability is not None
 
     def push(self, code: Code, parent: Code | None) -> None:
         """Queue node ``code`` (first queued by expanding ``parent``), unless it is queued already."""
@@ -346,19 +351,23 @@ class BranchAndBound:
         already knows instead (a memo), without calling :meth:`on_settled`.
         """
         params = self.params
-        early_exit = early_exit_rule(params, complete=self.settling_completely)
         outcome = self.checker.settle(
             poses,
             params.settle_time,
             params.angular_weight,
             stop_at,
             objects=self.objects,
-            early_exit=early_exit,
+            early_exit=self.early_exit(),
             track_reach=self.tracks_reach,
         )
         if isinstance(outcome, Settling):
             self.on_settled(code, outcome)
         return outcome
+
+    def early_exit(self) -> EarlyExit | None:
+        """When a node's settling may stop early (extension point): at rest, or at rest beyond the jitter
+        threshold unless it settles completely (:func:`~physics_mapper.physics.settling.early_exit_rule`)."""
+        return early_exit_rule(self.params, complete=self.settling_completely)
 
     #: Whether settlings record where objects went (the grouped search's escape guard needs it).
     tracks_reach = False

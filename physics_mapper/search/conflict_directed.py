@@ -9,6 +9,9 @@ p(C) with its tie rule, from one max-priority queue with the same dedup set, but
 - a candidate rejected or skipped because of conflict K is expanded by advancing only the objects of
   K (a collision: two objects, not N), since every other child still contains K; a valid candidate
   is expanded by every object, as in the paper;
+- a child advances its object to the next rank no one-assignment conflict rules out (those learned
+  before the first candidate, :mod:`physics_mapper.search.ruling_out`, and since): the ranks jumped
+  over would be skipped and expanded by that object alone, to this very child;
 - a child is queued only if one of its parents, the configurations one rank lower on one object, is
   above the bound: exactly the nodes the paper's search queues, since there a node is queued iff some
   parent is visited and not bounded, and a parent's p(C) is at least its child's. A node below the
@@ -38,12 +41,13 @@ from physics_mapper.model.hypotheses import RankedHypotheses
 from physics_mapper.model.scene import SearchParams
 from physics_mapper.physics.checker import PhysicsChecker
 from physics_mapper.physics.collision import Collision, deepest_collision
-from physics_mapper.physics.settling import PartialSettling, Settling, early_exit_rule
+from physics_mapper.physics.settling import EarlyExit, PartialSettling, Settling, early_exit_rule
 from physics_mapper.search.branch_and_bound import BranchAndBound, QueueItem
 from physics_mapper.search.conflicts import Blame, Conflict, ConflictStore, collision_conflict
 from physics_mapper.search.grouped import GroupedSearch, GroupSearch, SettleMemo, physics_key
 from physics_mapper.search.local_settling import LocalPlan, LocalSettling
 from physics_mapper.search.results import Candidate, Code, TraceEntry
+from physics_mapper.search.ruling_out import rule_out_alone
 
 #: Candidates skipped between two looks at the clock (a skip costs tens of microseconds).
 SKIPS_PER_CLOCK_CHECK = 64
@@ -65,6 +69,17 @@ class ConflictGroupSearch(GroupSearch):
         self.local = LocalSettling(self.blame)
         self._local: tuple[Code, LocalPlan] | None = None  # the local settling under way
         self._depths: dict[tuple[int, int], float] = {}  # the last Rule 1 check's overlaps, by body pair
+        half_margin = self.params.interaction_margin / 2.0  # the grouping's boxes are grown by it
+        grouping = owner.grouping
+        self.stats.conflicts += rule_out_alone(
+            self.objects,
+            [grouping.lows[i] + half_margin for i in self.objects],
+            [grouping.highs[i] - half_margin for i in self.objects],
+            scene.static,
+            owner.table,
+            self.params.penetration_threshold,
+            self.conflicts,
+        )
 
     def step(self, stop_at: float | None) -> bool:
         """Skip every candidate at the head of the queue that contains a known conflict (no physics: many
@@ -177,12 +192,17 @@ class ConflictGroupSearch(GroupSearch):
             stop_at,
             objects=[self.objects[p] for p in plan.simulated],
             fixed=[(self.objects[p], poses[p]) for p in plan.fixed],
-            early_exit=early_exit_rule(params, complete=False),
+            early_exit=self.early_exit(),
             track_reach=True,
         )
         if isinstance(outcome, Settling):
             self.on_settled(code, outcome)
         return outcome
+
+    def early_exit(self) -> EarlyExit | None:
+        """As the paper's search's, and a settling not reported by a fallback also stops once an object
+        is far off and still moving (``moving``)."""
+        return early_exit_rule(self.params, complete=self.settling_completely, moving=not self.settling_completely)
 
     def on_settled(self, code: Code, settling: Settling) -> None:
         """Count the settling; a local one is guarded as one of the whole group and kept out of the memo."""
@@ -222,17 +242,34 @@ class ConflictGroupSearch(GroupSearch):
 
     def _expand(self, code: Code, bounded: bool, conflict: Conflict | None) -> None:
         """Queue the children that advance an object of ``conflict`` (None: every object) and have a
-        parent above the bound."""
+        parent above the bound.
+
+        A child advances its object to the next rank no one-assignment conflict rules out: the ranks
+        jumped over would be skipped, and expanded only by that object, to this very child (its
+        parent on that object, the last rank jumped over, decides the bound as there)."""
         positions = range(len(code)) if conflict is None else conflict.positions
         for position in positions:
-            if code[position] < len(self.hypotheses[position]):
-                child = (*code[:position], code[position] + 1, *code[position + 1 :])
-                if not bounded or self._has_parent_above_bound(child):
-                    self.push(child, code)
-                else:
-                    self._cut += 1
+            rank = self.conflicts.next_rank(position, code[position])
+            if rank is None:
+                continue
+            child = (*code[:position], rank, *code[position + 1 :])
+            if self._queues(child, code, bounded, position):
+                self.push(child, code)
+            else:
+                self._cut += 1
         if not bounded:
             self.stats.expanded += 1
+
+    def _queues(self, child: Code, code: Code, bounded: bool, position: int) -> bool:
+        """Whether ``child`` of ``code`` (advanced at ``position``) has a parent above the bound: ``code``
+        itself or the last rank jumped over, cheaply, if they are; else any parent."""
+        if not bounded:
+            if child[position] == code[position] + 1 or not self.bounds_any:
+                return True
+            jumped = (*child[:position], child[position] - 1, *child[position + 1 :])
+            if not self.is_bounded(self.probability(jumped)):
+                return True
+        return self._has_parent_above_bound(child)
 
     def _has_parent_above_bound(self, code: Code) -> bool:
         """Whether some configuration one rank lower on one object is not bounded."""

@@ -138,26 +138,37 @@ def search_ending(stats: SearchStats) -> str:
 
 def trace_tree(trace: tuple[TraceEntry, ...], groups: tuple[GroupResult, ...] = (), names: tuple[str, ...] = ()) -> str:
     """The search tree: each node under the node that queued it, in visiting order (one tree per group,
-    headed by its objects when ``groups`` and the scene's object ``names`` are given)."""
+    headed by its objects when ``groups`` and the scene's object ``names`` are given).
+
+    A node queued by one that is not in the trace (a candidate skipped by a conflict, or visited after
+    the trace limit) heads a tree of its own, which names that node."""
     objects = {group.id: ", ".join(names[i] for i in group.objects) for group in groups} if names else {}
+    traced = {(entry.group, entry.code) for entry in trace}
     children: dict[tuple[int | None, Code | None], list[tuple[int, TraceEntry]]] = {}
+    tops: list[tuple[int, TraceEntry]] = []
     for index, entry in enumerate(trace, start=1):
-        children.setdefault((entry.group, entry.parent), []).append((index, entry))
+        if entry.parent is None or (entry.group, entry.parent) not in traced:
+            tops.append((index, entry))
+        else:
+            children.setdefault((entry.group, entry.parent), []).append((index, entry))
     lines: list[str] = []
 
-    def walk(group: int | None, parent: Code | None, prefix: str) -> None:
+    def line(prefix: str, index: int, entry: TraceEntry) -> str:
+        return f"{prefix}{code_text(entry.code)}  #{index}  p={entry.probability:.4g}  {describe_entry(entry)}"
+
+    def walk(group: int | None, parent: Code, prefix: str) -> None:
         kids = children.get((group, parent), [])
         for position, (index, entry) in enumerate(kids):
             last = position == len(kids) - 1
-            root = "" if group is None else f"group {group}{f' ({objects[group]})' if group in objects else ''}: "
-            branch = root if parent is None else ("└─ " if last else "├─ ")
-            lines.append(
-                f"{prefix}{branch}{code_text(entry.code)}  #{index}  p={entry.probability:.4g}  {describe_entry(entry)}"
-            )
-            walk(group, entry.code, prefix + ("" if parent is None else ("   " if last else "│  ")))
+            lines.append(line(prefix + ("└─ " if last else "├─ "), index, entry))
+            walk(group, entry.code, prefix + ("   " if last else "│  "))
 
-    for group in dict.fromkeys(entry.group for entry in trace if entry.parent is None):
-        walk(group, None, "")
+    for index, entry in tops:
+        group = entry.group
+        head = "" if group is None else f"group {group}{f' ({objects[group]})' if group in objects else ''}: "
+        queued_by = "" if entry.parent is None else f"  (queued by {code_text(entry.parent)}, skipped)"
+        lines.append(line(head, index, entry) + queued_by)
+        walk(group, entry.code, "")
     return "\n".join(lines)
 
 

@@ -1,0 +1,139 @@
+"""Ranks ruled out alone before a group's search starts: Rule 1 made consistent object by object.
+
+Object p at rank a is *ruled out alone* when no valid configuration holds it
+(:mod:`physics_mapper.search.conflicts`, a one-assignment conflict {(p, a)}), which Rule 1 shows in two
+ways:
+
+- p at a overlaps a static body deeper than the ``penetration_threshold``;
+- for some other object q, p at a overlaps q deeper than the threshold at every rank of q not ruled
+  out alone already.
+
+The second rule feeds on the first, so it is applied until nothing changes (arc consistency on the
+pairwise Rule 1 table). A search learns the same conflicts from rejected candidates, but only once a
+candidate holding p at a is checked: meanwhile every queued candidate holding it is skipped one by
+one, thousands in a crowded group. Learned first, those candidates are never made
+(:meth:`~physics_mapper.search.conflicts.ConflictStore.next_rank`).
+
+Only pairs that can overlap that deep are looked up in the table: an overlap's depth is at most the
+overlap of the two bodies' boxes along every axis (:func:`~physics_mapper.model.extents.may_overlap_static`),
+so boxes (from :func:`~physics_mapper.model.extents.body_box`) that overlap by less decide the pair
+without the engine. The conflicts themselves come from the table's depths, the ones Rule 1 uses.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+from numpy.typing import NDArray
+
+from physics_mapper.model.extents import may_overlap_static
+from physics_mapper.model.scene import StaticBody
+from physics_mapper.physics.collision_table import CollisionTable
+from physics_mapper.search.conflicts import Conflict, ConflictStore
+
+FloatArray = NDArray[np.float64]
+#: Pairs of hypothesis boxes the pass compares at most; beyond, it is not made (the search is the
+#: same without it, only slower to skip what it would have ruled out).
+BOX_PAIR_LIMIT = 1 << 20
+
+
+def rule_out_alone(
+    objects: Sequence[int],
+    lows: Sequence[FloatArray],
+    highs: Sequence[FloatArray],
+    statics: Sequence[StaticBody],
+    table: CollisionTable,
+    threshold: float,
+    store: ConflictStore,
+) -> int:
+    """Learn into ``store`` every rank of a group's objects that Rule 1 rules out alone (module docstring);
+    the number of conflicts learned.
+
+    ``objects`` are the group's scene indices by position, ``lows[p]`` and ``highs[p]`` (M_p x 3,
+    metres) the corners of object p's body boxes by rank, ``threshold`` the penetration threshold (m).
+    """
+    learned = _rule_out_on_statics(objects, lows, highs, statics, table, threshold, store)
+    overlaps = _box_overlaps(lows, highs, threshold)
+    if overlaps is None:
+        return learned
+    changed = True
+    while changed:  # a rank ruled out may rule out others: until nothing changes
+        found = _rule_out_on_pairs(objects, overlaps, table, threshold, store)
+        learned += found
+        changed = found > 0
+    return learned
+
+
+def _rule_out_on_statics(
+    objects: Sequence[int],
+    lows: Sequence[FloatArray],
+    highs: Sequence[FloatArray],
+    statics: Sequence[StaticBody],
+    table: CollisionTable,
+    threshold: float,
+    store: ConflictStore,
+) -> int:
+    """Learn the ranks that overlap a static body deeper than ``threshold`` (m); how many."""
+    learned = 0
+    for position, index in enumerate(objects):
+        reach = np.zeros(len(lows[position]), dtype=bool)
+        for body in statics:
+            reach |= may_overlap_static(body, lows[position], highs[position], threshold)
+        for rank in (int(k) + 1 for k in np.nonzero(reach)[0]):
+            if table.static_depth(index, rank) > threshold:
+                learned += store.learn(Conflict(((position, rank),), "collision"))
+    return learned
+
+
+def _rule_out_on_pairs(
+    objects: Sequence[int],
+    overlaps: dict[tuple[int, int], FloatArray],
+    table: CollisionTable,
+    threshold: float,
+    store: ConflictStore,
+) -> int:
+    """One pass over the pairs: learn each rank of p that overlaps q deeper than ``threshold`` (m) at
+    every rank of q not ruled out; how many."""
+    learned = 0
+    for (p, q), overlap in overlaps.items():
+        live = store.live_ranks(q)
+        if not live:
+            continue
+        columns = np.asarray(live) - 1
+        for rank in store.live_ranks(p):
+            row = overlap[rank - 1, columns]
+            if not np.all(row > threshold):
+                continue
+            # The ranks least deep by their boxes first: the first shallow one decides.
+            ranks = [live[int(k)] for k in np.argsort(row, kind="stable")]
+            if all(table.pair_depth(objects[p], rank, objects[q], b) > threshold for b in ranks):
+                learned += store.learn(Conflict(((p, rank),), "collision"))
+    return learned
+
+
+def _box_overlaps(
+    lows: Sequence[FloatArray], highs: Sequence[FloatArray], threshold: float
+) -> dict[tuple[int, int], FloatArray] | None:
+    """For each ordered pair of positions (p, q) whose boxes can overlap deeper than ``threshold``: the
+    M_p x M_q matrix of their ranks' boxes' overlap (m), the least along the three axes, an upper
+    bound of the bodies' overlap depth (None: more than :data:`BOX_PAIR_LIMIT` box pairs)."""
+    low = np.array([box.min(axis=0) for box in lows])
+    high = np.array([box.max(axis=0) for box in highs])
+    whole = _least_overlap(low, high, low, high)
+    pairs = [(int(p), int(q)) for p, q in zip(*np.nonzero(np.triu(whole > threshold, k=1)), strict=True)]
+    if sum(len(lows[p]) * len(lows[q]) for p, q in pairs) > BOX_PAIR_LIMIT:
+        return None
+    overlaps: dict[tuple[int, int], FloatArray] = {}
+    for p, q in pairs:
+        overlap = _least_overlap(lows[p], highs[p], lows[q], highs[q])
+        if np.any(overlap > threshold):
+            overlaps[(p, q)], overlaps[(q, p)] = overlap, overlap.T
+    return overlaps
+
+
+def _least_overlap(low_a: FloatArray, high_a: FloatArray, low_b: FloatArray, high_b: FloatArray) -> FloatArray:
+    """A x B: how far box a of the first set and box b of the second overlap (m), the least along the
+    axes (negative: apart)."""
+    extent = np.minimum(high_a[:, None, :], high_b[None, :, :]) - np.maximum(low_a[:, None, :], low_b[None, :, :])
+    return np.asarray(extent.min(axis=2))
