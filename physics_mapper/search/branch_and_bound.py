@@ -263,13 +263,13 @@ class BranchAndBound:
 
     @property
     def refinement_due(self) -> bool:
-        """Whether the root's refined map is to be made now: fallback refine, the root visited and
-        not valid, no valid node yet, no node's settling waiting to be continued."""
+        """Whether the root's refined map is to be made now: fallback refine, the root visited (or
+        skipped by a conflict) and not valid, no valid node yet, no node's settling waiting to be continued."""
         return (
             self.params.fallback == "refine"
             and self._refined is None
             and self._best is None
-            and self.stats.visited > 0
+            and self.stats.visited + self.stats.skipped > 0
             and self._interrupted is None
         )
 
