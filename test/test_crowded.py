@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import itertools
 import json
+import random
 from dataclasses import replace
 from pathlib import Path
 
@@ -201,26 +202,37 @@ def test_solve_trace_names_each_rejection_s_conflict(tmp_path: Path) -> None:
 
 
 def test_ranks_ruled_out_alone_are_in_collision_in_every_configuration() -> None:
-    """Before its first candidate, a group's search knows the ranks Rule 1 rules out alone; each is in
-    collision (checked in full, every object placed) whatever the other objects' ranks."""
-    problem = crowded_problem(CrowdedCase("tower", 6, 3, 3))
-    scene, hypotheses, params = problem.problem.scene, problem.problem.hypotheses, problem.problem.scene.search
-    with PhysicsChecker(scene) as checker:
-        search = make_search(checker, hypotheses, params)
-        assert isinstance(search, ConflictSearch)
-        (group,) = search.groups()
-        assert isinstance(group, ConflictGroupSearch) and group.objects == checker.all_objects
-        ruled_out = list(group.conflicts)
-        assert ruled_out and group.stats.visited == 0
-        for conflict in ruled_out:
-            ((position, rank),) = conflict.assignments
-            assert rank not in group.conflicts.live_ranks(position)
-            for code in itertools.product(*(range(1, len(h) + 1) for h in group.hypotheses)):
-                if code[position] == rank:
+    """Before its first candidate, a group's search knows the ranks Rule 1 rules out alone (against the
+    floor, and against a neighbour at each of its ranks); each is in collision (checked in full, every
+    object placed) whatever the other objects' ranks: all of them in a small tower, 100 drawn at random
+    in a larger one, where the pairwise rule applies."""
+    rng = random.Random(0)
+    for case, sample in ((CrowdedCase("tower", 6, 3, 3), None), (CrowdedCase("tower", 9, 4, 3), 100)):
+        problem = crowded_problem(case)
+        scene, hypotheses, params = problem.problem.scene, problem.problem.hypotheses, problem.problem.scene.search
+        with PhysicsChecker(scene) as checker:
+            search = make_search(checker, hypotheses, params)
+            assert isinstance(search, ConflictSearch)
+            (group,) = search.groups()
+            assert isinstance(group, ConflictGroupSearch) and group.objects == checker.all_objects
+            ruled_out = list(group.conflicts)
+            assert ruled_out and group.stats.visited == 0
+            ranks = [range(1, len(h) + 1) for h in group.hypotheses]
+            for conflict in ruled_out:
+                ((position, rank),) = conflict.assignments
+                assert rank not in group.conflicts.live_ranks(position) and problem.answer[position] != rank
+                codes = (
+                    [c for c in itertools.product(*ranks) if c[position] == rank]
+                    if sample is None
+                    else [
+                        tuple(rank if p == position else rng.choice(r) for p, r in enumerate(ranks))
+                        for _ in range(sample)
+                    ]
+                )
+                for code in codes:
                     poses = [hypotheses[i].pose(r) for i, r in zip(group.objects, code, strict=True)]
                     assert checker.find_collision(poses, params.penetration_threshold) is not None, code
-        assert problem.answer[position] in group.conflicts.live_ranks(position)
-        assert (search.run(None).code, True) == (problem.answer, True)
+            assert (search.run(None).code, True) == (problem.answer, True)
 
 
 def test_the_conflict_store_finds_the_smallest_conflict_and_the_ranks_left() -> None:
