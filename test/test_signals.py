@@ -219,3 +219,23 @@ def test_ctrl_c_while_a_mesh_loads_is_never_lost(tmp_path: Path) -> None:
         out, _ = process.communicate(timeout=60)
         # 130: stopped by the KeyboardInterrupt; -SIGINT: the signal came before Python's handler was set up.
         assert process.returncode in (130, -signal.SIGINT) and out == "", (delay, process.returncode)
+
+
+def test_stopping_the_node_s_scene_load_does_not_wait_for_a_mesh_parser(tmp_path: Path) -> None:
+    """A mesh parser cannot be stopped: cancelling the load leaves it to a daemon thread (the node then
+    exits) instead of waiting for every mesh; the thread ends on its own afterwards."""
+    import trimesh
+
+    from physics_mapper.mapping.scene_loading import SceneLoading
+
+    ball = trimesh.creation.icosphere(subdivisions=6).apply_scale(0.05)  # 81,920 faces: a second to parse
+    objects = []
+    for index in range(4):  # distinct files: each is parsed
+        ball.export(tmp_path / f"ball_{index}.obj")
+        objects.append(f"  - {{name: ball_{index}, shape: mesh, file: ball_{index}.obj, mass: 0.1}}\n")
+    scene = tmp_path / "scene.yaml"
+    scene.write_text("static:\n  - {name: floor, shape: plane}\nobjects:\n" + "".join(objects))
+    loading = SceneLoading(scene)
+    assert not loading.wait(0.2)  # parsing the first ball
+    assert loading.cancel() is False  # returned while the parser goes on
+    assert loading.wait(120.0)  # and that thread ends by itself

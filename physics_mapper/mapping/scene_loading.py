@@ -3,7 +3,8 @@
 A scene's first load may decompose meshes (a minute for CoACD); :class:`SceneLoading` runs
 :func:`~physics_mapper.model.scene_files.load_scene` in a thread while the node spins and reports
 what is happening (:attr:`SceneLoading.activity`: the decomposition under way). :meth:`SceneLoading.cancel`
-stops it within the decomposition's poll period (its child process is killed).
+stops it within the decomposition's poll period (its child process is killed), or leaves a mesh parser,
+which cannot be stopped, to finish in a daemon thread while the node exits.
 """
 
 from __future__ import annotations
@@ -14,6 +15,11 @@ from pathlib import Path
 from physics_mapper.model.decomposition import cancelled_by, stderr_progress
 from physics_mapper.model.scene import Scene
 from physics_mapper.model.scene_files import load_scene
+
+
+#: Seconds :meth:`SceneLoading.cancel` waits for the loading thread: longer than a decomposition's
+#: poll period (``decomposition.STOP_POLL``), far shorter than parsing a mesh at the face cap (1.6 s).
+CANCEL_WAIT = 0.1
 
 
 class SceneLoading:
@@ -53,10 +59,16 @@ class SceneLoading:
         self._thread.join(seconds)
         return self.done
 
-    def cancel(self) -> None:
-        """Stop the load (a decomposition's child process is killed) and wait for the thread."""
+    def cancel(self) -> bool:
+        """Stop the load and wait up to :data:`CANCEL_WAIT` seconds for its thread; whether it has ended.
+
+        A decomposition's child process is killed within its poll period, and waited for whatever it
+        takes (an exiting process must not leave it running). A mesh parser (trimesh) cannot be stopped:
+        it goes on in the thread, a daemon that does not keep the process from exiting.
+        """
         self._cancel.set()
-        self._thread.join()
+        self._thread.join(None if self._activity is not None else CANCEL_WAIT)
+        return self.done
 
     def result(self) -> Scene:
         """The scene, once loaded; raises what loading raised (a SceneError)."""
