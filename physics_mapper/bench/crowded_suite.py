@@ -31,6 +31,7 @@ from typing import Literal
 
 import numpy as np
 
+from physics_mapper.bench.problems import SuiteCase, SuiteProblem
 from physics_mapper.model.geometry import Pose, quaternion_about_axis, quaternion_multiply
 from physics_mapper.model.hypotheses import Hypothesis, RankedHypotheses
 from physics_mapper.model.scene import (
@@ -45,7 +46,6 @@ from physics_mapper.model.scene import (
     StaticBody,
 )
 from physics_mapper.physics.checker import PhysicsChecker
-from physics_mapper.search.results import Code
 
 CrowdedLayout = Literal["row", "wall", "tower", "shelf", "bin"]
 CROWDED_LAYOUTS: tuple[CrowdedLayout, ...] = ("row", "wall", "tower", "shelf", "bin")
@@ -68,27 +68,9 @@ BIN_CELL = 0.13
 BIN_WALL = 0.02
 
 
-@dataclass(frozen=True)
-class CrowdedCase:
-    """One problem of the suite: its layout, N objects, M hypotheses per object and seed."""
-
-    layout: CrowdedLayout
-    objects: int
-    hypotheses: int
-    seed: int
-
-    @property
-    def label(self) -> str:
-        return f"{self.layout} N={self.objects} M={self.hypotheses} seed={self.seed}"
-
-
-@dataclass(frozen=True)
-class CrowdedProblem:
-    """A suite problem and its only valid configuration (``answer``, a code)."""
-
-    case: CrowdedCase
-    problem: Problem
-    answer: Code
+#: One problem of the suite, and a problem with its only valid configuration.
+CrowdedCase = SuiteCase[CrowdedLayout]
+CrowdedProblem = SuiteProblem[CrowdedLayout]
 
 
 @dataclass(frozen=True)

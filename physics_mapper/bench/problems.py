@@ -2,9 +2,40 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+from typing import Generic, TypeVar
+
 from physics_mapper.model.geometry import Pose
 from physics_mapper.model.hypotheses import Hypothesis, RankedHypotheses
 from physics_mapper.model.scene import Problem, Scene
+from physics_mapper.search.results import Code
+
+#: A suite's layout names (a ``Literal`` of strings).
+LayoutT = TypeVar("LayoutT", bound=str)
+
+
+@dataclass(frozen=True)
+class SuiteCase(Generic[LayoutT]):
+    """One problem of a seeded suite: its layout, N objects, M hypotheses per object and seed."""
+
+    layout: LayoutT
+    objects: int
+    hypotheses: int
+    seed: int
+
+    @property
+    def label(self) -> str:
+        return f"{self.layout} N={self.objects} M={self.hypotheses} seed={self.seed}"
+
+
+@dataclass(frozen=True)
+class SuiteProblem(Generic[LayoutT]):
+    """A suite problem and its only valid configuration (``answer``, a code)."""
+
+    case: SuiteCase[LayoutT]
+    problem: Problem
+    answer: Code
+
 
 #: Metres between two objects' columns of hypotheses: for objects up to 0.2 m wide, apart so that no two
 #: ever touch, yet within the interaction margin, so that all objects are one interaction group and a

@@ -14,16 +14,16 @@ Weights are a sorted Dirichlet(2) draw per cube. Everything follows from the cas
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from typing import Literal
 
 import numpy as np
 
+from physics_mapper.bench.problems import SuiteCase, SuiteProblem
 from physics_mapper.model.geometry import Pose
 from physics_mapper.model.hypotheses import Hypothesis, RankedHypotheses
 from physics_mapper.model.scene import Box, ObjectModel, Plane, Problem, Scene, SearchParams, StaticBody
 from physics_mapper.physics.checker import PhysicsChecker
-from physics_mapper.search.results import Code
 
 Layout = Literal["singletons", "pairs", "pyramids", "mixed"]
 LAYOUTS: tuple[Layout, ...] = ("singletons", "pairs", "pyramids", "mixed")
@@ -40,27 +40,9 @@ WRONG_SHARE = 0.3
 TRUTH_SETTLE_TIME = 1.0
 
 
-@dataclass(frozen=True)
-class ScaleCase:
-    """One problem of the suite: its layout, N cubes, M hypotheses per cube and seed."""
-
-    layout: Layout
-    objects: int
-    hypotheses: int
-    seed: int
-
-    @property
-    def label(self) -> str:
-        return f"{self.layout} N={self.objects} M={self.hypotheses} seed={self.seed}"
-
-
-@dataclass(frozen=True)
-class ScaleProblem:
-    """A suite problem and its only valid configuration (``answer``, a code)."""
-
-    case: ScaleCase
-    problem: Problem
-    answer: Code
+#: One problem of the suite, and a problem with its only valid configuration.
+ScaleCase = SuiteCase[Layout]
+ScaleProblem = SuiteProblem[Layout]
 
 
 def pile_sizes(layout: Layout, objects: int, rng: np.random.Generator) -> list[int]:

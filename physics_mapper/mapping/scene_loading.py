@@ -16,7 +16,6 @@ from physics_mapper.model.decomposition import cancelled_by, stderr_progress
 from physics_mapper.model.scene import Scene
 from physics_mapper.model.scene_files import load_scene
 
-
 #: Seconds :meth:`SceneLoading.cancel` waits for the loading thread: longer than a decomposition's
 #: poll period (``decomposition.STOP_POLL``), far shorter than parsing a mesh at the face cap (1.6 s).
 CANCEL_WAIT = 0.1

@@ -47,7 +47,7 @@ from physics_mapper.search.conflicts import Blame, Conflict, ConflictStore, coll
 from physics_mapper.search.grouped import GroupedSearch, GroupSearch, SettleMemo, physics_key
 from physics_mapper.search.local_settling import LocalPlan, LocalSettling
 from physics_mapper.search.results import Candidate, Code, TraceEntry
-from physics_mapper.search.ruling_out import rule_out_alone
+from physics_mapper.search.ruling_out import RulingOut
 
 #: Candidates skipped between two looks at the clock (a skip costs tens of microseconds).
 SKIPS_PER_CLOCK_CHECK = 64
@@ -71,15 +71,14 @@ class ConflictGroupSearch(GroupSearch):
         self._depths: dict[tuple[int, int], float] = {}  # the last Rule 1 check's overlaps, by body pair
         half_margin = self.params.interaction_margin / 2.0  # the grouping's boxes are grown by it
         grouping = owner.grouping
-        self.stats.conflicts += rule_out_alone(
+        self.stats.conflicts += RulingOut(
             self.objects,
             [grouping.lows[i] + half_margin for i in self.objects],
             [grouping.highs[i] - half_margin for i in self.objects],
-            scene.static,
             owner.table,
             self.params.penetration_threshold,
             self.conflicts,
-        )
+        ).run(scene.static)
 
     def step(self, stop_at: float | None) -> bool:
         """Skip every candidate at the head of the queue that contains a known conflict (no physics: many

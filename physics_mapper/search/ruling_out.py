@@ -23,6 +23,7 @@ without the engine. The conflicts themselves come from the table's depths, the o
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
@@ -42,78 +43,65 @@ PAIRS_FROM_OBJECTS = 7
 BOX_PAIR_LIMIT = 1 << 20
 
 
-def rule_out_alone(
-    objects: Sequence[int],
-    lows: Sequence[FloatArray],
-    highs: Sequence[FloatArray],
-    statics: Sequence[StaticBody],
-    table: CollisionTable,
-    threshold: float,
-    store: ConflictStore,
-) -> int:
-    """Learn into ``store`` every rank of a group's objects that Rule 1 rules out alone (module docstring);
-    the number of conflicts learned.
+@dataclass(frozen=True)
+class RulingOut:
+    """The pass over one group (module docstring): its objects' scene indices by position, the corners
+    of each object p's body boxes by rank (``lows[p]``, ``highs[p]``: M_p x 3, metres), the pairwise
+    table, the penetration threshold (m) and the store that learns the conflicts."""
 
-    ``objects`` are the group's scene indices by position, ``lows[p]`` and ``highs[p]`` (M_p x 3,
-    metres) the corners of object p's body boxes by rank, ``threshold`` the penetration threshold (m).
-    """
-    learned = _rule_out_on_statics(objects, lows, highs, statics, table, threshold, store)
-    overlaps = _box_overlaps(lows, highs, threshold) if len(objects) >= PAIRS_FROM_OBJECTS else None
-    if overlaps is None:
+    objects: Sequence[int]
+    lows: Sequence[FloatArray]
+    highs: Sequence[FloatArray]
+    table: CollisionTable
+    threshold: float
+    store: ConflictStore
+
+    def run(self, statics: Sequence[StaticBody]) -> int:
+        """Learn every rank Rule 1 rules out alone, against ``statics`` and pairwise; how many."""
+        learned = self._on_statics(statics)
+        overlaps = (
+            _box_overlaps(self.lows, self.highs, self.threshold) if len(self.objects) >= PAIRS_FROM_OBJECTS else None
+        )
+        if overlaps is None:
+            return learned
+        changed = True
+        while changed:  # a rank ruled out may rule out others: until nothing changes
+            found = self._on_pairs(overlaps)
+            learned += found
+            changed = found > 0
         return learned
-    changed = True
-    while changed:  # a rank ruled out may rule out others: until nothing changes
-        found = _rule_out_on_pairs(objects, overlaps, table, threshold, store)
-        learned += found
-        changed = found > 0
-    return learned
 
+    def _on_statics(self, statics: Sequence[StaticBody]) -> int:
+        """Learn the ranks that overlap a static body deeper than the threshold; how many."""
+        learned = 0
+        for position, index in enumerate(self.objects):
+            reach = np.zeros(len(self.lows[position]), dtype=bool)
+            for body in statics:
+                reach |= may_overlap_static(body, self.lows[position], self.highs[position], self.threshold)
+            for rank in (int(k) + 1 for k in np.nonzero(reach)[0]):
+                if self.table.static_depth(index, rank) > self.threshold:
+                    learned += self.store.learn(Conflict(((position, rank),), "collision"))
+        return learned
 
-def _rule_out_on_statics(
-    objects: Sequence[int],
-    lows: Sequence[FloatArray],
-    highs: Sequence[FloatArray],
-    statics: Sequence[StaticBody],
-    table: CollisionTable,
-    threshold: float,
-    store: ConflictStore,
-) -> int:
-    """Learn the ranks that overlap a static body deeper than ``threshold`` (m); how many."""
-    learned = 0
-    for position, index in enumerate(objects):
-        reach = np.zeros(len(lows[position]), dtype=bool)
-        for body in statics:
-            reach |= may_overlap_static(body, lows[position], highs[position], threshold)
-        for rank in (int(k) + 1 for k in np.nonzero(reach)[0]):
-            if table.static_depth(index, rank) > threshold:
-                learned += store.learn(Conflict(((position, rank),), "collision"))
-    return learned
-
-
-def _rule_out_on_pairs(
-    objects: Sequence[int],
-    overlaps: dict[tuple[int, int], FloatArray],
-    table: CollisionTable,
-    threshold: float,
-    store: ConflictStore,
-) -> int:
-    """One pass over the pairs: learn each rank of p that overlaps q deeper than ``threshold`` (m) at
-    every rank of q not ruled out; how many."""
-    learned = 0
-    for (p, q), overlap in overlaps.items():
-        live = store.live_ranks(q)
-        if not live:
-            continue
-        columns = np.asarray(live) - 1
-        for rank in store.live_ranks(p):
-            row = overlap[rank - 1, columns]
-            if not np.all(row > threshold):
+    def _on_pairs(self, overlaps: dict[tuple[int, int], FloatArray]) -> int:
+        """One pass over the pairs: learn each rank of p that overlaps q deeper than the threshold at
+        every rank of q not ruled out; how many."""
+        learned = 0
+        for (p, q), overlap in overlaps.items():
+            live = self.store.live_ranks(q)
+            if not live:
                 continue
-            # The ranks least deep by their boxes first: the first shallow one decides.
-            ranks = [live[int(k)] for k in np.argsort(row, kind="stable")]
-            if all(table.pair_depth(objects[p], rank, objects[q], b) > threshold for b in ranks):
-                learned += store.learn(Conflict(((p, rank),), "collision"))
-    return learned
+            columns = np.asarray(live) - 1
+            for rank in self.store.live_ranks(p):
+                row = overlap[rank - 1, columns]
+                if not np.all(row > self.threshold):
+                    continue
+                # The ranks least deep by their boxes first: the first shallow one decides.
+                ranks = [live[int(k)] for k in np.argsort(row, kind="stable")]
+                first, second = self.objects[p], self.objects[q]
+                if all(self.table.pair_depth(first, rank, second, b) > self.threshold for b in ranks):
+                    learned += self.store.learn(Conflict(((p, rank),), "collision"))
+        return learned
 
 
 def _box_overlaps(
