@@ -16,7 +16,6 @@ Seconds are wall-clock seconds on this machine.
 from __future__ import annotations
 
 import statistics
-import time
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -31,6 +30,7 @@ from physics_mapper.bench.crowded_suite import (
     crowded_problem,
     truth_is_valid,
 )
+from physics_mapper.bench.problems import AnswerRun, search_until_answer
 from physics_mapper.bench.scale_suite import ScaleCase, ScaleProblem, scale_problem
 from physics_mapper.model.scene import SearchParams
 from physics_mapper.physics.checker import PhysicsChecker
@@ -67,19 +67,14 @@ REDUCED = (
 
 
 @dataclass(frozen=True)
-class SearchRun:
-    """One search on one problem until the answer: when (None: not within the cap) and its counters."""
+class SearchRun(AnswerRun):
+    """One search on one problem until the answer (:class:`AnswerRun`) and its counters."""
 
-    answer_time: float | None
-    search_time: float
     decided: int  # configurations checked or skipped by a conflict
     conflicts: int
     skipped: int
     local_settlings: int
     full_settlings: int
-
-    def solved_within(self, budget: float) -> bool:
-        return self.answer_time is not None and self.answer_time <= budget
 
 
 @dataclass(frozen=True)
@@ -104,21 +99,8 @@ def time_to_answer(
     problem: CrowdedProblem | ScaleProblem, strategy: Strategy, cap: float = ANSWER_CAP
 ) -> tuple[SearchRun, SearchResult]:
     """Search in :data:`SLICE` slices until the result is the answer, the search ends or ``cap`` seconds pass."""
-    scene, hypotheses = problem.problem.scene, problem.problem.hypotheses
-    answer = (problem.answer, True)
-    with PhysicsChecker(scene) as checker:
-        started = time.perf_counter()
-        search = make_search(checker, hypotheses, params_for(strategy, scene.search, trace=strategy == "conflict"))
-        build = time.perf_counter() - started
-        answer_time = None
-        while True:
-            result = search.run(SLICE)
-            elapsed = build + result.stats.search_time
-            if (result.code, result.valid) == answer:
-                answer_time = elapsed
-                break
-            if search.done or elapsed >= cap:
-                break
+    params = params_for(strategy, problem.problem.scene.search, trace=strategy == "conflict")
+    answer_time, elapsed, result = search_until_answer(problem.problem, params, (problem.answer, True), SLICE, cap)
     s = result.stats
     run = SearchRun(
         answer_time, elapsed, s.visited + s.skipped, s.conflicts, s.skipped, s.local_settlings, s.full_settlings

@@ -2,13 +2,16 @@
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass
 from typing import Generic, TypeVar
 
 from physics_mapper.model.geometry import Pose
 from physics_mapper.model.hypotheses import Hypothesis, RankedHypotheses
-from physics_mapper.model.scene import Problem, Scene
-from physics_mapper.search.results import Code
+from physics_mapper.model.scene import Problem, Scene, SearchParams
+from physics_mapper.physics.checker import PhysicsChecker
+from physics_mapper.search.results import Code, SearchResult
+from physics_mapper.search.strategy import make_search
 
 #: A suite's layout names (a ``Literal`` of strings).
 LayoutT = TypeVar("LayoutT", bound=str)
@@ -60,3 +63,35 @@ def floating_problem(scene: Scene, per_object: int) -> Problem:
         for column in range(len(scene.objects))
     )
     return Problem(scene, hypotheses)
+
+
+@dataclass(frozen=True)
+class AnswerRun:
+    """One search on one suite problem: when its result first was the answer (None: not within the
+    cap), and its seconds of search in all; subclasses add their counters."""
+
+    answer_time: float | None
+    search_time: float
+
+    def solved_within(self, budget: float) -> bool:
+        return self.answer_time is not None and self.answer_time <= budget
+
+
+def search_until_answer(
+    problem: Problem, params: SearchParams, answer: tuple[Code | None, bool], slice_seconds: float, cap: float
+) -> tuple[float | None, float, SearchResult]:
+    """Search ``problem`` afresh in slices of ``slice_seconds`` until its result is ``answer`` (code,
+    validity), the search ends or ``cap`` seconds pass: (seconds to the answer, building the search
+    included, None if not reached; seconds in all; the last result). Assembling results between
+    slices is not counted."""
+    with PhysicsChecker(problem.scene) as checker:
+        started = time.perf_counter()
+        search = make_search(checker, problem.hypotheses, params)
+        build = time.perf_counter() - started
+        while True:
+            result = search.run(slice_seconds)
+            elapsed = build + result.stats.search_time
+            if (result.code, result.valid) == answer:
+                return elapsed, elapsed, result
+            if search.done or elapsed >= cap:
+                return None, elapsed, result

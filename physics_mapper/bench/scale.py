@@ -19,13 +19,13 @@ from __future__ import annotations
 
 import math
 import statistics
-import time
 import tracemalloc
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Literal
 
+from physics_mapper.bench.problems import AnswerRun, search_until_answer
 from physics_mapper.bench.scale_suite import CUBE_EDGE, LAYOUTS, ScaleCase, ScaleProblem, scale_problem
 from physics_mapper.model.geometry import pose_displacement
 from physics_mapper.model.scene import SearchParams
@@ -60,18 +60,13 @@ Answer = tuple[Code | None, bool]
 
 
 @dataclass(frozen=True)
-class StrategyRun:
-    """One strategy on one problem: when its result first was the answer (None: not within the cap),
-    and its counters over that run (seconds of search, visits, simulation steps run and spared)."""
+class StrategyRun(AnswerRun):
+    """One strategy on one problem (:class:`AnswerRun`) and its counters over that run: visits,
+    simulation steps run and spared."""
 
-    answer_time: float | None
-    search_time: float
     visited: int
     settle_steps: int
     settle_steps_saved: int
-
-    def solved_within(self, budget: float) -> bool:
-        return self.answer_time is not None and self.answer_time <= budget
 
 
 @dataclass(frozen=True)
@@ -126,20 +121,8 @@ def early_exit_difference(early: SearchResult, full: SearchResult, angular_weigh
 
 def time_to_answer(problem: ScaleProblem, strategy: Strategy, answer: Answer, cap: float = ANSWER_CAP) -> StrategyRun:
     """Search in :data:`SLICE` slices until the result is ``answer``, the search ends or ``cap`` seconds pass."""
-    scene, hypotheses = problem.problem.scene, problem.problem.hypotheses
-    with PhysicsChecker(scene) as checker:
-        started = time.perf_counter()
-        search = make_search(checker, hypotheses, params_for(strategy, scene.search))
-        build = time.perf_counter() - started
-        answer_time = None
-        while True:
-            result = search.run(SLICE)
-            elapsed = build + result.stats.search_time
-            if (result.code, result.valid) == answer:
-                answer_time = elapsed
-                break
-            if search.done or elapsed >= cap:
-                break
+    params = params_for(strategy, problem.problem.scene.search)
+    answer_time, elapsed, result = search_until_answer(problem.problem, params, answer, SLICE, cap)
     stats = result.stats
     return StrategyRun(answer_time, elapsed, stats.visited, stats.settle_steps, stats.settle_steps_saved)
 
