@@ -227,6 +227,7 @@ def test_stopping_the_node_s_scene_load_does_not_wait_for_a_mesh_parser(tmp_path
     import trimesh
 
     from physics_mapper.mapping.scene_loading import SceneLoading
+    from physics_mapper.model.scene_files import load_scene
 
     ball = trimesh.creation.icosphere(subdivisions=6).apply_scale(0.05)  # 81,920 faces: a second to parse
     objects = []
@@ -235,7 +236,7 @@ def test_stopping_the_node_s_scene_load_does_not_wait_for_a_mesh_parser(tmp_path
         objects.append(f"  - {{name: ball_{index}, shape: mesh, file: ball_{index}.obj, mass: 0.1}}\n")
     scene = tmp_path / "scene.yaml"
     scene.write_text("static:\n  - {name: floor, shape: plane}\nobjects:\n" + "".join(objects))
-    loading = SceneLoading(scene)
+    loading = SceneLoading(scene, load_scene)
     assert not loading.wait(0.2)  # parsing the first ball
     assert loading.cancel() is False  # returned while the parser goes on
     assert loading.wait(120.0)  # and that thread ends by itself

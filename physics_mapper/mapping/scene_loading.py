@@ -10,25 +10,30 @@ which cannot be stopped, to finish in a daemon thread while the node exits.
 from __future__ import annotations
 
 import threading
+from collections.abc import Callable
 from pathlib import Path
+from typing import Generic, TypeVar
 
-from physics_mapper.model.decomposition import cancelled_by, stderr_progress
-from physics_mapper.model.scene import Scene
-from physics_mapper.model.scene_files import load_scene
+from physics_mapper.model.decomposition import Progress, cancelled_by, stderr_progress
+from physics_mapper.model.scene import Problem, Scene
+from physics_mapper.model.scene_files import load_problem
+
+Loaded = TypeVar("Loaded", Scene, Problem)
 
 #: Seconds :meth:`SceneLoading.cancel` waits for the loading thread: longer than a decomposition's
 #: poll period (``decomposition.STOP_POLL``), far shorter than parsing a mesh at the face cap (1.6 s).
 CANCEL_WAIT = 0.1
 
 
-class SceneLoading:
-    """A scene file being loaded in a background thread; :meth:`result` waits for it."""
+class SceneLoading(Generic[Loaded]):
+    """A scene (or problem) file being loaded by ``load`` in a background thread; :meth:`result` waits for it."""
 
-    def __init__(self, path: Path) -> None:
+    def __init__(self, path: Path, load: Callable[[Path, Progress], Loaded]) -> None:
         self.path = path
+        self._load: Callable[[Path, Progress], Loaded] = load
         self._cancel = threading.Event()
         self._activity: str | None = None
-        self._scene: Scene | None = None
+        self._loaded: Loaded | None = None
         self._error: BaseException | None = None
         self._thread = threading.Thread(target=self._run, name="scene loading", daemon=True)
         self._thread.start()
@@ -36,7 +41,7 @@ class SceneLoading:
     def _run(self) -> None:
         try:
             with cancelled_by(self._cancel):
-                self._scene = load_scene(self.path, self._progress)
+                self._loaded = self._load(self.path, self._progress)
         except BaseException as error:  # handed to the thread that asks for the result
             self._error = error
 
@@ -69,10 +74,22 @@ class SceneLoading:
         self._thread.join(None if self._activity is not None else CANCEL_WAIT)
         return self.done
 
-    def result(self) -> Scene:
-        """The scene, once loaded; raises what loading raised (a SceneError)."""
+    def result(self) -> Loaded:
+        """What was loaded, once loaded; raises what loading raised (a SceneError)."""
         self._thread.join()
         if self._error is not None:
             raise self._error
-        assert self._scene is not None
-        return self._scene
+        assert self._loaded is not None
+        return self._loaded
+
+
+def load_problem_stoppably(path: Path) -> Problem:
+    """:func:`~physics_mapper.model.scene_files.load_problem` in a thread, this one waiting: a signal's
+    KeyboardInterrupt stops the wait at once (a mesh parser, which cannot be stopped and holds signals
+    in the main thread, is left to its daemon thread; a decomposition's child is killed)."""
+    loading = SceneLoading(path, load_problem)
+    try:
+        return loading.result()
+    except KeyboardInterrupt:
+        loading.cancel()
+        raise

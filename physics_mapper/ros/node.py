@@ -79,7 +79,7 @@ from physics_mapper.model.errors import EXIT_BAD_INPUT, InputError
 from physics_mapper.model.limits import MAX_DIAGNOSTIC_TEXT, clipped
 from physics_mapper.model.resources import ResourceError, resolve_resource
 from physics_mapper.model.scene import SEARCH_LIMITS, Scene, SearchParams, search_parameter_doc
-from physics_mapper.model.scene_files import SceneError, search_with_overrides
+from physics_mapper.model.scene_files import SceneError, load_scene, search_with_overrides
 from physics_mapper.msg_adapters.diagnostics import diagnostics_msg
 from physics_mapper.msg_adapters.hypotheses import received_pose_array, received_weights
 from physics_mapper.msg_adapters.results import configuration_msgs, markers_msg, object_pose_msgs, static_markers_msg
@@ -568,7 +568,7 @@ class MapperNodeBase(Node):
         A node already spun by an executor (the managed node, configured from a service call) waits
         for the load without spinning itself.
         """
-        loading = SceneLoading(path)
+        loading = SceneLoading(path, load_scene)
         if loading.wait(LOADING_REPORT_AFTER):  # from the cache: nothing to report
             return loading.result()
         if self.executor is not None:
