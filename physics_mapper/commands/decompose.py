@@ -15,13 +15,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from physics_mapper.model.decomposition import cache_directory, stderr_progress
+    from physics_mapper.mapping.scene_loading import load_stoppably
+    from physics_mapper.model.decomposition import cache_directory
     from physics_mapper.model.scene import Mesh
     from physics_mapper.model.scene_files import load_scene
 
     print(f"decomposition cache: {cache_directory()}")
     for path in args.scenes:
-        scene = load_scene(path, stderr_progress)
+        scene = load_stoppably(path, load_scene)
         bodies = [(o.name, o.shape) for o in scene.objects] + [(b.name, b.shape) for b in scene.static]
         meshes = [(name, shape) for name, shape in bodies if isinstance(shape, Mesh)]
         decomposed = [(name, shape) for name, shape in meshes if shape.geometry.decomposition is not None]

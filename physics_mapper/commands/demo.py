@@ -84,12 +84,13 @@ def _last_map(recorded: Path) -> tuple[PoseArray | None, DiagnosticArray | None]
 
 
 def run(args: argparse.Namespace) -> int:
+    from physics_mapper.mapping.scene_loading import load_stoppably
     from physics_mapper.model.scene_files import load_scene
     from physics_mapper.model.shipped import shipped_path
 
     scene = args.scene or shipped_path("config/scenes/pyramid.yaml")
     bag = args.bag or shipped_path("test/data/pyramid")
-    names = load_scene(scene).object_names
+    names = load_stoppably(scene, load_scene).object_names
     with tempfile.TemporaryDirectory(prefix="physics_mapper_demo_") as folder:
         recorded = Path(folder) / "outputs"
         parser = argparse.ArgumentParser()

@@ -7,11 +7,12 @@ import argparse
 import sys
 from pathlib import Path
 
-from physics_mapper.mapping.scene_loading import load_problem_stoppably
+from physics_mapper.mapping.scene_loading import load_stoppably
 from physics_mapper.model.atomic_files import write_atomically
 from physics_mapper.model.errors import InputError
 from physics_mapper.model.resources import ResourceError, resolve_resource
 from physics_mapper.model.scene import Problem
+from physics_mapper.model.scene_files import load_problem
 
 
 def input_file(text: str) -> Path:
@@ -26,7 +27,7 @@ def input_file(text: str) -> Path:
 def load_problem_file(path: Path, command: str) -> Problem:
     """Load a problem file for subcommand ``command``, stoppable by a signal at any moment (in a thread
     of its own); what loading changed goes to stderr as warnings."""
-    problem = load_problem_stoppably(path)
+    problem = load_stoppably(path, load_problem)
     for note in problem.notes:
         print(f"physics-mapper {command}: warning: {note}", file=sys.stderr)
     return problem

@@ -70,10 +70,11 @@ _SETTING_OPTIONS = {
 
 def run(args: argparse.Namespace) -> int:
     from physics_mapper.bags.storage import BagError, BagWriter
+    from physics_mapper.mapping.scene_loading import load_stoppably
     from physics_mapper.model.scene_files import load_scene
     from physics_mapper.perception.particle_filter import run_generators, settle_ground_truth
 
-    scene = load_scene(args.scene)
+    scene = load_stoppably(args.scene, load_scene)
     if scene.ground_truth is None:
         raise InputError(f"{args.scene}: ground_truth: missing: generate needs every object's true pose")
     settings = _settings(args)

@@ -92,6 +92,7 @@ def run(args: argparse.Namespace) -> int:
     from physics_mapper.bags.storage import BagError, check_hypothesis_topics, read_bag
     from physics_mapper.evaluation.snapshot_results import evaluation_summary
     from physics_mapper.evaluation.snapshots import bag_snapshots, input_topics, no_snapshot_reason
+    from physics_mapper.mapping.scene_loading import load_stoppably
     from physics_mapper.model.scene_files import load_scene
 
     if not args.rate > 0.0:
@@ -104,7 +105,7 @@ def run(args: argparse.Namespace) -> int:
         raise InputError("--topics and --all-topics are for a live replay; --offline reads only the scene's topics")
     if args.json is not None:
         check_output_folder(args.json)
-    scene = load_scene(args.scene)
+    scene = load_stoppably(args.scene, load_scene)
     try:
         # Only the scene's topics are read into memory; a live replay streams what it plays.
         bag = read_bag(args.bag, input_topics(scene))

@@ -16,7 +16,6 @@ from typing import Generic, TypeVar
 
 from physics_mapper.model.decomposition import Progress, cancelled_by, stderr_progress
 from physics_mapper.model.scene import Problem, Scene
-from physics_mapper.model.scene_files import load_problem
 
 Loaded = TypeVar("Loaded", Scene, Problem)
 
@@ -83,11 +82,12 @@ class SceneLoading(Generic[Loaded]):
         return self._loaded
 
 
-def load_problem_stoppably(path: Path) -> Problem:
-    """:func:`~physics_mapper.model.scene_files.load_problem` in a thread, this one waiting: a signal's
-    KeyboardInterrupt stops the wait at once (a mesh parser, which cannot be stopped and holds signals
-    in the main thread, is left to its daemon thread; a decomposition's child is killed)."""
-    loading = SceneLoading(path, load_problem)
+def load_stoppably(path: str | Path, load: Callable[[Path, Progress], Loaded]) -> Loaded:
+    """``load`` (:func:`~physics_mapper.model.scene_files.load_scene` or ``load_problem``) of ``path`` in a
+    thread, this one waiting: a signal's KeyboardInterrupt stops the wait at once (a mesh parser, which
+    cannot be stopped and holds signals in the main thread, is left to its daemon thread; a
+    decomposition's child is killed)."""
+    loading = SceneLoading(Path(path), load)
     try:
         return loading.result()
     except KeyboardInterrupt:
