@@ -16,6 +16,7 @@ from pathlib import Path
 import pytest
 import yaml
 from core_builders import cli, cube, floor_scene, solve_json, unrotated
+from mesh_builders import box_mesh, floor_scene_dict, load_inline, mesh_object, write_mesh
 
 from physics_mapper.bench.crowded import REDUCED, same_answer
 from physics_mapper.bench.crowded_suite import (
@@ -27,7 +28,7 @@ from physics_mapper.bench.crowded_suite import (
 )
 from physics_mapper.model.geometry import Pose
 from physics_mapper.model.hypotheses import Hypothesis, RankedHypotheses
-from physics_mapper.model.scene import Bound, SearchParams
+from physics_mapper.model.scene import Bound, Box, SearchParams
 from physics_mapper.physics.checker import PhysicsChecker
 from physics_mapper.physics.settling import early_exit_rule
 from physics_mapper.search.conflict_directed import ConflictGroupSearch, ConflictSearch
@@ -108,6 +109,22 @@ def test_local_settlings_decide_as_full_ones() -> None:
     expected = outcomes(paper)
     assert all(expected[key] == outcome for key, outcome in outcomes(conflict).items())
     assert (conflict.code, conflict.valid) == (paper.code, paper.valid) == (problem.answer, True)
+
+
+def test_groups_with_meshes_are_settled_in_full(tmp_path: Path) -> None:
+    """The same row with its cubes as meshes: no local settling (its verdicts are measured on primitives
+    only), and the same answer."""
+    problem = crowded_problem(CrowdedCase("row", 8, 2, 8))
+    scene = problem.problem.scene
+    cube = scene.objects[0].shape
+    assert isinstance(cube, Box) and all(model.shape == cube for model in scene.objects)
+    write_mesh(box_mesh(cube.size), tmp_path / "cube.obj")
+    objects = [mesh_object(model.name, "cube.obj", mass=model.mass) for model in scene.objects]
+    meshes = replace(load_inline(floor_scene_dict(*objects), tmp_path), search=scene.search)
+    with_meshes = replace(problem, problem=replace(problem.problem, scene=meshes))
+    result, _ = searched(with_meshes)
+    assert result.stats.local_settlings == 0 and result.stats.full_settlings > 0
+    assert (result.code, result.valid) == (problem.answer, True)
 
 
 def test_rejections_name_their_conflict(case_runs: CaseRuns) -> None:
