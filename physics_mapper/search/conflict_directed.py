@@ -68,7 +68,8 @@ class ConflictGroupSearch(GroupSearch):
         self._cut = 0  # children no parent above the bound would queue
         self.local = LocalSettling(self.blame)
         # Local settling's verdicts are measured to agree with full ones on boxes, spheres and
-        # cylinders; on the shipped mesh scenes 20 of 660 unstable ones did not: meshes settle in full.
+        # cylinders; on the shipped mesh scenes 20 of 660 unstable verdicts, local ones, did not: meshes
+        # settle in full.
         self._has_meshes = any(isinstance(shape, Mesh) for shape in self.blame.shapes)
         self._local: tuple[Code, LocalPlan] | None = None  # the local settling under way
         self._depths: dict[tuple[int, int], float] = {}  # the last Rule 1 check's overlaps, by body pair
