@@ -38,7 +38,7 @@ from dataclasses import replace
 
 from physics_mapper.model.geometry import Pose
 from physics_mapper.model.hypotheses import RankedHypotheses
-from physics_mapper.model.scene import Mesh, SearchParams
+from physics_mapper.model.scene import SearchParams
 from physics_mapper.physics.checker import PhysicsChecker
 from physics_mapper.physics.collision import Collision, deepest_collision
 from physics_mapper.physics.settling import EarlyExit, PartialSettling, Settling, early_exit_rule
@@ -67,10 +67,6 @@ class ConflictGroupSearch(GroupSearch):
         self.blame = Blame([scene.objects[i].shape for i in self.objects], self.hypotheses, self.params)
         self._cut = 0  # children no parent above the bound would queue
         self.local = LocalSettling(self.blame)
-        # Local settling's verdicts are measured to agree with full ones on boxes, spheres and
-        # cylinders; on the shipped mesh scenes 20 of 660 unstable verdicts, local ones, did not: meshes
-        # settle in full.
-        self._has_meshes = any(isinstance(shape, Mesh) for shape in self.blame.shapes)
         self._local: tuple[Code, LocalPlan] | None = None  # the local settling under way
         self._depths: dict[tuple[int, int], float] = {}  # the last Rule 1 check's overlaps, by body pair
         half_margin = self.params.interaction_margin / 2.0  # the grouping's boxes are grown by it
@@ -183,7 +179,7 @@ class ConflictGroupSearch(GroupSearch):
     def settle_node(self, code: Code, poses: tuple[Pose, ...], stop_at: float | None) -> Settling | PartialSettling:
         """Rule 2 of one node: locally where the contexts allow (:mod:`~physics_mapper.search.local_settling`),
         else of the whole group (always for the node a fallback may report)."""
-        plan = None if self.settling_completely or self._has_meshes else self.local.plan(code)
+        plan = None if self.settling_completely else self.local.plan(code)
         if plan is None:
             return super().settle_node(code, poses, stop_at)
         self._local = (code, plan)
@@ -205,7 +201,7 @@ class ConflictGroupSearch(GroupSearch):
     def early_exit(self) -> EarlyExit | None:
         """As the paper's search's, and a settling not reported by a fallback also stops once an object
         is far off and still moving (``moving``)."""
-        return early_exit_rule(self.params, complete=self.settling_completely, moving=not self.settling_completely)
+        return early_exit_rule(self.params, complete=self.settling_completely, moving=True)
 
     def on_settled(self, code: Code, settling: Settling) -> None:
         """Count the settling; a local one is guarded as one of the whole group and kept out of the memo."""

@@ -103,7 +103,6 @@ class ConflictStore:
         self._conflicts: list[Conflict] = []
         self._known: set[tuple[Assignment, ...]] = set()
         self._excluded: list[list[int]] = [[0] * count for count in ranks]
-        self._all = 0  # every conflict's bit
 
     def __len__(self) -> int:
         return len(self._conflicts)
@@ -122,7 +121,6 @@ class ConflictStore:
         bit = 1 << len(self._conflicts)
         self._known.add(conflict.assignments)
         self._conflicts.append(conflict)
-        self._all |= bit
         for position, rank in conflict.assignments:
             excluded = self._excluded[position]
             for other in range(len(excluded)):
@@ -150,12 +148,12 @@ class ConflictStore:
     def contained(self, code: Sequence[int]) -> Conflict | None:
         """The smallest known conflict that configuration ``code`` contains, the first learned of equal
         ones (None: it resolves every one)."""
-        if not self._all:
+        if not self._conflicts:
             return None
         outside = 0
         for excluded, rank in zip(self._excluded, code, strict=True):
             outside |= excluded[rank - 1]
-        held = self._all & ~outside
+        held = ((1 << len(self._conflicts)) - 1) & ~outside
         best: Conflict | None = None
         while held:
             lowest = held & -held

@@ -35,6 +35,7 @@ import numpy as np
 
 from physics_mapper.model.extents import FloatArray, body_box
 from physics_mapper.model.geometry import Pose
+from physics_mapper.model.scene import Mesh
 from physics_mapper.physics.settling import PositionRange, Settling
 from physics_mapper.search.conflicts import Blame
 
@@ -55,6 +56,9 @@ class LocalSettling:
 
     def __init__(self, blame: Blame) -> None:
         self.blame = blame
+        # Local verdicts are measured to agree with full ones on boxes, spheres and cylinders; on the
+        # shipped mesh scenes 20 of 660 unstable verdicts, local ones, did not: meshes settle in full.
+        self._applies = not any(isinstance(shape, Mesh) for shape in blame.shapes)
         self._neighbours: tuple[tuple[int, ...], ...] | None = None
         self._stable: set[Context] = set()
 
@@ -70,7 +74,9 @@ class LocalSettling:
         return position, tuple(code[p] for p in sorted(around))
 
     def plan(self, code: Sequence[int]) -> LocalPlan | None:
-        """The local settling of ``code`` (None: settle the whole group)."""
+        """The local settling of ``code`` (None: settle the whole group, always for a group holding a mesh)."""
+        if not self._applies:
+            return None
         unsettled = [p for p in range(len(code)) if self.context(p, code) not in self._stable]
         if not unsettled or len(unsettled) == len(code):
             return None
