@@ -226,8 +226,8 @@ def test_stopping_the_node_s_scene_load_does_not_wait_for_a_mesh_parser(tmp_path
     exits) instead of waiting for every mesh; the thread ends on its own afterwards."""
     import trimesh
 
-    from physics_mapper.mapping.scene_loading import SceneLoading
     from physics_mapper.model.scene_files import load_scene
+    from physics_mapper.model.scene_loading import SceneLoading
 
     ball = trimesh.creation.icosphere(subdivisions=6).apply_scale(0.05)  # 81,920 faces: a second to parse
     objects = []

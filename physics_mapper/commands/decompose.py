@@ -15,10 +15,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from physics_mapper.mapping.scene_loading import load_stoppably
     from physics_mapper.model.decomposition import cache_directory
     from physics_mapper.model.scene import Mesh
     from physics_mapper.model.scene_files import load_scene
+    from physics_mapper.model.scene_loading import load_stoppably
 
     print(f"decomposition cache: {cache_directory()}")
     for path in args.scenes:

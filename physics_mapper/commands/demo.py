@@ -84,8 +84,8 @@ def _last_map(recorded: Path) -> tuple[PoseArray | None, DiagnosticArray | None]
 
 
 def run(args: argparse.Namespace) -> int:
-    from physics_mapper.mapping.scene_loading import load_stoppably
     from physics_mapper.model.scene_files import load_scene
+    from physics_mapper.model.scene_loading import load_stoppably
     from physics_mapper.model.shipped import shipped_path
 
     scene = args.scene or shipped_path("config/scenes/pyramid.yaml")

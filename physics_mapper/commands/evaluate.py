@@ -97,8 +97,8 @@ def run(args: argparse.Namespace) -> int:
 def load_scene_and_search(args: argparse.Namespace) -> tuple[Scene, SearchParams]:
     """The scene and its search parameters with ``--set`` applied; the output folder checked."""
     from physics_mapper.evaluation.settings import with_overrides
-    from physics_mapper.mapping.scene_loading import load_stoppably
     from physics_mapper.model.scene_files import load_scene
+    from physics_mapper.model.scene_loading import load_stoppably
 
     scene = load_stoppably(args.scene, load_scene)
     params = with_overrides(scene.search, args.set)

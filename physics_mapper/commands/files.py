@@ -7,12 +7,12 @@ import argparse
 import sys
 from pathlib import Path
 
-from physics_mapper.mapping.scene_loading import load_stoppably
 from physics_mapper.model.atomic_files import write_atomically
 from physics_mapper.model.errors import InputError
 from physics_mapper.model.resources import ResourceError, resolve_resource
 from physics_mapper.model.scene import Problem
 from physics_mapper.model.scene_files import load_problem
+from physics_mapper.model.scene_loading import load_stoppably
 
 
 def input_file(text: str) -> Path:

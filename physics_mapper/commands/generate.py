@@ -70,8 +70,8 @@ _SETTING_OPTIONS = {
 
 def run(args: argparse.Namespace) -> int:
     from physics_mapper.bags.storage import BagError, BagWriter
-    from physics_mapper.mapping.scene_loading import load_stoppably
     from physics_mapper.model.scene_files import load_scene
+    from physics_mapper.model.scene_loading import load_stoppably
     from physics_mapper.perception.particle_filter import run_generators, settle_ground_truth
 
     scene = load_stoppably(args.scene, load_scene)

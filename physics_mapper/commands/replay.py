@@ -92,8 +92,8 @@ def run(args: argparse.Namespace) -> int:
     from physics_mapper.bags.storage import BagError, check_hypothesis_topics, read_bag
     from physics_mapper.evaluation.snapshot_results import evaluation_summary
     from physics_mapper.evaluation.snapshots import bag_snapshots, input_topics, no_snapshot_reason
-    from physics_mapper.mapping.scene_loading import load_stoppably
     from physics_mapper.model.scene_files import load_scene
+    from physics_mapper.model.scene_loading import load_stoppably
 
     if not args.rate > 0.0:
         raise InputError(f"--rate must be positive, got {args.rate}")

@@ -24,6 +24,7 @@ from physics_mapper.model.geometry import Pose, rotation_vector
 from physics_mapper.model.hypotheses import RankedHypotheses
 from physics_mapper.model.scene import Box, Cylinder, Scene, SearchParams, StaticBody
 from physics_mapper.model.scene_files import SceneError, load_scene
+from physics_mapper.model.scene_loading import load_stoppably
 from physics_mapper.model.shipped import shipped_path
 from physics_mapper.physics.checker import PhysicsChecker
 from physics_mapper.search.results import SearchResult
@@ -178,9 +179,10 @@ def spread_text(start: dict[str, Any], weighted_mean_start_cm: float, root: str,
 
 
 def load_experiment_scene(options: ExperimentOptions, file_name: str) -> tuple[Scene, tuple[Pose, ...]]:
-    """Load a shipped scene and its ground truth, which every experiment scores against."""
+    """Load a shipped scene and its ground truth, which every experiment scores against (in a thread a
+    signal does not wait for: :func:`~physics_mapper.model.scene_loading.load_stoppably`)."""
     path = options.scenes_dir / file_name
-    scene = load_scene(path)
+    scene = load_stoppably(path, load_scene)
     if scene.ground_truth is None:
         raise SceneError(str(path), "ground_truth", "missing: the experiments score against it")
     return scene, scene.ground_truth

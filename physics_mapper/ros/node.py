@@ -59,7 +59,6 @@ from physics_mapper.mapping.clock import ClockWatch, SilentInputWatch, duplicate
 from physics_mapper.mapping.detections import DETECTIONS_TOPIC, detection_inputs
 from physics_mapper.mapping.inputs import InputSettings, MessageKind
 from physics_mapper.mapping.mapper import DEFAULT_RATE_HZ, Mapper, MapperSettings, TickReport, mapper_settings_problem
-from physics_mapper.mapping.scene_loading import SceneLoading
 from physics_mapper.mapping.stamps import NANOSECONDS_PER_SECOND
 from physics_mapper.mapping.tick_statistics import TickStatistics
 from physics_mapper.mapping.topics import (
@@ -80,6 +79,7 @@ from physics_mapper.model.limits import MAX_DIAGNOSTIC_TEXT, clipped
 from physics_mapper.model.resources import ResourceError, resolve_resource
 from physics_mapper.model.scene import SEARCH_LIMITS, Scene, SearchParams, search_parameter_doc
 from physics_mapper.model.scene_files import SceneError, load_scene, search_with_overrides
+from physics_mapper.model.scene_loading import SceneLoading
 from physics_mapper.msg_adapters.diagnostics import diagnostics_msg
 from physics_mapper.msg_adapters.hypotheses import received_pose_array, received_weights
 from physics_mapper.msg_adapters.results import configuration_msgs, markers_msg, object_pose_msgs, static_markers_msg

@@ -1,4 +1,4 @@
-"""Loading the node's scene in a thread of its own, so that the node keeps handling events meanwhile (ROS-free).
+"""Loading a scene or problem file in a thread of its own: the node keeps handling events, a command its signals.
 
 A scene's first load may decompose meshes (a minute for CoACD); :class:`SceneLoading` runs
 :func:`~physics_mapper.model.scene_files.load_scene` in a thread while the node spins and reports
