@@ -18,7 +18,7 @@ import yaml
 from core_builders import cli, cube, floor_scene, solve_json, unrotated
 from mesh_builders import box_mesh, floor_scene_dict, load_inline, mesh_object, write_mesh
 
-from physics_mapper.bench.crowded import REDUCED, same_answer
+from physics_mapper.bench.crowded import JITTER_TOLERANCE, REDUCED, same_answer
 from physics_mapper.bench.crowded_suite import (
     CrowdedCase,
     CrowdedProblem,
@@ -30,7 +30,7 @@ from physics_mapper.model.geometry import Pose
 from physics_mapper.model.hypotheses import Hypothesis, RankedHypotheses
 from physics_mapper.model.scene import Bound, Box, SearchParams
 from physics_mapper.physics.checker import PhysicsChecker
-from physics_mapper.physics.settling import early_exit_rule
+from physics_mapper.physics.settling import EarlyExit, Settling, early_exit_rule
 from physics_mapper.search.conflict_directed import ConflictGroupSearch, ConflictSearch
 from physics_mapper.search.conflicts import Conflict, ConflictStore
 from physics_mapper.search.results import Code, SearchResult
@@ -286,3 +286,21 @@ def test_a_moving_settling_stops_a_falling_object_sooner_with_the_same_verdict()
     assert moving.stopped == "beyond_threshold" and moving.steps < at_rest.steps
     assert not moving.is_stable(params.jitter_threshold) and not at_rest.is_stable(params.jitter_threshold)
     assert early_exit_rule(params, complete=True, moving=True) == early_exit_rule(params, complete=True)
+
+
+def test_a_packed_bin_wobbling_in_its_contacts_is_at_rest_sooner_with_the_same_verdict() -> None:
+    """``moving``: objects shaking in their contacts without going anywhere count as at rest."""
+    problem = crowded_problem(CrowdedCase("bin", 30, 2, 108))
+    params = problem.problem.scene.search
+    truth = [h.pose(rank) for h, rank in zip(problem.problem.hypotheses, problem.answer, strict=True)]
+    moving = early_exit_rule(params, complete=False, moving=True)
+    assert moving is not None and moving.wobble_rate is not None
+    with PhysicsChecker(problem.problem.scene) as checker:
+
+        def settled(early_exit: EarlyExit | None) -> Settling:
+            return checker.settle(truth, params.settle_time, params.angular_weight, early_exit=early_exit)
+
+        wobbling, rate_only, full = settled(moving), settled(replace(moving, wobble_rate=None)), settled(None)
+    assert wobbling.stopped == "rest" and wobbling.steps < rate_only.steps
+    assert all(s.is_stable(params.jitter_threshold) for s in (wobbling, rate_only, full))
+    assert all(abs(a - b) <= JITTER_TOLERANCE for a, b in zip(wobbling.jitters, full.jitters, strict=True))

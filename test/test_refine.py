@@ -29,6 +29,7 @@ from core_builders import (
 from diagnostic_msgs.msg import DiagnosticStatus
 from ros_helpers import NodeProcess, RosClient, search_status, stamp_ns_of, values
 
+from physics_mapper.model.bullet import pybullet
 from physics_mapper.model.geometry import Pose, make_pose, quaternion_about_axis, translation_distance
 from physics_mapper.model.hypotheses import RankedHypotheses
 from physics_mapper.model.scene import Fallback, Scene, SearchParams
@@ -36,8 +37,14 @@ from physics_mapper.model.scene_files import SceneError, load_problem, scene_fro
 from physics_mapper.msg_adapters.hypotheses import hypotheses_msgs
 from physics_mapper.msg_adapters.results import FALLBACK_COLOR, SHAPE_NAMESPACE
 from physics_mapper.physics.checker import PhysicsChecker
-from physics_mapper.physics.refine import OVERLAP_TOLERANCE, RefinedMap, Refinement, refine_objects, refinement_start
-from physics_mapper.physics.world import TIME_STEP
+from physics_mapper.physics.refine import (
+    OVERLAP_TOLERANCE,
+    RefinedMap,
+    Refinement,
+    refine_objects,
+    refinement_start,
+)
+from physics_mapper.physics.world import SOLVER_ITERATIONS, TIME_STEP
 from physics_mapper.search.branch_and_bound import BranchAndBound
 from physics_mapper.search.results import SearchResult
 from physics_mapper.search.strategy import make_search
@@ -144,6 +151,31 @@ def test_depenetration_moves_no_object_faster_than_the_cap() -> None:
     slow = replace(REFINE, refine_max_speed=0.5)
     refined = refined_map(scene, single(unrotated(0.0, 0.0, ON_FLOOR - 0.02)), slow)
     assert refined.iterations == math.ceil(0.02 / (slow.refine_max_speed * TIME_STEP))
+
+
+def test_the_settling_of_a_noisy_grid_rests_with_fewer_solver_iterations_and_gives_rule_2_s_back() -> None:
+    # Nine touching cubes, each moved by up to 1 cm: neighbours overlap, some float or are sunk.
+    shifts = [(0.008, -0.006, 0.01), (-0.01, 0.004, -0.008), (0.003, 0.009, 0.006)]
+    poses = [
+        unrotated(
+            0.1 * (i % 3) + shifts[i % 3][0], 0.1 * (i // 3) + shifts[i // 3][1], ON_FLOOR + shifts[(i + 1) % 3][2]
+        )
+        for i in range(9)
+    ]
+    scene = floor_scene(*(cube(f"c{i}") for i in range(9)))
+    with PhysicsChecker(scene) as checker:
+        refined = Refinement(checker, range(9), poses, poses, REFINE)
+        assert refined.run(PAST) is None  # interrupted: Rule 2's solver comes back between two runs
+        assert solver_iterations(checker) == SOLVER_ITERATIONS
+        made = refined.run()
+        assert solver_iterations(checker) == SOLVER_ITERATIONS
+    assert made is not None and made.converged
+    assert is_valid_map(scene, made.settled_poses, REFINE)  # at rest under Rule 2's own solver too
+
+
+def solver_iterations(checker: PhysicsChecker) -> int:
+    parameters = pybullet.getPhysicsEngineParameters(physicsClientId=checker.client_id)
+    return int(parameters["numSolverIterations"])
 
 
 def test_only_the_given_objects_are_refined_the_others_stay_parked() -> None:

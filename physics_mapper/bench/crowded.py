@@ -6,10 +6,11 @@ afresh in slices of :data:`SLICE` seconds of wall-clock time, as the node's tick
 result is the answer or :data:`ANSWER_CAP` seconds have passed; the *time to the answer* counts
 building the search and searching, not assembling results between slices. The conflict-directed
 search's run also gives its counters (conflicts learned, candidates skipped, local and full
-settlings), and each configuration it found unstable is settled once more in full, in a fresh world:
-the *agreement* of its verdicts with full settling. Where the paper's search (per group) finishes
-within :data:`EXHAUSTIVE_CAP` seconds, its answer is compared with the conflict-directed one's run
-to the end, on the suite and on the reduced suite (:data:`REDUCED`), where it always finishes.
+settlings), and each configuration it found unstable or valid is settled once more in full (the
+whole ``settle_time``, no early exit), in a fresh world: the *agreement* of its verdicts with full
+settling. Where the paper's search (per group) finishes within :data:`EXHAUSTIVE_CAP` seconds, its
+answer is compared with the conflict-directed one's run to the end, on the suite and on the reduced
+suite (:data:`REDUCED`), where it always finishes.
 Seconds are wall-clock seconds on this machine.
 """
 
@@ -32,6 +33,7 @@ from physics_mapper.bench.crowded_suite import (
 )
 from physics_mapper.bench.problems import AnswerRun, search_until_answer
 from physics_mapper.bench.scale_suite import ScaleCase, ScaleProblem, scale_problem
+from physics_mapper.model.hypotheses import RankedHypotheses
 from physics_mapper.model.scene import SearchParams
 from physics_mapper.physics.checker import PhysicsChecker
 from physics_mapper.physics.settling import REST_SHARE
@@ -86,6 +88,8 @@ class ProblemRun:
     runs: dict[Strategy, SearchRun]
     unstable_checked: int  # configurations the conflict search found unstable, settled again in full
     unstable_agreed: int
+    valid_checked: int  # configurations it found valid, settled again in full
+    valid_agreed: int
     exhaustive_finished: bool
     exhaustive_agrees: bool | None
 
@@ -108,21 +112,34 @@ def time_to_answer(
     return run, result
 
 
-def full_verdicts(problem: CrowdedProblem, result: SearchResult) -> tuple[int, int]:
-    """(unstable configurations of ``result``'s trace, those a full settling of their group finds unstable too)."""
-    scene, hypotheses, params = problem.problem.scene, problem.problem.hypotheses, problem.problem.scene.search
+#: A Rule 2 verdict of a search's trace that a full settling can confirm.
+Verdict = Literal["unstable", "valid"]
+
+
+def settled_verdicts(
+    checker: PhysicsChecker, hypotheses: Sequence[RankedHypotheses], params: SearchParams, result: SearchResult
+) -> dict[Verdict, tuple[int, int]]:
+    """Per verdict, unstable or valid: (configurations of ``result``'s trace with it, those a full settling
+    of their group in ``checker`` agrees with: unstable, or stable). A full settling runs the whole
+    ``settle_time``, no early exit."""
     objects = {group.id: group.objects for group in result.groups}
-    checked = agreed = 0
-    with PhysicsChecker(scene) as checker:
-        for entry in result.trace:
-            if entry.outcome != "unstable":
-                continue
-            group = objects[entry.group]
-            poses = [hypotheses[i].pose(rank) for i, rank in zip(group, entry.code, strict=True)]
-            settling = checker.settle(poses, params.settle_time, params.angular_weight, objects=group)
-            checked += 1
-            agreed += not settling.is_stable(params.jitter_threshold)
-    return checked, agreed
+    counts: dict[Verdict, tuple[int, int]] = {"unstable": (0, 0), "valid": (0, 0)}
+    for entry in result.trace:
+        if entry.outcome not in counts:
+            continue
+        group = objects[entry.group]
+        poses = [hypotheses[i].pose(rank) for i, rank in zip(group, entry.code, strict=True)]
+        settling = checker.settle(poses, params.settle_time, params.angular_weight, objects=group)
+        stable = settling.is_stable(params.jitter_threshold)
+        checked, agreed = counts[entry.outcome]
+        counts[entry.outcome] = checked + 1, agreed + (stable == (entry.outcome == "valid"))
+    return counts
+
+
+def full_verdicts(problem: CrowdedProblem, result: SearchResult) -> dict[Verdict, tuple[int, int]]:
+    """:func:`settled_verdicts` of ``result`` on ``problem``, in a fresh world."""
+    with PhysicsChecker(problem.problem.scene) as checker:
+        return settled_verdicts(checker, problem.problem.hypotheses, problem.problem.scene.search, result)
 
 
 def exhaustive_agreement(
@@ -155,9 +172,9 @@ def run_problem(case: CrowdedCase, exhaustive_cap: float = EXHAUSTIVE_CAP) -> Pr
     runs, results = {}, {}
     for strategy in STRATEGIES:
         runs[strategy], results[strategy] = time_to_answer(problem, strategy)
-    checked, agreed = full_verdicts(problem, results["conflict"])
+    verdicts = full_verdicts(problem, results["conflict"])
     finished, agrees = exhaustive_agreement(problem, exhaustive_cap)
-    return ProblemRun(case, truth_is_valid(problem), runs, checked, agreed, finished, agrees)
+    return ProblemRun(case, truth_is_valid(problem), runs, *verdicts["unstable"], *verdicts["valid"], finished, agrees)
 
 
 def suite_cases(
@@ -280,6 +297,8 @@ def targets_text(problems: Sequence[ProblemRun], reduced: Sequence[ProblemRun]) 
     agreed = sum(bool(p.exhaustive_agrees) for p in finished)
     checked = sum(p.unstable_checked for p in problems)
     same = sum(p.unstable_agreed for p in problems)
+    valid_checked = sum(p.valid_checked for p in problems)
+    valid_same = sum(p.valid_agreed for p in problems)
     truth = sum(p.truth_valid for p in problems)
     intercept, slope = linear_fit(problems)
     share = answered / len(problems) if problems else 0.0
@@ -293,6 +312,8 @@ def targets_text(problems: Sequence[ProblemRun], reduced: Sequence[ProblemRun]) 
             f"- time to answer, least-squares line: {intercept * 1000:.1f} ms + {slope * 1000:.2f} ms x N",
             f"- unstable verdicts (local or full settling) confirmed by a full settling in a fresh world: "
             f"{same} of {checked}",
+            f"- valid verdicts confirmed stable by a full settling (the whole settle_time) in a fresh world: "
+            f"{valid_same} of {valid_checked}",
             f"- configurations valid by construction that pass both rules: {truth} of {len(problems)}",
         ]
     )

@@ -16,13 +16,15 @@ velocities and contact points, measured bit for bit too (BENCHMARKS.md, "Interru
 A settler keeps one interrupted settling: interrupting another frees the first's saved state, and
 resuming the first then simulates it again from its start (same result, more time); so does
 resuming after other objects were parked or placed. A settling may cap the objects' speed
-(``max_speed``).
+(``max_speed``) and run Bullet's solver with fewer iterations than Rule 2's (``solver_iterations``).
 
 Early exit (:class:`EarlyExit`): a settling may stop before ``settle_time`` once every simulated
 object has stayed at rest for :data:`REST_CHECKS` looks at it, or once an object has stayed at rest
 with its jitter beyond the jitter threshold for as many looks. Beyond the threshold alone is not
 enough: a rocking object's jitter passes the threshold and comes back (measured on the tabletop
-mesh scene: 5 of 50 valid C11..1 were cut short as unstable). The state is looked at every
+mesh scene: 5 of 50 valid C11..1 were cut short as unstable). An exit may also count an object
+wobbling in its contacts, fast at an instant but going nowhere over the last looks, as at rest
+(:attr:`EarlyExit.wobble_rate`). The state is looked at every
 :data:`CLOCK_CHECK_STEPS` steps (the same instants as the clock), and looking does not change the
 simulation, so a settling that does not stop early ends bit for bit where a full one does.
 """
@@ -38,7 +40,7 @@ from typing import Literal, TypedDict, Unpack, overload
 from physics_mapper.model.bullet import pybullet
 from physics_mapper.model.geometry import Pose, Vector3, pose_displacement
 from physics_mapper.model.scene import SearchParams
-from physics_mapper.physics.world import TIME_STEP, PhysicsWorld
+from physics_mapper.physics.world import SOLVER_ITERATIONS, TIME_STEP, PhysicsWorld
 
 #: Simulation steps between two looks at the wall clock during settling: an interrupted settling
 #: stops at most this many steps after its deadline, and a resumed one advances at least this many.
@@ -64,6 +66,9 @@ class EarlyExit:
     ``jitter_threshold`` (m + weighted rad): once an object has been at rest with its J_i beyond it at
     :data:`REST_CHECKS` consecutive looks, the settling stops (``"beyond_threshold"``): the object
     came to rest elsewhere. None keeps such a settling going (a complete settling).
+    ``wobble_rate`` (m/s): an object is also at rest while its jitter rate is at most this and its
+    pose moved at most ``rest_rate`` x the time since the look :data:`REST_CHECKS` looks before (or
+    since the start): it wobbles in its contacts without going anywhere. None: the rate alone.
     """
 
     rest_rate: float
@@ -71,6 +76,7 @@ class EarlyExit:
     #: (m + weighted rad) once an object's J_i has been beyond this at :data:`REST_CHECKS` consecutive
     #: looks, at rest or not, the settling stops (``"beyond_threshold"``); None: only at rest.
     moving_beyond: float | None = None
+    wobble_rate: float | None = None
 
 
 #: An object is at rest while its jitter rate (m/s, |v| + angular_weight * |omega|) would add at most
@@ -80,6 +86,10 @@ REST_SHARE = 0.05
 #: consecutive looks (0.1 s), to end a ``moving`` settling as unstable: a body falling, sliding or
 #: toppling that far does not come back within the threshold (measured on the crowded suite).
 MOVING_BEYOND_SHARE = 2.0
+#: How many times the rest rate a ``moving`` settling's object may wobble at while its pose stays put
+#: (:attr:`EarlyExit.wobble_rate`): boxes and cylinders packed in a bin shake at 1-7 mm/s in their
+#: contacts after they have settled, moving 0.1-0.9 mm over a whole settling (crowded suite).
+WOBBLE_SHARE = 10.0
 
 
 def early_exit_rule(params: SearchParams, complete: bool, moving: bool = False) -> EarlyExit | None:
@@ -89,16 +99,21 @@ def early_exit_rule(params: SearchParams, complete: bool, moving: bool = False) 
     the defaults). ``complete`` keeps a settling going past the jitter threshold (the settling a
     fallback may report), so it ends at rest or at ``settle_time``. ``moving`` (not with
     ``complete``) also stops it once an object has been :data:`MOVING_BEYOND_SHARE` x the threshold
-    away at :data:`REST_CHECKS` consecutive looks, still moving: the conflict-directed search's
-    verdicts, whose agreement with full settling ``physics-mapper bench --crowded`` measures.
+    away at :data:`REST_CHECKS` consecutive looks, still moving, and counts an object wobbling at up
+    to :data:`WOBBLE_SHARE` x the rest rate as at rest while its pose stays put: the
+    conflict-directed search's verdicts, whose agreement with full settling
+    ``physics-mapper bench --crowded`` measures.
     """
     if params.settle_exit == "full" or params.settle_time <= 0.0:
         return None
     rest_rate = REST_SHARE * params.jitter_threshold / params.settle_time
     if complete:
         return EarlyExit(rest_rate, None)
-    moving_beyond = MOVING_BEYOND_SHARE * params.jitter_threshold if moving else None
-    return EarlyExit(rest_rate, params.jitter_threshold, moving_beyond)
+    if not moving:
+        return EarlyExit(rest_rate, params.jitter_threshold)
+    return EarlyExit(
+        rest_rate, params.jitter_threshold, MOVING_BEYOND_SHARE * params.jitter_threshold, WOBBLE_SHARE * rest_rate
+    )
 
 
 @dataclass(frozen=True)
@@ -142,10 +157,11 @@ class PartialSettling:
     ``steps_done`` of ``steps_total`` :data:`TIME_STEP` steps are simulated from rest at
     ``poses`` (the start, from which the jitters are measured). Compared by identity: the
     checker that interrupted it recognises it as the settling it kept. ``objects``,
-    ``max_speed`` and ``early_exit`` are the settling's (see :meth:`PhysicsChecker.settle`), with
+    ``max_speed``, ``early_exit`` and ``solver_iterations`` are the settling's (see :meth:`PhysicsChecker.settle`), with
     ``fixed`` are objects held where they are (scene index, pose), with the consecutive looks so far
     with every object at rest (``rest_checks``) and with an object at rest beyond the jitter threshold
-    (``beyond_checks``), and the ``reach`` and ``extent`` so far (None: not tracked; an extent not begun).
+    (``beyond_checks``), the last looks' poses (``recent``: step, poses; for ``wobble_rate``), and the
+    ``reach`` and ``extent`` so far (None: not tracked; an extent not begun).
     """
 
     poses: tuple[Pose, ...]
@@ -156,15 +172,17 @@ class PartialSettling:
     max_speed: float | None = None
     early_exit: EarlyExit | None = None
     fixed: tuple[tuple[int, Pose], ...] = ()
+    solver_iterations: int | None = None
     rest_checks: int = 0
     beyond_checks: int = 0
+    recent: tuple[tuple[int, tuple[Pose, ...]], ...] = ()
     reach: tuple[PositionRange, ...] | None = None
     extent: tuple[PositionRange, ...] | None = None
 
     def restarted(self) -> PartialSettling:
         """The same settling, not yet begun."""
         start = None if self.reach is None else _start_reach(self.poses)
-        return replace(self, steps_done=0, rest_checks=0, beyond_checks=0, reach=start, extent=None)
+        return replace(self, steps_done=0, rest_checks=0, beyond_checks=0, recent=(), reach=start, extent=None)
 
 
 def _start_reach(poses: Sequence[Pose]) -> tuple[PositionRange, ...]:
@@ -191,14 +209,16 @@ def _grown(ranges: tuple[PositionRange, ...], boxes: Sequence[PositionRange]) ->
 
 class SettleOptions(TypedDict, total=False):
     """Keyword options of :meth:`PhysicsChecker.settle` (see there): which objects settle (scene
-    indices; the others stay parked), a speed cap (m/s), an early exit, whether to record reach, and
-    objects held fixed at given poses (scene index, pose) while the others settle."""
+    indices; the others stay parked), a speed cap (m/s), an early exit, whether to record reach,
+    objects held fixed at given poses (scene index, pose) while the others settle, and the solver's
+    iterations per step (None: :data:`~physics_mapper.physics.world.SOLVER_ITERATIONS`)."""
 
     objects: Sequence[int] | None
     max_speed: float | None
     early_exit: EarlyExit | None
     track_reach: bool
     fixed: Sequence[tuple[int, Pose]]
+    solver_iterations: int | None
 
 
 @dataclass(frozen=True)
@@ -255,6 +275,9 @@ class Settler:
         settling before ``settle_time`` (:class:`EarlyExit`); ``track_reach`` records where each
         object went (:attr:`Settling.reach`). ``fixed`` (scene index, pose) places further objects that
         do not move (massless, as parked ones) and are not measured: the others rest against them.
+        ``solver_iterations`` runs Bullet's constraint solver with that many iterations per step
+        instead of Rule 2's :data:`~physics_mapper.physics.world.SOLVER_ITERATIONS` (cheaper, less stiff
+        contacts; the world goes back to Rule 2's when the settling returns).
         """
         objects = options.get("objects")
         fixed = tuple(options.get("fixed", ()))
@@ -268,6 +291,7 @@ class Settler:
             max_speed=options.get("max_speed"),
             early_exit=options.get("early_exit"),
             fixed=fixed,
+            solver_iterations=options.get("solver_iterations"),
             reach=_start_reach(poses) if options.get("track_reach", False) else None,
         )
         return self._simulate(plan, stop_at)
@@ -303,12 +327,22 @@ class Settler:
 
     def _simulate(self, plan: PartialSettling, stop_at: float | None) -> Settling | PartialSettling:
         """Step the world from ``plan.steps_done`` to ``plan.steps_total``, or until it may stop early
-        or ``stop_at`` passes (:meth:`settle`)."""
+        or ``stop_at`` passes (:meth:`settle`), with the plan's solver iterations."""
+        if plan.solver_iterations is None:
+            return self._step_through(plan, stop_at)
+        self.world.set_solver_iterations(plan.solver_iterations)
+        try:
+            return self._step_through(plan, stop_at)
+        finally:
+            self.world.set_solver_iterations(SOLVER_ITERATIONS)
+
+    def _step_through(self, plan: PartialSettling, stop_at: float | None) -> Settling | PartialSettling:
+        """:meth:`_simulate` with the world's solver iterations as they are."""
         steps_done, steps_total = plan.steps_done, plan.steps_total
         uids = self.world.uids(plan.objects)
         watched = plan.early_exit is not None or plan.reach is not None
         rest_checks, beyond_checks, reach = plan.rest_checks, plan.beyond_checks, plan.reach
-        extent = plan.extent
+        extent, recent = plan.extent, plan.recent or ((0, plan.poses),)
         if reach is not None and extent is None:
             extent = tuple(self.world.extents(uids))
         while steps_done < steps_total:
@@ -324,7 +358,8 @@ class Settler:
                     reach, extent = _widened(reach, poses), _grown(extent, self.world.extents(uids))
                 if plan.early_exit is not None:
                     jitters = self._jitters(plan.poses, poses, plan.angular_weight)
-                    at_rest = self._at_rest(uids, plan.angular_weight, plan.early_exit.rest_rate)
+                    at_rest = self._at_rest(uids, plan.angular_weight, plan.early_exit, recent[0], poses, steps_done)
+                    recent = (*recent, (steps_done, poses))[-REST_CHECKS:]
                     threshold = plan.early_exit.jitter_threshold
                     beyond = threshold is not None and any(
                         resting and jitter > threshold for resting, jitter in zip(at_rest, jitters, strict=True)
@@ -344,6 +379,7 @@ class Settler:
                     steps_done=steps_done,
                     rest_checks=rest_checks,
                     beyond_checks=beyond_checks,
+                    recent=recent,
                     reach=reach,
                     extent=extent,
                 )
@@ -363,12 +399,26 @@ class Settler:
     def _jitters(start: Sequence[Pose], now: Sequence[Pose], angular_weight: float) -> tuple[float, ...]:
         return tuple(pose_displacement(a, b, angular_weight) for a, b in zip(start, now, strict=True))
 
-    def _at_rest(self, uids: Sequence[int], angular_weight: float, rest_rate: float) -> list[bool]:
-        """Per body, whether its jitter rate |v| + angular_weight * |omega| is at most ``rest_rate`` (m/s)."""
+    def _at_rest(
+        self,
+        uids: Sequence[int],
+        angular_weight: float,
+        early_exit: EarlyExit,
+        since: tuple[int, Sequence[Pose]],
+        poses: Sequence[Pose],
+        step: int,
+    ) -> list[bool]:
+        """Per body, whether it is at rest at ``step`` (:class:`EarlyExit`): its jitter rate
+        |v| + angular_weight * |omega| (m/s) at most ``rest_rate``, or at most ``wobble_rate`` with its
+        pose moved at most ``rest_rate`` x the time since the look ``since`` (step, poses)."""
+        rest_rate, wobble_rate = early_exit.rest_rate, early_exit.wobble_rate
+        stay = rest_rate * (step - since[0]) * TIME_STEP
         resting = []
-        for uid in uids:
+        for uid, was, now in zip(uids, since[1], poses, strict=True):
             linear, angular = pybullet.getBaseVelocity(uid, physicsClientId=self.world.client)
-            resting.append(math.hypot(*linear) + angular_weight * math.hypot(*angular) <= rest_rate)
+            rate = math.hypot(*linear) + angular_weight * math.hypot(*angular)
+            wobbling = wobble_rate is not None and rate <= wobble_rate
+            resting.append(rate <= rest_rate or (wobbling and pose_displacement(was, now, angular_weight) <= stay))
         return resting
 
     def _cap_speeds(self, uids: Sequence[int], max_speed: float) -> None:

@@ -40,6 +40,8 @@ PhysicsEngineError: type[Exception] = pybullet.error
 #: Bullet's default step, 240 Hz, in seconds.
 TIME_STEP = 1.0 / 240.0
 GRAVITY = -9.81  # m/s^2 along z
+#: Iterations of Bullet's constraint solver per step: pybullet's default, which Rule 2 uses.
+SOLVER_ITERATIONS = 50
 #: Metres between the spots, far above any scene, where objects wait between configurations.
 PARKING_SPACING = 1000.0
 
@@ -83,7 +85,9 @@ class PhysicsWorld:
         client = self.client
         pybullet.setGravity(0.0, 0.0, GRAVITY, physicsClientId=client)
         pybullet.setTimeStep(TIME_STEP, physicsClientId=client)
-        pybullet.setPhysicsEngineParameter(deterministicOverlappingPairs=1, physicsClientId=client)
+        pybullet.setPhysicsEngineParameter(
+            deterministicOverlappingPairs=1, numSolverIterations=SOLVER_ITERATIONS, physicsClientId=client
+        )
         statics = []
         for body in self.scene.static:
             uid = self._create(body.shape, 0.0, body.pose)
@@ -317,3 +321,7 @@ class PhysicsWorld:
     def step(self) -> None:
         """Advance the simulation by one :data:`TIME_STEP`."""
         pybullet.stepSimulation(physicsClientId=self.client)
+
+    def set_solver_iterations(self, iterations: int) -> None:
+        """Iterations of the constraint solver in each later :meth:`step` (:data:`SOLVER_ITERATIONS` by default)."""
+        pybullet.setPhysicsEngineParameter(numSolverIterations=iterations, physicsClientId=self.client)
