@@ -61,20 +61,27 @@ def workers_end(before: list[str]) -> bool:
     return True
 
 
-def start_until_decomposing(command: list[str], cwd: Path) -> subprocess.Popen[str]:
-    """Start ``command`` and return once it has said that it is decomposing the plate."""
+def start_until_decomposing(command: list[str], cwd: Path, before: list[str]) -> subprocess.Popen[str]:
+    """Start ``command`` and return once it has said that it is decomposing the plate and its decomposition
+    child runs (a process beside ``before``): a signal then has a child to kill, not only a line said."""
     process = subprocess.Popen(command, cwd=cwd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     assert process.stdout is not None
     for line in process.stdout:
         if "decomposing" in line and "plate.obj" in line:
-            return process
-    raise AssertionError(f"no decomposition started (exit {process.wait()})")
+            break
+    else:
+        raise AssertionError(f"no decomposition started (exit {process.wait()})")
+    deadline = time.monotonic() + STOP_GUARD
+    while workers() == before:
+        assert time.monotonic() < deadline, "no decomposition child started"
+        time.sleep(0.05)
+    return process
 
 
 @pytest.mark.parametrize("stop_signal", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
 def test_a_signal_stops_solve_during_a_runaway_vhacd(plate: Path, stop_signal: signal.Signals) -> None:
     before = workers()
-    process = start_until_decomposing([str(PHYSICS_MAPPER), "solve", "problem.yaml"], plate)
+    process = start_until_decomposing([str(PHYSICS_MAPPER), "solve", "problem.yaml"], plate, before)
     process.send_signal(stop_signal)
     assert process.wait(timeout=STOP_GUARD) == EXIT_INTERRUPTED
     assert workers_end(before)  # the child was killed, not left running
@@ -84,7 +91,7 @@ def test_a_node_decomposing_at_start_up_reports_it_and_stops_on_sigint(plate: Pa
     before = workers()
     command = [str(PHYSICS_MAPPER), "node", "--ros-args", "-p", f"scene_file:={plate / 'scene.yaml'}"]
     command += ["-r", "__ns:=/decomposing"]
-    process = start_until_decomposing(command, plate)
+    process = start_until_decomposing(command, plate, before)
     client = RosClient("/decomposing")
     try:
         found = client.next_diagnostics(lambda d: True, timeout=30.0, what="diagnostics while decomposing")

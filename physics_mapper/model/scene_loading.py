@@ -34,8 +34,11 @@ class SceneLoading(Generic[Loaded]):
         self._activity: str | None = None
         self._loaded: Loaded | None = None
         self._error: BaseException | None = None
-        self._thread = threading.Thread(target=self._run, name="scene loading", daemon=True)
-        self._thread.start()
+        # Waited on instead of Thread.join: in CPython 3.11 a join that a signal's KeyboardInterrupt
+        # interrupts marks the thread as ended while it runs, and a later join returns at once, so a
+        # stopping command would exit and leave a decomposition's child running.
+        self._ended = threading.Event()
+        threading.Thread(target=self._run, name="scene loading", daemon=True).start()
 
     def _run(self) -> None:
         try:
@@ -43,6 +46,8 @@ class SceneLoading(Generic[Loaded]):
                 self._loaded = self._load(self.path, self._progress)
         except BaseException as error:  # handed to the thread that asks for the result
             self._error = error
+        finally:
+            self._ended.set()
 
     def _progress(self, line: str) -> None:
         stderr_progress(line)
@@ -50,7 +55,7 @@ class SceneLoading(Generic[Loaded]):
 
     @property
     def done(self) -> bool:
-        return not self._thread.is_alive()
+        return self._ended.is_set()
 
     @property
     def activity(self) -> str | None:
@@ -59,8 +64,7 @@ class SceneLoading(Generic[Loaded]):
 
     def wait(self, seconds: float) -> bool:
         """Wait up to ``seconds`` for the load to end; whether it has."""
-        self._thread.join(seconds)
-        return self.done
+        return self._ended.wait(seconds)
 
     def cancel(self) -> bool:
         """Stop the load and wait up to :data:`CANCEL_WAIT` seconds for its thread; whether it has ended.
@@ -70,12 +74,11 @@ class SceneLoading(Generic[Loaded]):
         it goes on in the thread, a daemon that does not keep the process from exiting.
         """
         self._cancel.set()
-        self._thread.join(None if self._activity is not None else CANCEL_WAIT)
-        return self.done
+        return self._ended.wait(None if self._activity is not None else CANCEL_WAIT)
 
     def result(self) -> Loaded:
         """What was loaded, once loaded; raises what loading raised (a SceneError)."""
-        self._thread.join()
+        self._ended.wait()
         if self._error is not None:
             raise self._error
         assert self._loaded is not None
