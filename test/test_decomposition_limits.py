@@ -43,27 +43,35 @@ def plate(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Iterator[Path]:
     yield tmp_path
 
 
-def workers() -> list[str]:
-    """Decomposition child processes of this test run (its cache folder is in their parent's environment)."""
-    listed = subprocess.run(["ps", "-eo", "pid,args"], capture_output=True, text=True, check=True).stdout
-    return [line for line in listed.splitlines() if "physics_mapper.model.decomposition_worker" in line]
+#: KiB a decomposition child's resident memory passes once V-HACD runs (its interpreter and numpy take
+#: about 30 MiB; the plate's V-HACD grows by hundreds of MiB a second).
+RUNNING_RSS_KIB = 100_000
 
 
-def workers_end(before: list[str]) -> bool:
+def workers() -> dict[int, int]:
+    """Decomposition child processes running now: pid -> resident memory, KiB. ``-ww``: unlimited width,
+    or ps cuts a long command line (a checkout deep in /tmp) at 80 columns and the child goes unseen."""
+    listed = subprocess.run(["ps", "-ww", "-eo", "pid,rss,args"], capture_output=True, text=True, check=True).stdout
+    found = [line.split() for line in listed.splitlines() if "physics_mapper.model.decomposition_worker" in line]
+    return {int(fields[0]): int(fields[1]) for fields in found}
+
+
+def workers_end(before: dict[int, int]) -> bool:
     """Whether the decomposition children started since ``before`` end: killed, they are reaped in the
     background while their memory is freed, so ``ps`` may list them a moment longer (``STOP_GUARD``
     bounds the wait: a child left running fails)."""
     deadline = time.monotonic() + STOP_GUARD
-    while workers() != before:
+    while set(workers()) - set(before):
         if time.monotonic() > deadline:
             return False
         time.sleep(0.05)
     return True
 
 
-def start_until_decomposing(command: list[str], cwd: Path, before: list[str]) -> subprocess.Popen[str]:
+def start_until_decomposing(command: list[str], cwd: Path, before: dict[int, int]) -> subprocess.Popen[str]:
     """Start ``command`` and return once it has said that it is decomposing the plate and its decomposition
-    child runs (a process beside ``before``): a signal then has a child to kill, not only a line said."""
+    child is deep in V-HACD (a process beside ``before``, grown past :data:`RUNNING_RSS_KIB`): a signal
+    then has a running child to kill, not only a line said or a child still starting."""
     process = subprocess.Popen(command, cwd=cwd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     assert process.stdout is not None
     for line in process.stdout:
@@ -72,8 +80,8 @@ def start_until_decomposing(command: list[str], cwd: Path, before: list[str]) ->
     else:
         raise AssertionError(f"no decomposition started (exit {process.wait()})")
     deadline = time.monotonic() + STOP_GUARD
-    while workers() == before:
-        assert time.monotonic() < deadline, "no decomposition child started"
+    while not any(rss > RUNNING_RSS_KIB for pid, rss in workers().items() if pid not in before):
+        assert time.monotonic() < deadline, "no decomposition child running"
         time.sleep(0.05)
     return process
 
