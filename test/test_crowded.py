@@ -304,3 +304,24 @@ def test_a_packed_bin_wobbling_in_its_contacts_is_at_rest_sooner_with_the_same_v
     assert wobbling.stopped == "rest" and wobbling.steps < rate_only.steps
     assert all(s.is_stable(params.jitter_threshold) for s in (wobbling, rate_only, full))
     assert all(abs(a - b) <= JITTER_TOLERANCE for a, b in zip(wobbling.jitters, full.jitters, strict=True))
+
+
+def test_a_packed_bin_is_at_rest_sooner_when_the_rest_rate_counts_the_time_left_with_the_same_verdict() -> None:
+    """``moving``: the rest rate grows as the settling's end nears (``drift``): what an object still
+    drifting adds to its J_i by the end stays within the tolerance of a full settling's J_i."""
+    problem = crowded_problem(CrowdedCase("bin", 30, 5, 112))
+    params = problem.problem.scene.search
+    truth = [h.pose(rank) for h, rank in zip(problem.problem.hypotheses, problem.answer, strict=True)]
+    moving = early_exit_rule(params, complete=False, moving=True)
+    assert moving is not None and moving.drift is not None
+    assert moving.rate_scale(params.settle_time) == 1.0
+    assert moving.rate_scale(params.settle_time / 4) == pytest.approx(4.0)
+    with PhysicsChecker(problem.problem.scene) as checker:
+
+        def settled(early_exit: EarlyExit | None) -> Settling:
+            return checker.settle(truth, params.settle_time, params.angular_weight, early_exit=early_exit)
+
+        drifting, fixed_rates, full = settled(moving), settled(replace(moving, drift=None)), settled(None)
+    assert drifting.stopped == "rest" and drifting.steps < fixed_rates.steps
+    assert all(s.is_stable(params.jitter_threshold) for s in (drifting, fixed_rates, full))
+    assert all(abs(a - b) <= JITTER_TOLERANCE for a, b in zip(drifting.jitters, full.jitters, strict=True))

@@ -69,6 +69,9 @@ class EarlyExit:
     ``wobble_rate`` (m/s): an object is also at rest while its jitter rate is at most this and its
     pose moved at most ``rest_rate`` x the time since the look :data:`REST_CHECKS` looks before (or
     since the start): it wobbles in its contacts without going anywhere. None: the rate alone.
+    ``drift`` (m + weighted rad): both rates (and the wobble's stay) are scaled up at a look by
+    ``drift`` / (``rest_rate`` x the time left), when that is more than 1: an object drifting on at
+    the rate would add at most ``drift`` to its J_i by the settling's end. None: fixed rates.
     """
 
     rest_rate: float
@@ -77,6 +80,13 @@ class EarlyExit:
     #: looks, at rest or not, the settling stops (``"beyond_threshold"``); None: only at rest.
     moving_beyond: float | None = None
     wobble_rate: float | None = None
+    drift: float | None = None
+
+    def rate_scale(self, time_left: float) -> float:
+        """What the rates are multiplied by with ``time_left`` seconds of the settling to go (``drift``)."""
+        if self.drift is None or time_left <= 0.0:
+            return 1.0
+        return max(1.0, self.drift / (self.rest_rate * time_left))
 
 
 #: An object is at rest while its jitter rate (m/s, |v| + angular_weight * |omega|) would add at most
@@ -100,9 +110,10 @@ def early_exit_rule(params: SearchParams, complete: bool, moving: bool = False) 
     fallback may report), so it ends at rest or at ``settle_time``. ``moving`` (not with
     ``complete``) also stops it once an object has been :data:`MOVING_BEYOND_SHARE` x the threshold
     away at :data:`REST_CHECKS` consecutive looks, still moving, and counts an object wobbling at up
-    to :data:`WOBBLE_SHARE` x the rest rate as at rest while its pose stays put: the
-    conflict-directed search's verdicts, whose agreement with full settling
-    ``physics-mapper bench --crowded`` measures.
+    to :data:`WOBBLE_SHARE` x the rest rate as at rest while its pose stays put, both rates
+    measured against the time left (``drift``: :data:`REST_SHARE` x jitter_threshold, what the rest
+    rate allows over a whole settling): the conflict-directed search's verdicts, whose agreement
+    with full settling ``physics-mapper bench --crowded`` measures.
     """
     if params.settle_exit == "full" or params.settle_time <= 0.0:
         return None
@@ -112,7 +123,11 @@ def early_exit_rule(params: SearchParams, complete: bool, moving: bool = False) 
     if not moving:
         return EarlyExit(rest_rate, params.jitter_threshold)
     return EarlyExit(
-        rest_rate, params.jitter_threshold, MOVING_BEYOND_SHARE * params.jitter_threshold, WOBBLE_SHARE * rest_rate
+        rest_rate,
+        params.jitter_threshold,
+        MOVING_BEYOND_SHARE * params.jitter_threshold,
+        WOBBLE_SHARE * rest_rate,
+        REST_SHARE * params.jitter_threshold,
     )
 
 
@@ -358,7 +373,9 @@ class Settler:
                     reach, extent = _widened(reach, poses), _grown(extent, self.world.extents(uids))
                 if plan.early_exit is not None:
                     jitters = self._jitters(plan.poses, poses, plan.angular_weight)
-                    at_rest = self._at_rest(uids, plan.angular_weight, plan.early_exit, recent[0], poses, steps_done)
+                    at_rest = self._at_rest(
+                        uids, plan.angular_weight, plan.early_exit, recent[0], poses, steps_done, steps_total
+                    )
                     recent = (*recent, (steps_done, poses))[-REST_CHECKS:]
                     threshold = plan.early_exit.jitter_threshold
                     beyond = threshold is not None and any(
@@ -407,11 +424,15 @@ class Settler:
         since: tuple[int, Sequence[Pose]],
         poses: Sequence[Pose],
         step: int,
+        steps_total: int,
     ) -> list[bool]:
-        """Per body, whether it is at rest at ``step`` (:class:`EarlyExit`): its jitter rate
-        |v| + angular_weight * |omega| (m/s) at most ``rest_rate``, or at most ``wobble_rate`` with its
-        pose moved at most ``rest_rate`` x the time since the look ``since`` (step, poses)."""
-        rest_rate, wobble_rate = early_exit.rest_rate, early_exit.wobble_rate
+        """Per body, whether it is at rest at ``step`` of ``steps_total`` (:class:`EarlyExit`): its jitter
+        rate |v| + angular_weight * |omega| (m/s) at most ``rest_rate``, or at most ``wobble_rate`` with
+        its pose moved at most ``rest_rate`` x the time since the look ``since`` (step, poses); the rates
+        scaled by :meth:`EarlyExit.rate_scale` of the time left."""
+        scale = early_exit.rate_scale((steps_total - step) * TIME_STEP)
+        rest_rate = scale * early_exit.rest_rate
+        wobble_rate = None if early_exit.wobble_rate is None else scale * early_exit.wobble_rate
         stay = rest_rate * (step - since[0]) * TIME_STEP
         resting = []
         for uid, was, now in zip(uids, since[1], poses, strict=True):
