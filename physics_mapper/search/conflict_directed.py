@@ -35,6 +35,7 @@ import math
 import time
 from collections.abc import Sequence
 from dataclasses import replace
+from operator import getitem
 
 from physics_mapper.model.geometry import Pose
 from physics_mapper.model.hypotheses import RankedHypotheses
@@ -46,6 +47,7 @@ from physics_mapper.search.branch_and_bound import BranchAndBound, QueueItem
 from physics_mapper.search.conflicts import Blame, Conflict, ConflictStore, collision_conflict
 from physics_mapper.search.grouped import GroupedSearch, GroupSearch, SettleMemo, physics_key
 from physics_mapper.search.local_settling import LocalPlan, LocalSettling
+from physics_mapper.search.pending_children import PendingChildren
 from physics_mapper.search.results import Candidate, Code, TraceEntry
 from physics_mapper.search.ruling_out import RulingOut
 
@@ -59,6 +61,7 @@ class ConflictGroupSearch(GroupSearch):
     def __init__(self, owner: GroupedSearch, group_id: int, objects: tuple[int, ...], memo: SettleMemo) -> None:
         # Per object, its weights by rank (index 0 unused): p(C) is queried for every child and parent.
         self._weights = tuple((0.0, *(h.weight for h in owner.hypotheses[i].hypotheses)) for i in objects)
+        self._pending = PendingChildren()  # children made, queued once they could come next
         super().__init__(owner, group_id, objects, memo)
         scene = self.checker.scene
         self.names = tuple(scene.objects[i].name for i in self.objects)
@@ -85,14 +88,46 @@ class ConflictGroupSearch(GroupSearch):
         per step, the clock read every :data:`SKIPS_PER_CLOCK_CHECK`), then check the next one as
         :meth:`BranchAndBound.step` does; False if the deadline ``stop_at`` came first."""
         skipped = 0
-        while self.queued and self.settling_in_progress is None and not self.refinement_due and self._skip_head():
+        self._release_pending()
+        while super().queued and self.settling_in_progress is None and not self.refinement_due and self._skip_head():
             skipped += 1
+            self._release_pending()
             if skipped % SKIPS_PER_CLOCK_CHECK == 0 and stop_at is not None and time.monotonic() >= stop_at:
                 break
-        if skipped:
+        if skipped or (not super().queued and not self.refinement_due):
             self.update_end()
             return True
         return super().step(stop_at)
+
+    def _release_pending(self) -> None:
+        """Queue every waiting child that could come before the head of the queue, or tie with it
+        (:mod:`~physics_mapper.search.pending_children`): the head is then the next node in the paper's order."""
+        pending = self._pending
+        while (neg_bound := pending.neg_bound) is not None and (
+            not super().queued or neg_bound <= self.head().neg_probability
+        ):
+            self.push(*pending.release())
+
+    @property
+    def queued(self) -> int:
+        """Nodes in the queue, and children waiting to be queued."""
+        return super().queued + len(self._pending)
+
+    @property
+    def done(self) -> bool:
+        return super().done and not self._pending
+
+    @property
+    def next_probability(self) -> float | None:
+        """p(C) of the next node, or the highest bound of a waiting child if that is more."""
+        bounds = [p for p in (super().next_probability, self._pending.highest_bound) if p is not None]
+        return max(bounds, default=None)
+
+    def update_end(self) -> None:
+        if self._pending:
+            self.stats.end = None
+        else:
+            super().update_end()
 
     def _skip_head(self) -> bool:
         """Skip the head of the queue if it contains a known conflict (expanding it by that conflict)."""
@@ -102,7 +137,7 @@ class ConflictGroupSearch(GroupSearch):
             return False
         self.drop_head()
         self.stats.skipped += 1
-        self._expand(item.code, self.is_bounded(item.probability), known)
+        self._expand(item, self.is_bounded(item.probability), known)
         return True
 
     def visit(self, item: QueueItem, stop_at: float | None) -> TraceEntry | None:
@@ -128,7 +163,7 @@ class ConflictGroupSearch(GroupSearch):
         named = None if conflict is None else self.named(conflict)
         entry = replace(entry, parent=item.parent, group=self.trace_group, conflict=named)
         self.record(entry)
-        self._expand(code, bounded, conflict)
+        self._expand(item, bounded, conflict)
         return entry
 
     def rule1(self, code: Code, poses: tuple[Pose, ...]) -> Collision | None:
@@ -164,7 +199,7 @@ class ConflictGroupSearch(GroupSearch):
         if local is not None and local[0] == code and len(settling.jitters) < len(self.objects):
             plan = local[1]
             self.local.observe(code, plan.simulated, settling.jitters)
-            whole = self.local.whole(plan, settling, self.poses(code))
+            whole = self.local.whole(plan, settling, code)
             if not whole.is_stable(self.params.jitter_threshold):
                 return whole
             confirmed = super().settle_node(code, self.poses(code), stop_at)
@@ -211,7 +246,7 @@ class ConflictGroupSearch(GroupSearch):
             return
         self.stats.local_settlings += 1
         BranchAndBound.on_settled(self, code, settling)  # the step counters only: the memo holds full settlings
-        self.guard(code, self.local.whole(self._local[1], settling, self.poses(code)))
+        self.guard(code, self.local.whole(self._local[1], settling, code))
 
     def keep_from(self, old: ConflictGroupSearch, changed: set[int]) -> None:
         """Take over what ``old`` (a group of the previous search, same physics parameters) learned that
@@ -233,29 +268,34 @@ class ConflictGroupSearch(GroupSearch):
 
     def probability(self, code: Code) -> float:
         """p(C), multiplied in the same order as :meth:`BranchAndBound.probability` (the same number)."""
-        return math.prod([weights[rank] for weights, rank in zip(self._weights, code, strict=True)])
+        return math.prod(map(getitem, self._weights, code))
 
     def named(self, conflict: Conflict) -> tuple[tuple[str, int], ...]:
         """A conflict's assignments as (object name, rank)."""
         return tuple((self.names[position], rank) for position, rank in conflict.assignments)
 
-    def _expand(self, code: Code, bounded: bool, conflict: Conflict | None) -> None:
-        """Queue the children that advance an object of ``conflict`` (None: every object) and have a
-        parent above the bound.
+    def _expand(self, item: QueueItem, bounded: bool, conflict: Conflict | None) -> None:
+        """Hold back, to be queued in order, the children of ``item`` that advance an object of
+        ``conflict`` (None: every object) and have a parent above the bound.
 
         A child advances its object to the next rank no one-assignment conflict rules out: the ranks
         jumped over would be skipped, and expanded only by that object, to this very child (its
         parent on that object, the last rank jumped over, decides the bound as there)."""
+        code = item.code
         positions = range(len(code)) if conflict is None else conflict.positions
+        children = []
         for position in positions:
             rank = self.conflicts.next_rank(position, code[position])
             if rank is None:
                 continue
             child = (*code[:position], rank, *code[position + 1 :])
             if self._queues(child, code, bounded, position):
-                self.push(child, code)
+                weights = self._weights[position]
+                old = weights[code[position]]
+                children.append((weights[rank] / old if old > 0.0 else 0.0, child))
             else:
                 self._cut += 1
+        self._pending.add(code, item.probability, children)
         if not bounded:
             self.stats.expanded += 1
 

@@ -41,7 +41,7 @@ trivially sound.
 from __future__ import annotations
 
 from collections.abc import Iterator, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Literal
 
 import numpy as np
@@ -72,10 +72,11 @@ class Conflict:
     assignments: tuple[Assignment, ...]
     kind: ConflictKind
     region: Region | None = None
+    #: The assignments' positions (made once: every expansion by the conflict reads them).
+    positions: tuple[int, ...] = field(init=False, repr=False, compare=False)
 
-    @property
-    def positions(self) -> tuple[int, ...]:
-        return tuple(position for position, _ in self.assignments)
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "positions", tuple(position for position, _ in self.assignments))
 
     def holds_in(self, code: Sequence[int]) -> bool:
         """Whether configuration ``code`` (ranks by position) contains every assignment."""
@@ -210,17 +211,36 @@ class Blame:
         self.threshold = params.jitter_threshold
         radii = [object_radius(shape) for shape in self.shapes]
         self.growth = tuple(stable_growth(r, params.jitter_threshold, params.angular_weight) for r in radii)
+        self._boxes: tuple[tuple[FloatArray, FloatArray], ...] | None = None
         self._envelopes: tuple[tuple[FloatArray, FloatArray], ...] | None = None
+        # Every object's envelopes stacked (sum of M x 3 corners) and the position each belongs to.
+        self._stacked: tuple[FloatArray, FloatArray, NDArray[np.intp]] | None = None
+
+    @property
+    def boxes(self) -> tuple[tuple[FloatArray, FloatArray], ...]:
+        """Per object, (M x 3 low corners, M x 3 high corners) of its body's box at each hypothesis."""
+        if self._boxes is None:
+            self._boxes = tuple(
+                body_boxes(shape, ranked) for shape, ranked in zip(self.shapes, self.hypotheses, strict=True)
+            )
+        return self._boxes
 
     @property
     def envelopes(self) -> tuple[tuple[FloatArray, FloatArray], ...]:
         """Per object, (M x 3 low corners, M x 3 high corners) of E_p(h) over its hypotheses."""
         if self._envelopes is None:
             self._envelopes = tuple(
-                envelopes(shape, ranked, growth)
-                for shape, ranked, growth in zip(self.shapes, self.hypotheses, self.growth, strict=True)
+                (low - growth, high + growth) for (low, high), growth in zip(self.boxes, self.growth, strict=True)
             )
         return self._envelopes
+
+    def _stacked_envelopes(self) -> tuple[FloatArray, FloatArray, NDArray[np.intp]]:
+        """(low corners, high corners, owner positions) of every envelope: one comparison meets them all."""
+        if self._stacked is None:
+            lows, highs = zip(*self.envelopes, strict=True)
+            owners = np.repeat(np.arange(len(lows)), [len(low) for low in lows])
+            self._stacked = np.concatenate(lows), np.concatenate(highs), owners
+        return self._stacked
 
     def conflicts(self, code: Sequence[int], settling: Settling) -> list[Conflict]:
         """The conflicts an unstable settling of configuration ``code`` teaches: one per object that moved
@@ -246,9 +266,9 @@ class Blame:
         blamed = {moved}
         touches = np.all((low <= high[moved]) & (high >= low[moved]), axis=1)
         blamed.update(int(p) for p in np.nonzero(touches)[0])
-        for p, (env_low, env_high) in enumerate(self.envelopes):
-            if p not in blamed and np.any(np.all((env_low <= high[moved]) & (env_high >= low[moved]), axis=1)):
-                blamed.add(p)
+        env_low, env_high, owners = self._stacked_envelopes()
+        reaching = np.all((env_low <= high[moved]) & (env_high >= low[moved]), axis=1)
+        blamed.update(int(p) for p in np.unique(owners[reaching]))
         return sorted(blamed)
 
     def reaches(self, position: int, region: Region) -> bool:
@@ -258,7 +278,7 @@ class Blame:
         return bool(np.any(np.all((env_low <= high) & (env_high >= low), axis=1)))
 
 
-def envelopes(shape: ObjectShape, ranked: RankedHypotheses, growth: float) -> tuple[FloatArray, FloatArray]:
-    """(M x 3, M x 3): each hypothesis's body box (ranked order) grown by ``growth`` metres."""
+def body_boxes(shape: ObjectShape, ranked: RankedHypotheses) -> tuple[FloatArray, FloatArray]:
+    """(M x 3, M x 3): each hypothesis's body box (ranked order), metres."""
     boxes = [body_box(shape, hypothesis.pose) for hypothesis in ranked.hypotheses]
-    return np.array([low for low, _ in boxes]) - growth, np.array([high for _, high in boxes]) + growth
+    return np.array([low for low, _ in boxes]), np.array([high for _, high in boxes])

@@ -33,8 +33,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from physics_mapper.model.extents import FloatArray, body_box
-from physics_mapper.model.geometry import Pose
+from physics_mapper.model.extents import FloatArray
 from physics_mapper.model.scene import Mesh
 from physics_mapper.physics.settling import PositionRange, Settling
 from physics_mapper.search.conflicts import Blame
@@ -112,12 +111,14 @@ class LocalSettling:
             kept += 1
         return kept
 
-    def whole(self, plan: LocalPlan, local: Settling, start: Sequence[Pose]) -> Settling:
-        """A local settling as one of the whole group: objects not simulated stayed at ``start`` (J_i = 0,
-        their body's box at the start as their extent)."""
+    def whole(self, plan: LocalPlan, local: Settling, code: Sequence[int]) -> Settling:
+        """A local settling of configuration ``code`` as one of the whole group: objects not simulated
+        stayed at their hypotheses (J_i = 0, their body's box there as their extent)."""
+        start = [ranked.pose(rank) for ranked, rank in zip(self.blame.hypotheses, code, strict=True)]
         settled, jitters = list(start), [0.0] * len(start)
         reach = [(pose.position, pose.position) for pose in start]
-        extent = [_box(body_box(shape, pose)) for shape, pose in zip(self.blame.shapes, start, strict=True)]
+        boxes = self.blame.boxes
+        extent = [_box((boxes[p][0][rank - 1], boxes[p][1][rank - 1])) for p, rank in enumerate(code)]
         for index, position in enumerate(plan.simulated):
             settled[position] = local.settled_poses[index]
             jitters[position] = local.jitters[index]
