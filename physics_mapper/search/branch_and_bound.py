@@ -65,7 +65,8 @@ if TYPE_CHECKING:
     from physics_mapper.physics.collision_table import CollisionTable
 
 
-def _tie_key(probability: float) -> float:
+def tie_key(probability: float) -> float:
+    """p(C) rounded to 12 significant digits: the first part of a node's place in the queue (module docstring)."""
     return float(f"{probability:.12g}")
 
 
@@ -164,7 +165,7 @@ class BranchAndBound:
             return
         self._enqueued.add(code)
         probability = self.probability(code)
-        heapq.heappush(self._queue, QueueItem(-_tie_key(probability), code, probability, parent))
+        heapq.heappush(self._queue, QueueItem(-tie_key(probability), code, probability, parent))
         if len(self._queue) > self.queue_limit:
             self._trim_queue()
 
