@@ -12,6 +12,7 @@ import json
 import random
 from dataclasses import replace
 from pathlib import Path
+from typing import Any
 
 import pytest
 import yaml
@@ -31,7 +32,7 @@ from physics_mapper.model.hypotheses import Hypothesis, RankedHypotheses
 from physics_mapper.model.scene import Bound, Box, SearchParams
 from physics_mapper.physics.checker import PhysicsChecker
 from physics_mapper.physics.settling import EarlyExit, Settling, early_exit_rule
-from physics_mapper.search.conflict_directed import ConflictGroupSearch, ConflictSearch
+from physics_mapper.search.conflict_directed import TRIAL_SOLVER_ITERATIONS, ConflictGroupSearch, ConflictSearch
 from physics_mapper.search.conflicts import Conflict, ConflictStore
 from physics_mapper.search.results import Code, SearchResult
 from physics_mapper.search.strategy import make_search
@@ -109,6 +110,30 @@ def test_local_settlings_decide_as_full_ones() -> None:
     expected = outcomes(paper)
     assert all(expected[key] == outcome for key, outcome in outcomes(conflict).items())
     assert (conflict.code, conflict.valid) == (paper.code, paper.valid) == (problem.answer, True)
+
+
+def test_trials_run_fewer_solver_iterations_and_valid_verdicts_rule_2_s() -> None:
+    """Trial settlings (local ones, and the whole group's before any context is known) run
+    ``TRIAL_SOLVER_ITERATIONS``; the configuration found valid was settled with Rule 2's solver."""
+    problem = crowded_problem(CrowdedCase("row", 8, 2, 8))
+    params = replace(problem.problem.scene.search, trace_limit=None)
+    with PhysicsChecker(problem.problem.scene) as checker:
+        iterations: list[int | None] = []
+        settle = checker.settle
+
+        def counted(*args: Any, **options: Any) -> Any:  # the checker's own settling, its solver noted
+            iterations.append(options.get("solver_iterations"))
+            return settle(*args, **options)
+
+        checker.settle = counted
+        search = make_search(checker, problem.problem.hypotheses, params)
+        result = search.run(None)
+    assert isinstance(search, ConflictSearch) and (result.code, result.valid) == (problem.answer, True)
+    assert result.stats.local_settlings > 0
+    assert iterations.count(TRIAL_SOLVER_ITERATIONS) >= result.stats.local_settlings
+    assert None in iterations  # the confirmations: Rule 2's solver
+    best = [group.best_valid for group in search.groups()]
+    assert all(candidate is not None and candidate.settling.solver_iterations is None for candidate in best)
 
 
 def test_groups_with_meshes_are_settled_in_full(tmp_path: Path) -> None:

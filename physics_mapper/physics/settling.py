@@ -149,6 +149,8 @@ class Settling:
     steps_total: int = 0
     reach: tuple[PositionRange, ...] | None = None
     extent: tuple[PositionRange, ...] | None = None
+    #: Bullet solver iterations it ran with when fewer than Rule 2's (None: Rule 2's, ``SOLVER_ITERATIONS``).
+    solver_iterations: int | None = None
 
     @property
     def total_jitter(self) -> float:
@@ -358,6 +360,7 @@ class Settler:
         watched = plan.early_exit is not None or plan.reach is not None
         rest_checks, beyond_checks, reach = plan.rest_checks, plan.beyond_checks, plan.reach
         extent, recent = plan.extent, plan.recent or ((0, plan.poses),)
+        iterations = plan.solver_iterations
         if reach is not None and extent is None:
             extent = tuple(self.world.extents(uids))
         while steps_done < steps_total:
@@ -386,9 +389,11 @@ class Settler:
                     beyond_checks = beyond_checks + 1 if beyond else 0
                     rest_checks = rest_checks + 1 if all(at_rest) else 0
                     if beyond_checks >= REST_CHECKS:
-                        return Settling(poses, jitters, "beyond_threshold", steps_done, steps_total, reach, extent)
+                        return Settling(
+                            poses, jitters, "beyond_threshold", steps_done, steps_total, reach, extent, iterations
+                        )
                     if rest_checks >= REST_CHECKS:
-                        return Settling(poses, jitters, "rest", steps_done, steps_total, reach, extent)
+                        return Settling(poses, jitters, "rest", steps_done, steps_total, reach, extent, iterations)
             if stop_at is not None and steps_done < steps_total and time.monotonic() >= stop_at:
                 self.world.keep_simulation()
                 self._interrupted = replace(
@@ -406,7 +411,7 @@ class Settler:
         if reach is not None and extent is not None:
             reach, extent = _widened(reach, settled), _grown(extent, self.world.extents(uids))
         jitters = self._jitters(plan.poses, settled, plan.angular_weight)
-        return Settling(settled, jitters, None, steps_done, steps_total, reach, extent)
+        return Settling(settled, jitters, None, steps_done, steps_total, reach, extent, iterations)
 
     def _forget_interrupted(self) -> None:
         self.world.forget_kept()

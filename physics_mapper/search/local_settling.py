@@ -73,11 +73,12 @@ class LocalSettling:
         return position, tuple(code[p] for p in sorted(around))
 
     def plan(self, code: Sequence[int]) -> LocalPlan | None:
-        """The local settling of ``code`` (None: settle the whole group, always for a group holding a mesh)."""
+        """The settling that tries ``code``: its unsettled objects, every object when none was settled
+        yet (None: every context was seen stable, or the group holds a mesh: settle it with Rule 2)."""
         if not self._applies:
             return None
         unsettled = [p for p in range(len(code)) if self.context(p, code) not in self._stable]
-        if not unsettled or len(unsettled) == len(code):
+        if not unsettled:
             return None
         fixed = set().union(*(self.neighbours[p] for p in unsettled)) - set(unsettled)
         return LocalPlan(tuple(unsettled), tuple(sorted(fixed)))
@@ -114,6 +115,8 @@ class LocalSettling:
     def whole(self, plan: LocalPlan, local: Settling, code: Sequence[int]) -> Settling:
         """A local settling of configuration ``code`` as one of the whole group: objects not simulated
         stayed at their hypotheses (J_i = 0, their body's box there as their extent)."""
+        if len(plan.simulated) == len(code):
+            return local
         start = [ranked.pose(rank) for ranked, rank in zip(self.blame.hypotheses, code, strict=True)]
         settled, jitters = list(start), [0.0] * len(start)
         reach = [(pose.position, pose.position) for pose in start]
@@ -125,7 +128,14 @@ class LocalSettling:
             if local.reach is not None and local.extent is not None:
                 reach[position], extent[position] = local.reach[index], local.extent[index]
         return Settling(
-            tuple(settled), tuple(jitters), local.stopped, local.steps, local.steps_total, tuple(reach), tuple(extent)
+            tuple(settled),
+            tuple(jitters),
+            local.stopped,
+            local.steps,
+            local.steps_total,
+            tuple(reach),
+            tuple(extent),
+            local.solver_iterations,
         )
 
 
