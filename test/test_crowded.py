@@ -350,3 +350,19 @@ def test_a_packed_bin_is_at_rest_sooner_when_the_rest_rate_counts_the_time_left_
     assert drifting.stopped == "rest" and drifting.steps < fixed_rates.steps
     assert all(s.is_stable(params.jitter_threshold) for s in (drifting, fixed_rates, full))
     assert all(abs(a - b) <= JITTER_TOLERANCE for a, b in zip(drifting.jitters, full.jitters, strict=True))
+
+
+def test_waiting_children_count_against_the_queue_limit() -> None:
+    """The children an expansion holds back are nodes of the queue: with them, the queue holds at most
+    ``queue_limit``; beyond, the least probable are dropped and the search says it is truncated."""
+    problem = crowded_problem(CrowdedCase("wall", 10, 5, 2))
+    params = replace(problem.problem.scene.search, queue_limit=4, trace_limit=None)
+    with PhysicsChecker(problem.problem.scene) as checker:
+        search = make_search(checker, problem.problem.hypotheses, params)
+        queued = []
+        while not search.done:
+            search.run(0.001)
+            queued.append(search.queued)
+        result = search.result()
+    assert max(queued) <= 4
+    assert result.stats.dropped > 0 and result.stats.end == "truncated"

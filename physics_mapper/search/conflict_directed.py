@@ -15,7 +15,14 @@ p(C) with its tie rule, from one max-priority queue with the same dedup set, but
 - a child is queued only if one of its parents, the configurations one rank lower on one object, is
   above the bound: exactly the nodes the paper's search queues, since there a node is queued iff some
   parent is visited and not bounded, and a parent's p(C) is at least its child's. A node below the
-  bound is therefore still expanded here (its children are kept only if another parent is above it).
+  bound is therefore still expanded here (its children are kept only if another parent is above it);
+- an expansion's children wait until they could come next (:mod:`~physics_mapper.search.pending_children`):
+  the queue's head is what a queue holding them all would give.
+
+Rule 2 of a candidate is first *tried*, locally where the stable contexts allow
+(:mod:`~physics_mapper.search.local_settling`), with Bullet's solver at :data:`TRIAL_SOLVER_ITERATIONS`; a
+trial's instability is believed, and a candidate is valid only once Rule 2's own settling of its
+whole group (50 iterations) confirms it.
 
 Why the answer is the paper's. Take a valid configuration D that the paper's search visits (some
 parent of D, or D itself, is above the bound). Every X <= D (rank by rank) is then queued here too:
@@ -320,6 +327,9 @@ class ConflictGroupSearch(GroupSearch):
             else:
                 self._cut += 1
         self._pending.add(code, item.probability, children)
+        if super().queued + len(self._pending) > self.queue_limit:
+            while self._pending:  # all queued: the queue's limit drops the least probable, as it would have
+                self.push(*self._pending.release())
         if not bounded:
             self.stats.expanded += 1
 

@@ -17,9 +17,9 @@ beyond the threshold, C is unstable (its conflict comes from that settling); els
 either was just seen stable or is in a context seen stable, and C is *presumed valid*: it gets one
 full settling of its group, which confirms it (and gives its J), or refutes it, and then the search
 learns the conflict and drops the contexts of the objects that moved. A candidate with every object
-unsettled (the first ones), or whose L is the whole group, is settled in full at once. The local
-verdict is a judgement; a refuted presumption costs one settling; agreement of local and full
-verdicts is measured on the crowded suite (BENCHMARKS.md).
+unsettled (the first ones) is tried as a whole; one with no object unsettled gets the full settling
+at once. The local verdict is a judgement; a refuted presumption costs one settling; agreement of
+local and full verdicts is measured on the crowded suite (BENCHMARKS.md).
 
 Why this is cheap: the contexts are the memo. In a crowded group, a candidate differs from the
 settled ones in the few objects of a conflict, so L is those objects and their neighbours, a handful
