@@ -398,17 +398,22 @@ def test_diagnostics_say_when_a_settling_continues_over_ticks() -> None:
             mapper.inputs.add_poses(
                 name, received_poses(msg, expected_frame="world", workspace=WORKSPACE, received=1.0)
             )
-        first = mapper.tick(1.0, settings)
-        states = [first]
+        # On a slow machine the first ticks' millisecond goes to making the search and Rule 1.
+        states = [mapper.tick(1.0, settings)]
+        while states[-1].settling_in_progress is None and len(states) < 100:
+            states.append(mapper.tick(1.0, settings))
+        settling = states[-1]
         while states[-1].settling_in_progress is not None and len(states) < 10_000:
             states.append(mapper.tick(1.0, settings))
     finally:
         mapper.close()
-    assert first.settling_in_progress == (1, 1, 1)
+    assert settling.settling_in_progress == (1, 1, 1)
     values = {
-        kv.key: kv.value for kv in diagnostics_msg(first, node_name="n", hardware_id="/n", stamp_ns=0).status[0].values
+        kv.key: kv.value
+        for kv in diagnostics_msg(settling, node_name="n", hardware_id="/n", stamp_ns=0).status[0].values
     }
-    assert values["search"] == "new, stopped at the deadline, settling C111 continues next tick"
+    started = "new" if settling is states[0] else "resumed"
+    assert values["search"] == f"{started}, stopped at the deadline, settling C111 continues next tick"
     last = states[-1]
     assert last.settling_in_progress is None and last.result is not None and last.result.valid
     values = {
