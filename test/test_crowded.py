@@ -313,43 +313,42 @@ def test_a_moving_settling_stops_a_falling_object_sooner_with_the_same_verdict()
     assert early_exit_rule(params, complete=True, moving=True) == early_exit_rule(params, complete=True)
 
 
-def test_a_packed_bin_wobbling_in_its_contacts_is_at_rest_sooner_with_the_same_verdict() -> None:
-    """``moving``: objects shaking in their contacts without going anywhere count as at rest."""
-    problem = crowded_problem(CrowdedCase("bin", 30, 2, 108))
+@pytest.mark.parametrize(
+    ("case", "rule_off"),
+    [(CrowdedCase("bin", 30, 2, 108), {"wobble_rate": None}), (CrowdedCase("bin", 30, 5, 112), {"drift": None})],
+    ids=["wobble", "drift"],
+)
+def test_a_packed_bin_is_at_rest_sooner_by_each_rest_rule_with_the_same_verdict(
+    case: CrowdedCase, rule_off: dict[str, None]
+) -> None:
+    """``moving``: objects shaking in their contacts without going anywhere count as at rest
+    (``wobble_rate``), and the rest rate grows as the settling's end nears (``drift``); with either,
+    the settling stops sooner than without it and every J_i is within the tolerance of a full settling's."""
+    problem = crowded_problem(case)
     params = problem.problem.scene.search
     truth = [h.pose(rank) for h, rank in zip(problem.problem.hypotheses, problem.answer, strict=True)]
     moving = early_exit_rule(params, complete=False, moving=True)
-    assert moving is not None and moving.wobble_rate is not None
+    assert moving is not None and all(getattr(moving, name) is not None for name in rule_off)
     with PhysicsChecker(problem.problem.scene) as checker:
 
         def settled(early_exit: EarlyExit | None) -> Settling:
             return checker.settle(truth, params.settle_time, params.angular_weight, early_exit=early_exit)
 
-        wobbling, rate_only, full = settled(moving), settled(replace(moving, wobble_rate=None)), settled(None)
-    assert wobbling.stopped == "rest" and wobbling.steps < rate_only.steps
-    assert all(s.is_stable(params.jitter_threshold) for s in (wobbling, rate_only, full))
-    assert all(abs(a - b) <= JITTER_TOLERANCE for a, b in zip(wobbling.jitters, full.jitters, strict=True))
+        without_rule = replace(moving, **rule_off)  # type: ignore[arg-type]
+        with_rule, without, full = settled(moving), settled(without_rule), settled(None)
+    assert with_rule.stopped == "rest" and with_rule.steps < without.steps
+    assert all(s.is_stable(params.jitter_threshold) for s in (with_rule, without, full))
+    assert all(abs(a - b) <= JITTER_TOLERANCE for a, b in zip(with_rule.jitters, full.jitters, strict=True))
 
 
-def test_a_packed_bin_is_at_rest_sooner_when_the_rest_rate_counts_the_time_left_with_the_same_verdict() -> None:
-    """``moving``: the rest rate grows as the settling's end nears (``drift``): what an object still
-    drifting adds to its J_i by the end stays within the tolerance of a full settling's J_i."""
-    problem = crowded_problem(CrowdedCase("bin", 30, 5, 112))
-    params = problem.problem.scene.search
-    truth = [h.pose(rank) for h, rank in zip(problem.problem.hypotheses, problem.answer, strict=True)]
-    moving = early_exit_rule(params, complete=False, moving=True)
+def test_the_rest_rate_grows_as_the_time_left_shrinks() -> None:
+    moving = early_exit_rule(SearchParams(), complete=False, moving=True)
     assert moving is not None and moving.drift is not None
-    assert moving.rate_scale(params.settle_time) == 1.0
-    assert moving.rate_scale(params.settle_time / 4) == pytest.approx(4.0)
-    with PhysicsChecker(problem.problem.scene) as checker:
-
-        def settled(early_exit: EarlyExit | None) -> Settling:
-            return checker.settle(truth, params.settle_time, params.angular_weight, early_exit=early_exit)
-
-        drifting, fixed_rates, full = settled(moving), settled(replace(moving, drift=None)), settled(None)
-    assert drifting.stopped == "rest" and drifting.steps < fixed_rates.steps
-    assert all(s.is_stable(params.jitter_threshold) for s in (drifting, fixed_rates, full))
-    assert all(abs(a - b) <= JITTER_TOLERANCE for a, b in zip(drifting.jitters, full.jitters, strict=True))
+    settle_time = SearchParams().settle_time
+    assert moving.rate_scale(settle_time) == moving.rate_scale(2 * settle_time) == 1.0
+    assert moving.rate_scale(settle_time / 4) == pytest.approx(4.0)
+    not_moving = early_exit_rule(SearchParams(), complete=False)
+    assert not_moving is not None and not_moving.rate_scale(settle_time / 4) == 1.0
 
 
 def test_waiting_children_count_against_the_queue_limit() -> None:
