@@ -232,9 +232,8 @@ class ConflictGroupSearch(GroupSearch):
 
     def _forget_moved(self, code: Code, settling: Settling) -> None:
         """Drop the stable contexts of the objects a settling of the whole group moved beyond the threshold."""
-        if len(settling.jitters) == len(self.objects):
-            threshold = self.params.jitter_threshold
-            self.local.forget(code, [p for p, jitter in enumerate(settling.jitters) if jitter > threshold])
+        threshold = self.params.jitter_threshold
+        self.local.forget(code, [p for p, jitter in enumerate(settling.jitters) if jitter > threshold])
 
     def settle_node(self, code: Code, poses: tuple[Pose, ...], stop_at: float | None) -> Settling | PartialSettling:
         """Rule 2 of one node, tried first (:data:`TRIAL_SOLVER_ITERATIONS`) locally where the contexts
@@ -246,9 +245,8 @@ class ConflictGroupSearch(GroupSearch):
         whole = plan is not None and len(plan.simulated) == len(code)
         if plan is None or (whole and len(code) < WHOLE_TRIALS_FROM_OBJECTS):
             return super().settle_node(code, poses, stop_at)
-        memoised = self.memo.get(code, complete=False)
+        memoised = self.memoised(code)
         if memoised is not None:
-            self.stats.memo_hits += 1
             return memoised
         self._trial = (code, plan)
         params = self.params

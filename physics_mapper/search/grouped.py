@@ -140,11 +140,17 @@ class GroupSearch(BranchAndBound):
         self.trace_group = None if objects == owner.checker.all_objects else group_id
 
     def settle_node(self, code: Code, poses: tuple[Pose, ...], stop_at: float | None) -> Settling | PartialSettling:
+        memoised = self.memoised(code)
+        if memoised is not None:
+            return memoised
+        return super().settle_node(code, poses, stop_at)
+
+    def memoised(self, code: Code) -> Settling | None:
+        """The memo's settling of ``code`` for this node (None: none serves), counted as a memo hit."""
         memoised = self.memo.get(code, complete=self.settling_completely)
         if memoised is not None:
             self.stats.memo_hits += 1
-            return memoised
-        return super().settle_node(code, poses, stop_at)
+        return memoised
 
     def on_settled(self, code: Code, settling: Settling) -> None:
         super().on_settled(code, settling)

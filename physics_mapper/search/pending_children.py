@@ -28,7 +28,8 @@ from typing import NamedTuple
 from physics_mapper.search.results import Code
 
 #: Relative slack of a waiting child's bound over its parent's p(C) times its weight ratio: far more
-#: than the products' rounding (N ulps) and the tie key's (5e-12), far less than any two weights differ.
+#: than the products' rounding (N ulps) and the tie key's (5e-12); a child released early only costs
+#: its push sooner.
 BOUND_SLACK = 1e-9
 
 
