@@ -291,6 +291,11 @@ def test_the_conflict_store_finds_the_smallest_conflict_and_the_ranks_left() -> 
     assert store.next_rank(2, 1) == 4 and store.next_rank(2, 4) is None
     assert store.live_ranks(2) == [1, 4]
     assert store.contained((3, 3, 3)) == Conflict(((2, 3),), "collision")
+    later_pair = Conflict(((0, 3), (1, 3)), "collision")
+    store.learn(later_pair)
+    assert store.contained((3, 3, 1)) is later_pair
+    store.learn(Conflict(((0, 3), (2, 1)), "collision"))
+    assert store.contained((3, 3, 1)) is later_pair  # of equal ones, the first learned
 
 
 def test_a_moving_settling_stops_a_falling_object_sooner_with_the_same_verdict() -> None:
