@@ -31,7 +31,14 @@ from physics_mapper.model.geometry import Pose
 from physics_mapper.model.hypotheses import Hypothesis, RankedHypotheses
 from physics_mapper.model.scene import Bound, Box, SearchParams
 from physics_mapper.physics.checker import PhysicsChecker
-from physics_mapper.physics.settling import EarlyExit, Settling, early_exit_rule
+from physics_mapper.physics.settling import (
+    CLOCK_CHECK_STEPS,
+    MOVING_BEYOND_LOOKS,
+    REST_CHECKS,
+    EarlyExit,
+    Settling,
+    early_exit_rule,
+)
 from physics_mapper.search.conflict_directed import TRIAL_SOLVER_ITERATIONS, ConflictGroupSearch, ConflictSearch
 from physics_mapper.search.conflicts import Conflict, ConflictStore
 from physics_mapper.search.results import Code, SearchResult
@@ -80,7 +87,8 @@ def test_the_answer_is_the_exhaustive_paper_search_s(case_runs: CaseRuns) -> Non
 
 
 def test_conflicts_are_sound(case_runs: CaseRuns) -> None:
-    """No configuration that contains a learned conflict is valid when the paper's search checks it in full."""
+    """No configuration that contains a learned conflict (any combination of its rank sets) is valid when
+    the paper's search checks it in full."""
     _, paper, _, groups = case_runs
     checked = outcomes(paper)
     contained = 0
@@ -92,6 +100,56 @@ def test_conflicts_are_sound(case_runs: CaseRuns) -> None:
                 contained += 1
                 assert outcome != "valid", code
     assert contained > 0
+
+
+def test_conflicts_hold_for_more_ranks_than_the_rejected_candidate_s() -> None:
+    """Both kinds of conflict carry rank sets wider than the rejected candidate's ranks, and the conflicts
+    of the reduced suite and a small wall contain more of the configurations the paper's search
+    rejected with them than without them."""
+    wider = {"collision": 0, "unstable": 0}
+    with_sets = without_sets = 0
+    for case in (*REDUCED, CrowdedCase("wall", 6, 3, 1)):
+        problem = crowded_problem(case)
+        paper, _ = searched(problem, strategy="grouped")
+        _, groups = searched(problem)
+        rejected = [(objects, code) for (objects, code), outcome in outcomes(paper).items() if outcome != "valid"]
+        for group in groups:
+            conflicts = list(group.conflicts)
+            for conflict in conflicts:
+                wider[conflict.kind] += any(len(ranks) > 1 for ranks in conflict.ranks)
+            exact = [Conflict(c.assignments, c.kind) for c in conflicts]
+            codes = [code for objects, code in rejected if objects == group.objects]
+            with_sets += sum(any(c.holds_in(code) for c in conflicts) for code in codes)
+            without_sets += sum(any(c.holds_in(code) for c in exact) for code in codes)
+    assert wider["collision"] > 0 and wider["unstable"] > 0
+    assert with_sets > without_sets
+
+
+def test_a_collision_conflict_s_rank_sets_collide_in_every_combination() -> None:
+    """Every combination of a collision conflict's rank sets is in collision, checked in full with every
+    object placed (the others at random ranks), or holds a rank ruled out alone."""
+    rng = random.Random(1)
+    problem = crowded_problem(CrowdedCase("tower", 6, 5, 3))
+    scene, hypotheses, params = problem.problem.scene, problem.problem.hypotheses, problem.problem.scene.search
+    _, groups = searched(problem)
+    checked = wide = 0
+    with PhysicsChecker(scene) as checker:
+        for group in groups:
+            ranks = [range(1, len(h) + 1) for h in group.hypotheses]
+            for conflict in group.conflicts:
+                if conflict.kind != "collision" or len(conflict.assignments) != 2:
+                    continue
+                wide += any(len(ranks) > 1 for ranks in conflict.ranks)
+                for chosen in itertools.product(*conflict.ranks):
+                    code = [rng.choice(r) for r in ranks]
+                    for position, rank in zip(conflict.positions, chosen, strict=True):
+                        code[position] = rank
+                    if any(group.conflicts.rules_out(p, r) for p, r in zip(conflict.positions, chosen, strict=True)):
+                        continue
+                    poses = [hypotheses[i].pose(r) for i, r in zip(group.objects, code, strict=True)]
+                    assert checker.find_collision(poses, params.penetration_threshold) is not None, code
+                    checked += chosen != tuple(rank for _, rank in conflict.assignments)
+    assert wide > 0 and checked > 0  # combinations beyond the rejected candidate's own ranks
 
 
 def test_every_checked_configuration_has_the_paper_s_outcome(case_runs: CaseRuns) -> None:
@@ -298,6 +356,25 @@ def test_the_conflict_store_finds_the_smallest_conflict_and_the_ranks_left() -> 
     assert store.contained((3, 3, 1)) is later_pair  # of equal ones, the first learned
 
 
+def test_a_conflict_with_rank_sets_holds_in_every_combination_and_expands_past_them() -> None:
+    store = ConflictStore([3, 3, 5])
+    wide = Conflict(((0, 1), (2, 2)), "collision", ranks=(frozenset({1, 2}), frozenset({2, 3, 5})))
+    assert store.learn(wide) and not store.learn(wide)
+    assert store.learn(Conflict(((0, 1), (2, 2)), "collision"))  # the same ranks, narrower: another conflict
+    for code in itertools.product((1, 2, 3), (1, 2, 3), (1, 2, 3, 4, 5)):
+        holds = code[0] in (1, 2) and code[2] in (2, 3, 5)
+        assert wide.holds_in(code) == holds and (store.contained(code) is not None) == holds, code
+    assert store.next_rank(2, 2, wide.ranks[1]) == 4 and store.next_rank(2, 4, wide.ranks[1]) is None
+    assert store.next_rank(0, 1, wide.ranks[0]) == 3
+    store.learn(Conflict(((1, 2),), "collision", ranks=(frozenset({2, 3}),)))  # one object: both ruled out
+    assert store.live_ranks(1) == [1] and store.rules_out(1, 3) and not store.rules_out(1, 1)
+    assert wide.renumbered({0: 4, 2: 1}) == Conflict(
+        ((1, 2), (4, 1)), "collision", ranks=(frozenset({2, 3, 5}), frozenset({1, 2}))
+    )
+    with pytest.raises(ValueError, match="own ranks"):
+        Conflict(((0, 1),), "collision", ranks=(frozenset({2}),))
+
+
 def test_a_moving_settling_stops_a_falling_object_sooner_with_the_same_verdict() -> None:
     """``moving``: an object far off and still falling ends the settling before it comes to rest."""
     scene = floor_scene(cube("a"))
@@ -313,8 +390,16 @@ def test_a_moving_settling_stops_a_falling_object_sooner_with_the_same_verdict()
             params.angular_weight,
             early_exit=early_exit_rule(params, complete=False, moving=True),
         )
+        rule = early_exit_rule(params, complete=False, moving=True)
+        assert rule is not None and rule.beyond_looks == MOVING_BEYOND_LOOKS < REST_CHECKS
+        three_looks = checker.settle(
+            floating, params.settle_time, params.angular_weight, early_exit=replace(rule, beyond_looks=REST_CHECKS)
+        )
     assert moving.stopped == "beyond_threshold" and moving.steps < at_rest.steps
     assert not moving.is_stable(params.jitter_threshold) and not at_rest.is_stable(params.jitter_threshold)
+    # Each look fewer ends it one look (CLOCK_CHECK_STEPS steps) sooner, with the same verdict.
+    assert three_looks.stopped == "beyond_threshold" and not three_looks.is_stable(params.jitter_threshold)
+    assert moving.steps == three_looks.steps - (REST_CHECKS - MOVING_BEYOND_LOOKS) * CLOCK_CHECK_STEPS
     assert early_exit_rule(params, complete=True, moving=True) == early_exit_rule(params, complete=True)
 
 

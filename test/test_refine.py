@@ -30,7 +30,13 @@ from diagnostic_msgs.msg import DiagnosticStatus
 from ros_helpers import NodeProcess, RosClient, search_status, stamp_ns_of, values
 
 from physics_mapper.model.bullet import pybullet
-from physics_mapper.model.geometry import Pose, make_pose, quaternion_about_axis, translation_distance
+from physics_mapper.model.geometry import (
+    Pose,
+    make_pose,
+    pose_displacement,
+    quaternion_about_axis,
+    translation_distance,
+)
 from physics_mapper.model.hypotheses import RankedHypotheses
 from physics_mapper.model.scene import Fallback, Scene, SearchParams
 from physics_mapper.model.scene_files import SceneError, load_problem, scene_from_dict
@@ -39,11 +45,13 @@ from physics_mapper.msg_adapters.results import FALLBACK_COLOR, SHAPE_NAMESPACE
 from physics_mapper.physics.checker import PhysicsChecker
 from physics_mapper.physics.refine import (
     OVERLAP_TOLERANCE,
+    SETTLING_SOLVER_ITERATIONS,
     RefinedMap,
     Refinement,
     refine_objects,
     refinement_start,
 )
+from physics_mapper.physics.settling import REST_SHARE, Settling, early_exit_rule
 from physics_mapper.physics.world import SOLVER_ITERATIONS, TIME_STEP
 from physics_mapper.search.branch_and_bound import BranchAndBound
 from physics_mapper.search.results import SearchResult
@@ -175,6 +183,43 @@ def test_the_settling_of_a_noisy_grid_rests_with_fewer_solver_iterations_and_giv
     assert interruptions > made.iterations  # some of them within the settling
     assert made.converged
     assert is_valid_map(scene, made.settled_poses, REFINE)  # at rest under Rule 2's own solver too
+
+
+def test_a_packed_grid_s_map_is_taken_once_its_cubes_only_wobble_within_the_rest_tolerance() -> None:
+    """The refinement's settling counts cubes shaking in their contacts as at rest (``wobbling``): on a
+    5 x 5 grid of touching noisy cubes it stops at rest before ``settle_time``, where the rate alone
+    runs it to the end, and its map lies within the rest tolerance (``REST_SHARE`` x the jitter
+    threshold) of the map settled by the rate alone."""
+    noise = [((7 * i) % 11 - 5) * 0.002 for i in range(75)]  # -1 to +1 cm, fixed
+    count = 25
+    poses = [
+        unrotated(0.1 * (i % 5) + noise[3 * i], 0.1 * (i // 5) + noise[3 * i + 1], ON_FLOOR + noise[3 * i + 2])
+        for i in range(count)
+    ]
+    scene = floor_scene(*(cube(f"c{i}") for i in range(count)))
+    with PhysicsChecker(scene) as checker:
+        made = Refinement(checker, range(count), poses, poses, REFINE).run()
+        assert made is not None
+
+        def settled(wobbling: bool) -> Settling:  # as the refinement settles, with or without ``wobbling``
+            return checker.settle(
+                made.depenetrated_poses,
+                REFINE.settle_time,
+                REFINE.angular_weight,
+                early_exit=early_exit_rule(REFINE, complete=True, wobbling=wobbling),
+                max_speed=REFINE.refine_max_speed,
+                solver_iterations=SETTLING_SOLVER_ITERATIONS,
+            )
+
+        by_rate, wobbling = settled(False), settled(True)
+    assert wobbling.stopped == "rest" and wobbling.steps < by_rate.steps
+    assert wobbling.settled_poses == made.settled_poses  # the refinement's own settling
+    tolerance = REST_SHARE * REFINE.jitter_threshold
+    apart = [
+        pose_displacement(a, b, REFINE.angular_weight)
+        for a, b in zip(made.settled_poses, by_rate.settled_poses, strict=True)
+    ]
+    assert max(apart) <= tolerance
 
 
 def solver_iterations(checker: PhysicsChecker) -> int:

@@ -334,7 +334,7 @@ class Refinement:
                 stop_at,
                 objects=self.objects,
                 max_speed=params.refine_max_speed,
-                early_exit=early_exit_rule(params, complete=True),
+                early_exit=early_exit_rule(params, complete=True, wobbling=True),
                 solver_iterations=self.solver_iterations,
             )
         else:

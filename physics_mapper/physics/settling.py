@@ -72,15 +72,18 @@ class EarlyExit:
     ``drift`` (m + weighted rad): both rates (and the wobble's stay) are scaled up at a look by
     ``drift`` / (``rest_rate`` x the time left), when that is more than 1: an object drifting on at
     the rate would add at most ``drift`` to its J_i by the settling's end. None: fixed rates.
+    ``beyond_looks``: the consecutive looks an object must be beyond (at rest beyond
+    ``jitter_threshold``, or anyhow beyond ``moving_beyond``) before the settling stops.
     """
 
     rest_rate: float
     jitter_threshold: float | None
-    #: (m + weighted rad) once an object's J_i has been beyond this at :data:`REST_CHECKS` consecutive
+    #: (m + weighted rad) once an object's J_i has been beyond this at ``beyond_looks`` consecutive
     #: looks, at rest or not, the settling stops (``"beyond_threshold"``); None: only at rest.
     moving_beyond: float | None = None
     wobble_rate: float | None = None
     drift: float | None = None
+    beyond_looks: int = REST_CHECKS
 
     def rate_scale(self, time_left: float) -> float:
         """What the rates are multiplied by with ``time_left`` seconds of the settling to go (``drift``)."""
@@ -92,43 +95,49 @@ class EarlyExit:
 #: An object is at rest while its jitter rate (m/s, |v| + angular_weight * |omega|) would add at most
 #: this share of ``jitter_threshold`` over a whole ``settle_time``.
 REST_SHARE = 0.05
-#: How many jitter thresholds away an object that is still moving must be, at :data:`REST_CHECKS`
-#: consecutive looks (0.1 s), to end a ``moving`` settling as unstable: a body falling, sliding or
-#: toppling that far does not come back within the threshold (measured on the crowded suite).
+#: How many jitter thresholds away an object that is still moving must be, at :data:`MOVING_BEYOND_LOOKS`
+#: consecutive looks, to end a ``moving`` settling as unstable: a body falling, sliding or toppling
+#: that far does not come back within the threshold (measured on the crowded suite).
 MOVING_BEYOND_SHARE = 2.0
+#: Consecutive looks (every :data:`CLOCK_CHECK_STEPS` steps, 33 ms apart) that end a ``moving``
+#: settling once an object is beyond: a cube floating 2 to 4 cm is 2 thresholds down at the look after
+#: 67 ms and lands by 90 ms, so two looks end its trial at step 24 instead of 32 (the crowded
+#: benchmark confirms every unstable verdict with a full settling).
+MOVING_BEYOND_LOOKS = 2
 #: How many times the rest rate a ``moving`` settling's object may wobble at while its pose stays put
 #: (:attr:`EarlyExit.wobble_rate`): boxes and cylinders packed in a bin shake at 1-7 mm/s in their
 #: contacts after they have settled, moving 0.1-0.9 mm over a whole settling (crowded suite).
 WOBBLE_SHARE = 10.0
 
 
-def early_exit_rule(params: SearchParams, complete: bool, moving: bool = False) -> EarlyExit | None:
+def early_exit_rule(
+    params: SearchParams, complete: bool, moving: bool = False, wobbling: bool = False
+) -> EarlyExit | None:
     """When a settling may stop early under ``params`` (None: ``settle_exit: full``).
 
     At rest: jitter rate at most :data:`REST_SHARE` x jitter_threshold / settle_time (1 mm/s with
     the defaults). ``complete`` keeps a settling going past the jitter threshold (the settling a
-    fallback may report), so it ends at rest or at ``settle_time``. ``moving`` (not with
-    ``complete``) also stops it once an object has been :data:`MOVING_BEYOND_SHARE` x the threshold
-    away at :data:`REST_CHECKS` consecutive looks, still moving, and counts an object wobbling at up
-    to :data:`WOBBLE_SHARE` x the rest rate as at rest while its pose stays put, both rates
-    measured against the time left (``drift``: :data:`REST_SHARE` x jitter_threshold, what the rest
-    rate allows over a whole settling): the conflict-directed search's verdicts, whose agreement
-    with full settling ``physics-mapper bench --crowded`` measures.
+    fallback may report), so it ends at rest or at ``settle_time``. ``wobbling`` counts an object
+    wobbling at up to :data:`WOBBLE_SHARE` x the rest rate as at rest while its pose stays put, both
+    rates measured against the time left (``drift``: :data:`REST_SHARE` x jitter_threshold, what the
+    rest rate allows over a whole settling). ``moving`` (not with ``complete``) does too, and also
+    stops a settling once an object has been :data:`MOVING_BEYOND_SHARE` x the threshold away, or at
+    rest beyond the threshold, at :data:`MOVING_BEYOND_LOOKS` consecutive looks: the
+    conflict-directed search's verdicts, whose agreement with full settling ``physics-mapper bench
+    --crowded`` measures.
     """
     if params.settle_exit == "full" or params.settle_time <= 0.0:
         return None
     rest_rate = REST_SHARE * params.jitter_threshold / params.settle_time
+    wobble_rate, drift = WOBBLE_SHARE * rest_rate, REST_SHARE * params.jitter_threshold
     if complete:
-        return EarlyExit(rest_rate, None)
-    if not moving:
-        return EarlyExit(rest_rate, params.jitter_threshold)
-    return EarlyExit(
-        rest_rate,
-        params.jitter_threshold,
-        MOVING_BEYOND_SHARE * params.jitter_threshold,
-        WOBBLE_SHARE * rest_rate,
-        REST_SHARE * params.jitter_threshold,
-    )
+        return EarlyExit(rest_rate, None, None, wobble_rate, drift) if wobbling else EarlyExit(rest_rate, None)
+    if moving:
+        moving_beyond = MOVING_BEYOND_SHARE * params.jitter_threshold
+        return EarlyExit(rest_rate, params.jitter_threshold, moving_beyond, wobble_rate, drift, MOVING_BEYOND_LOOKS)
+    if wobbling:
+        return EarlyExit(rest_rate, params.jitter_threshold, None, wobble_rate, drift)
+    return EarlyExit(rest_rate, params.jitter_threshold)
 
 
 @dataclass(frozen=True)
@@ -388,7 +397,7 @@ class Settler:
                     beyond = beyond or (moving is not None and max(jitters, default=0.0) > moving)
                     beyond_checks = beyond_checks + 1 if beyond else 0
                     rest_checks = rest_checks + 1 if all(at_rest) else 0
-                    if beyond_checks >= REST_CHECKS:
+                    if beyond_checks >= plan.early_exit.beyond_looks:
                         return Settling(
                             poses, jitters, "beyond_threshold", steps_done, steps_total, reach, extent, iterations
                         )

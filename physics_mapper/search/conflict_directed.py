@@ -10,8 +10,9 @@ p(C) with its tie rule, from one max-priority queue with the same dedup set, but
   K (a collision: two objects, not N), since every other child still contains K; a valid candidate
   is expanded by every object, as in the paper;
 - a child advances its object to the next rank no one-assignment conflict rules out (those learned
-  before the first candidate, :mod:`physics_mapper.search.ruling_out`, and since): the ranks jumped
-  over would be skipped and expanded by that object alone, to this very child;
+  before the first candidate, :mod:`physics_mapper.search.ruling_out`, and since) and, expanding by
+  K, outside K's ranks of that object: a child at a rank jumped over would still contain a conflict,
+  and a valid configuration beyond it has the object at a rank at least the one advanced to;
 - a child is queued only if one of its parents, the configurations one rank lower on one object, is
   above the bound: exactly the nodes the paper's search queues, since there a node is queued iff some
   parent is visited and not bounded, and a parent's p(C) is at least its child's. A node below the
@@ -25,10 +26,11 @@ trial's instability is believed, and a candidate is valid only once Rule 2's own
 whole group (50 iterations) confirms it.
 
 Why the answer is the paper's. Take a valid configuration D that the paper's search visits (some
-parent of D, or D itself, is above the bound). Every X <= D (rank by rank) is then queued here too:
-each parent of X is at least as probable as X or as a parent of D. Follow X from the root towards D:
-if X is valid, every child is queued; if X contains a conflict K, D does not (D is valid), so D
-advances some object of K beyond X, and that child of X is queued. So every valid configuration the
+parent of D, or D itself, is above the bound). Every X <= D (rank by rank) other than D is then
+above the bound too: it is at least as probable as a parent of D. Follow queued nodes X <= D from
+the root towards D: if X is valid, every child is queued; if X contains a conflict K, D does not (D
+is valid), so D has some object of K at a rank outside K's ranks of it, beyond X's, and the child
+of X that advances that object to its first such rank is queued, and is at most D. So every valid configuration the
 paper's search visits is visited here, in the same order, and no other (nothing below the bound is
 queued); the least J among them, the first of equal ones, is the same answer. The same argument
 with collision conflicts only gives the ``settled`` fallback's configuration, the first collision-free
@@ -38,6 +40,7 @@ child from the queue (every configuration was visited or contains a conflict), e
 
 from __future__ import annotations
 
+import itertools
 import math
 import time
 from collections.abc import Sequence
@@ -51,7 +54,7 @@ from physics_mapper.physics.checker import PhysicsChecker
 from physics_mapper.physics.collision import Collision, deepest_collision
 from physics_mapper.physics.settling import EarlyExit, PartialSettling, Settling, early_exit_rule
 from physics_mapper.search.branch_and_bound import BranchAndBound, QueueItem
-from physics_mapper.search.conflicts import Blame, Conflict, ConflictStore, collision_conflict
+from physics_mapper.search.conflicts import Blame, Conflict, ConflictStore, collision_conflicts
 from physics_mapper.search.grouped import GroupedSearch, GroupSearch, SettleMemo, physics_key
 from physics_mapper.search.local_settling import LocalPlan, LocalSettling
 from physics_mapper.search.pending_children import PendingChildren
@@ -198,9 +201,12 @@ class ConflictGroupSearch(GroupSearch):
         depths = self._depths
         return self._learn(
             [
-                collision_conflict(code, pair, self._object_positions, self.collisions, self.conflicts, threshold)
+                conflict
                 for pair, depth in sorted(depths.items())
                 if depth > threshold
+                for conflict in collision_conflicts(
+                    code, pair, self._object_positions, self.collisions, self.conflicts, threshold
+                )
             ]
         )
 
@@ -299,8 +305,7 @@ class ConflictGroupSearch(GroupSearch):
             region = conflict.region
             if region is not None and any(self.blame.reaches(p, region) for p in newcomers):
                 continue
-            assignments = tuple(sorted((moved[p], rank) for p, rank in conflict.assignments))
-            self.stats.conflicts_kept += self.conflicts.learn(replace(conflict, assignments=assignments))
+            self.stats.conflicts_kept += self.conflicts.learn(conflict.renumbered(moved))
         self.local.kept_from(old.local, moved, stale)
 
     def probability(self, code: Code) -> float:
@@ -315,14 +320,19 @@ class ConflictGroupSearch(GroupSearch):
         """Hold back, to be queued in order, the children of ``item`` that advance an object of
         ``conflict`` (None: every object) and have a parent above the bound.
 
-        A child advances its object to the next rank no one-assignment conflict rules out: the ranks
-        jumped over would be skipped, and expanded only by that object, to this very child (its
-        parent on that object, the last rank jumped over, decides the bound as there)."""
+        A child advances its object to the next rank no one-assignment conflict rules out and outside
+        ``conflict``'s ranks of it: a child at a rank jumped over would still contain a conflict (its
+        parent on that object, the last rank jumped over, decides the bound as the paper's search
+        would)."""
         code = item.code
-        positions = range(len(code)) if conflict is None else conflict.positions
+        moves = (
+            zip(range(len(code)), itertools.repeat(frozenset()))
+            if conflict is None
+            else zip(conflict.positions, conflict.ranks, strict=True)
+        )
         children = []
-        for position in positions:
-            rank = self.conflicts.next_rank(position, code[position])
+        for position, holding in moves:
+            rank = self.conflicts.next_rank(position, code[position], holding)
             if rank is None:
                 continue
             child = (*code[:position], rank, *code[position + 1 :])

@@ -3,14 +3,21 @@
 A *conflict* is a set of assignments (object, rank), the objects given as positions in an interaction
 group's object order, such that every configuration that contains all of them is invalid. A search
 that knows a conflict never checks a configuration containing it (:mod:`physics_mapper.search.conflict_directed`).
+What a rejection teaches often holds for other ranks of some of its objects too, so each assignment
+comes with the ranks of its object under which the conflict still holds, its own among them
+(:attr:`Conflict.ranks`): a configuration *contains* the conflict when each of its objects is at one
+of those ranks. One such conflict stands for every combination of its rank sets, and a candidate
+resolves it only by moving some object to a rank outside its set.
 
 From a collision (Rule 1). The deepest overlap of a configuration is the largest of its pairs'
 overlaps, and a pair's overlap depends on the two bodies' poses alone
 (:mod:`physics_mapper.physics.collision_table`). So if object i at rank a overlaps object j at rank b
 deeper than ``penetration_threshold``, every configuration with i at a and j at b is in collision:
 the conflict is {(i, a), (j, b)}; against a static body it is {(i, a)}, and so it is when, at every
-one of j's ranks, i at a overlaps j or j is ruled out alone. A rejected configuration teaches one conflict per overlap
-beyond the threshold, not only the deepest one's.
+one of j's ranks, i at a overlaps j or j is ruled out alone. The same holds for every rank of j that
+overlaps i at a (or is ruled out alone): j's rank set; and of i against j at b: so an overlap teaches
+two conflicts, {i: a, j: every such rank} and {i: every such rank, j: b}. A rejected configuration
+teaches them for every overlap beyond the threshold, not only the deepest one.
 
 From an instability (Rule 2), the *blame rule*. Let the settling of configuration C move the objects U
 beyond ``jitter_threshold`` tau (J_u > tau). Write
@@ -25,21 +32,25 @@ beyond ``jitter_threshold`` tau (J_u > tau). Write
 One object of U moving beyond tau makes C unstable, so the rule blames one, u: B_u = {u}, plus every
 object whose swept box meets S_u (it touched, or could have touched, u during the settling), plus
 every object with some hypothesis h whose E_p(h) meets S_u (at another rank it could have been in
-u's way). Each object u of U gives the conflict {(p, C_p) : p in B_u}.
+u's way). Each object u of U gives the conflict {(p, C_p) : p in B_u}, with rank sets: u and the
+objects whose swept box meets S_u at C_p alone; every other p of B_u at C_p or at any rank h whose
+E_p(h) does not meet S_u (there it cannot be in u's way either).
 
 Why it is sound. Take C' containing the conflict, and suppose C' stable: then every object stays
-within its stable envelope, so no object outside B_u comes near S_u, while the objects of B_u start
-where they started in C. u then meets exactly the bodies it could meet in C, and falls, slides or
-topples as it did, beyond tau: C' is unstable after all. The argument takes the objects of
-B_u \\ {u}, held within tau of the poses they had in C, to act on u as they did in C; that is
-the rule's one assumption, checked on the crowded suite (every configuration a conflict skipped is
-checked in full by the tests, and none is valid); so does sampling the motion every 8 steps. A
-settling without swept boxes (reused from a memo) blames every object of the configuration, which is
-trivially sound.
+within its stable envelope, so no object at a rank whose envelope misses S_u comes near S_u, while
+the objects held at their own rank start where they started in C. u then meets exactly the bodies it
+could meet in C, and falls, slides or topples as it did, beyond tau: C' is unstable after all. The
+argument takes the objects held at their rank in C, within tau of the poses they had there, to act
+on u as they did in C; that is the rule's one assumption, checked on the crowded suite (every
+configuration a conflict skipped is checked in full by the tests, and none is valid); so does
+sampling the motion every 8 steps. A settling without swept boxes (reused from a memo) blames every
+object of the configuration at its rank, which is trivially sound.
 """
 
 from __future__ import annotations
 
+import functools
+import operator
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from typing import Literal
@@ -63,24 +74,42 @@ Region = tuple[tuple[float, float, float], tuple[float, float, float]]
 
 @dataclass(frozen=True, slots=True)
 class Conflict:
-    """Assignments no valid configuration holds together (module docstring), sorted by position.
+    """Assignments no valid configuration holds together (module docstring), sorted by position: the
+    rejected configuration's ranks of the conflict's objects.
 
-    ``region`` (unstable only) is the swept box of the object blamed for moving beyond the threshold:
-    an object whose hypotheses change keeps the conflict sound only if it cannot reach it.
+    ``ranks``, per assignment, every rank of its object under which the conflict holds, its own among
+    them (empty: each assignment's rank alone). ``region`` (unstable only) is the swept box of the
+    object blamed for moving beyond the threshold: an object whose hypotheses change keeps the
+    conflict sound only if it cannot reach it.
     """
 
     assignments: tuple[Assignment, ...]
     kind: ConflictKind
     region: Region | None = None
+    ranks: tuple[frozenset[int], ...] = ()
     #: The assignments' positions (made once: every expansion by the conflict reads them).
     positions: tuple[int, ...] = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "positions", tuple(position for position, _ in self.assignments))
+        if not self.ranks:
+            object.__setattr__(self, "ranks", tuple(frozenset((rank,)) for _, rank in self.assignments))
+        elif any(rank not in ranks for (_, rank), ranks in zip(self.assignments, self.ranks, strict=True)):
+            raise ValueError("a conflict's rank sets hold its own ranks")
 
     def holds_in(self, code: Sequence[int]) -> bool:
-        """Whether configuration ``code`` (ranks by position) contains every assignment."""
-        return all(code[position] == rank for position, rank in self.assignments)
+        """Whether configuration ``code`` (ranks by position) contains the conflict: every object at one
+        of its ranks."""
+        return all(code[position] in ranks for position, ranks in zip(self.positions, self.ranks, strict=True))
+
+    def renumbered(self, positions: dict[int, int]) -> Conflict:
+        """The same conflict with its objects at other positions (``positions``: old -> new), sorted."""
+        moved = sorted(
+            ((positions[p], rank), ranks) for (p, rank), ranks in zip(self.assignments, self.ranks, strict=True)
+        )
+        return Conflict(
+            tuple(assignment for assignment, _ in moved), self.kind, self.region, tuple(ranks for _, ranks in moved)
+        )
 
 
 #: Conflicts one group's search keeps at most (a bit per conflict and hypothesis: 625 kB for 50
@@ -91,8 +120,8 @@ CONFLICT_LIMIT = 10_000
 class ConflictStore:
     """The conflicts one group's search knows, in learning order, as bit sets.
 
-    Conflict k is bit k. For each position p and rank r, ``_excluded[p][r - 1]`` holds the conflicts
-    that assign p another rank than r: a configuration C contains exactly the conflicts in none of
+    Conflict k is bit k. For each position p and rank r, ``_excluded[p][r]`` holds the conflicts
+    that constrain p to ranks without r (index 0 unused): a configuration C contains exactly the conflicts in none of
     its N sets, all known conflicts minus their union (N integer ORs, a few microseconds whatever
     the number of conflicts; a 0/1 matrix gathered by numpy took 25 us per look-up).
     """
@@ -102,8 +131,8 @@ class ConflictStore:
         # Per position, the ranks a one-assignment conflict rules out alone.
         self._ruled_out: tuple[set[int], ...] = tuple(set() for _ in ranks)
         self._conflicts: list[Conflict] = []
-        self._known: set[tuple[Assignment, ...]] = set()
-        self._excluded: list[list[int]] = [[0] * count for count in ranks]
+        self._known: set[tuple[tuple[Assignment, ...], tuple[frozenset[int], ...]]] = set()
+        self._excluded: list[list[int]] = [[0] * (count + 1) for count in ranks]
 
     def __len__(self) -> int:
         return len(self._conflicts)
@@ -111,25 +140,25 @@ class ConflictStore:
     def __iter__(self) -> Iterator[Conflict]:
         return iter(self._conflicts)
 
-    def knows(self, assignments: tuple[Assignment, ...]) -> bool:
-        """Whether exactly these assignments are a known conflict."""
-        return assignments in self._known
+    def rules_out(self, position: int, rank: int) -> bool:
+        """Whether a one-assignment conflict rules out the object at ``position`` at ``rank`` alone."""
+        return rank in self._ruled_out[position]
 
     def learn(self, conflict: Conflict) -> bool:
         """Remember ``conflict``; False if it was known already, or :data:`CONFLICT_LIMIT` are kept."""
-        if conflict.assignments in self._known or len(self._conflicts) >= CONFLICT_LIMIT:
+        key = (conflict.assignments, conflict.ranks)
+        if key in self._known or len(self._conflicts) >= CONFLICT_LIMIT:
             return False
         bit = 1 << len(self._conflicts)
-        self._known.add(conflict.assignments)
+        self._known.add(key)
         self._conflicts.append(conflict)
-        for position, rank in conflict.assignments:
+        for position, ranks in zip(conflict.positions, conflict.ranks, strict=True):
             excluded = self._excluded[position]
-            for other in range(len(excluded)):
-                if other != rank - 1:
+            for other in range(1, len(excluded)):
+                if other not in ranks:
                     excluded[other] |= bit
         if len(conflict.assignments) == 1:
-            position, rank = conflict.assignments[0]
-            self._ruled_out[position].add(rank)
+            self._ruled_out[conflict.positions[0]].update(conflict.ranks[0])
         return True
 
     def live_ranks(self, position: int) -> list[int]:
@@ -137,12 +166,13 @@ class ConflictStore:
         ruled_out = self._ruled_out[position]
         return [rank for rank in range(1, self._ranks[position] + 1) if rank not in ruled_out]
 
-    def next_rank(self, position: int, rank: int) -> int | None:
+    def next_rank(self, position: int, rank: int, holding: frozenset[int] = frozenset()) -> int | None:
         """The first rank after ``rank`` of the object at ``position`` that no one-assignment conflict rules
-        out (None: none is left)."""
+        out and that is not in ``holding`` (a conflict's ranks of that object: there it still holds;
+        None: none is left)."""
         ruled_out = self._ruled_out[position]
         for following in range(rank + 1, self._ranks[position] + 1):
-            if following not in ruled_out:
+            if following not in ruled_out and following not in holding:
                 return following
         return None
 
@@ -151,9 +181,7 @@ class ConflictStore:
         ones (None: it resolves every one)."""
         if not self._conflicts:
             return None
-        outside = 0
-        for excluded, rank in zip(self._excluded, code, strict=True):
-            outside |= excluded[rank - 1]
+        outside = functools.reduce(operator.or_, map(operator.getitem, self._excluded, code))
         held = ((1 << len(self._conflicts)) - 1) & ~outside
         best: Conflict | None = None
         while held:
@@ -165,36 +193,42 @@ class ConflictStore:
         return best
 
 
-def collision_conflict(
+def collision_conflicts(
     code: Sequence[int],
     pair: tuple[int, int],
     positions: dict[int, int],
     table: CollisionTable,
     known: ConflictStore,
     threshold: float,
-) -> Conflict:
-    """The conflict of one overlap beyond ``threshold`` metres between bodies ``pair`` (body indices, lower
+) -> list[Conflict]:
+    """The conflicts of one overlap beyond ``threshold`` metres between bodies ``pair`` (body indices, lower
     first: an object, then an object or a static body; ``positions`` maps the group's object indices to
     their positions).
 
-    Against a static body: {(i, a)}. Between objects i at a and j at b: {(i, a)} alone if, at every
-    rank of j, i at a overlaps j or j is ruled out alone (a known one-assignment conflict, or an overlap
-    with a static body): then no configuration with i at a is valid. Else the same for j, else
-    {(i, a), (j, b)}.
+    Against a static body: {(i, a)}. Between objects i at a and j at b: {i: a, j: R_j}, R_j being the
+    ranks of j that overlap i at a deeper than the threshold or are ruled out alone (a known
+    one-assignment conflict, or an overlap with a static body), and {i: R_i, j: b} likewise; a
+    conflict whose rank set is every rank of its object is the other assignment alone (then no
+    configuration holding it is valid).
     """
     first, second = pair
     i = positions[first]
     if second not in positions:
-        return Conflict(((i, code[i]),), "collision")
+        return [Conflict(((i, code[i]),), "collision")]
     j = positions[second]
+    found = []
     for doomed, index, other, other_index in ((i, first, j, second), (j, second, i, first)):
         depths = table.pair_depths(index, code[doomed], other_index)
-        if all(
-            depth > threshold or known.knows(((other, rank),)) or table.static_depth(other_index, rank) > threshold
+        overlapping = frozenset(
+            rank
             for rank, depth in enumerate(depths, start=1)
-        ):
-            return Conflict(((doomed, code[doomed]),), "collision")
-    return Conflict(((i, code[i]), (j, code[j])), "collision")
+            if depth > threshold or known.rules_out(other, rank) or table.static_depth(other_index, rank) > threshold
+        )
+        if len(overlapping) == len(depths):
+            return [Conflict(((doomed, code[doomed]),), "collision")]
+        ranks = {doomed: frozenset((code[doomed],)), other: overlapping}
+        found.append(Conflict(((i, code[i]), (j, code[j])), "collision", ranks=(ranks[i], ranks[j])))
+    return found
 
 
 class Blame:
@@ -256,20 +290,27 @@ class Blame:
                 (float(low[u][0]), float(low[u][1]), float(low[u][2])),
                 (float(high[u][0]), float(high[u][1]), float(high[u][2])),
             )
-            blamed = self._blamed(u, low, high)
-            found.append(Conflict(tuple((p, code[p]) for p in blamed), "unstable", region))
+            blamed = self._blamed(u, code, low, high)
+            found.append(Conflict(tuple((p, code[p]) for p in blamed), "unstable", region, tuple(blamed.values())))
         return sorted(found, key=lambda conflict: len(conflict.assignments))
 
-    def _blamed(self, moved: int, low: FloatArray, high: FloatArray) -> list[int]:
-        """The object that moved, every object whose swept box meets its swept box, and every object with
-        a stable envelope that does, in position order (``low``, ``high``: the swept boxes, N x 3)."""
-        blamed = {moved}
+    def _blamed(self, moved: int, code: Sequence[int], low: FloatArray, high: FloatArray) -> dict[int, frozenset[int]]:
+        """The rank sets of the blamed objects, in position order (``low``, ``high``: the swept boxes, N x 3):
+        the object that moved and every object whose swept box meets its swept box at their own rank;
+        every other object with a stable envelope that meets it at its own rank or any rank whose
+        envelope does not."""
         touches = np.all((low <= high[moved]) & (high >= low[moved]), axis=1)
-        blamed.update(int(p) for p in np.nonzero(touches)[0])
+        touches[moved] = True
         env_low, env_high, owners = self._stacked_envelopes()
         reaching = np.all((env_low <= high[moved]) & (env_high >= low[moved]), axis=1)
-        blamed.update(int(p) for p in np.unique(owners[reaching]))
-        return sorted(blamed)
+        blamed: dict[int, frozenset[int]] = {}
+        for p in sorted({*np.nonzero(touches)[0].tolist(), *owners[reaching].tolist()}):
+            if touches[p]:
+                blamed[p] = frozenset((code[p],))
+            else:
+                in_way = reaching[owners == p]  # by rank
+                blamed[p] = frozenset(rank for rank in range(1, len(in_way) + 1) if not in_way[rank - 1]) | {code[p]}
+        return blamed
 
     def reaches(self, position: int, region: Region) -> bool:
         """Whether some stable envelope of the object at ``position`` meets ``region``."""

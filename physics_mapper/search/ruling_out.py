@@ -64,11 +64,11 @@ class RulingOut:
         )
         if overlaps is None:
             return learned
-        changed = True
-        while changed:  # a rank ruled out may rule out others: until nothing changes
-            found = self._on_pairs(overlaps)
-            learned += found
-            changed = found > 0
+        pending = list(overlaps)
+        while pending:  # a rank ruled out may rule out others: the pairs whose q lost ranks, again
+            lost = self._on_pairs({pair: overlaps[pair] for pair in pending})
+            learned += len(lost)
+            pending = [(p, q) for p, q in overlaps if q in lost]
         return learned
 
     def _on_statics(self, statics: Sequence[StaticBody]) -> int:
@@ -83,25 +83,27 @@ class RulingOut:
                     learned += self.store.learn(Conflict(((position, rank),), "collision"))
         return learned
 
-    def _on_pairs(self, overlaps: dict[tuple[int, int], FloatArray]) -> int:
+    def _on_pairs(self, overlaps: dict[tuple[int, int], FloatArray]) -> list[int]:
         """One pass over the pairs: learn each rank of p that overlaps q deeper than the threshold at
-        every rank of q not ruled out; how many."""
-        learned = 0
+        every rank of q not ruled out; the positions p of the ranks learned, once per rank."""
+        lost = []
         for (p, q), overlap in overlaps.items():
             live = self.store.live_ranks(q)
             if not live:
                 continue
             columns = np.asarray(live) - 1
-            for rank in self.store.live_ranks(p):
-                row = overlap[rank - 1, columns]
-                if not np.all(row > self.threshold):
+            rows = overlap[:, columns]
+            # The ranks of p whose boxes overlap every live rank's that deep, p's live ones among them.
+            for rank in (int(k) + 1 for k in np.nonzero(np.all(rows > self.threshold, axis=1))[0]):
+                if self.store.rules_out(p, rank):
                     continue
                 # The ranks least deep by their boxes first: the first shallow one decides.
-                ranks = [live[int(k)] for k in np.argsort(row, kind="stable")]
+                ranks = [live[int(k)] for k in np.argsort(rows[rank - 1], kind="stable")]
                 first, second = self.objects[p], self.objects[q]
                 if all(self.table.pair_depth(first, rank, second, b) > self.threshold for b in ranks):
-                    learned += self.store.learn(Conflict(((p, rank),), "collision"))
-        return learned
+                    self.store.learn(Conflict(((p, rank),), "collision"))
+                    lost.append(p)
+        return lost
 
 
 def _box_overlaps(
