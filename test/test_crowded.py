@@ -139,7 +139,7 @@ def test_a_collision_conflict_s_rank_sets_collide_in_every_combination() -> None
             for conflict in group.conflicts:
                 if conflict.kind != "collision" or len(conflict.assignments) != 2:
                     continue
-                wide += any(len(ranks) > 1 for ranks in conflict.ranks)
+                wide += any(len(rank_set) > 1 for rank_set in conflict.ranks)
                 for chosen in itertools.product(*conflict.ranks):
                     code = [rng.choice(r) for r in ranks]
                     for position, rank in zip(conflict.positions, chosen, strict=True):
@@ -384,14 +384,9 @@ def test_a_moving_settling_stops_a_falling_object_sooner_with_the_same_verdict()
         at_rest = checker.settle(
             floating, params.settle_time, params.angular_weight, early_exit=early_exit_rule(params, complete=False)
         )
-        moving = checker.settle(
-            floating,
-            params.settle_time,
-            params.angular_weight,
-            early_exit=early_exit_rule(params, complete=False, moving=True),
-        )
         rule = early_exit_rule(params, complete=False, moving=True)
         assert rule is not None and rule.beyond_looks == MOVING_BEYOND_LOOKS < REST_CHECKS
+        moving = checker.settle(floating, params.settle_time, params.angular_weight, early_exit=rule)
         three_looks = checker.settle(
             floating, params.settle_time, params.angular_weight, early_exit=replace(rule, beyond_looks=REST_CHECKS)
         )

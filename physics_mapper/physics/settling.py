@@ -128,16 +128,15 @@ def early_exit_rule(
     """
     if params.settle_exit == "full" or params.settle_time <= 0.0:
         return None
-    rest_rate = REST_SHARE * params.jitter_threshold / params.settle_time
-    wobble_rate, drift = WOBBLE_SHARE * rest_rate, REST_SHARE * params.jitter_threshold
-    if complete:
-        return EarlyExit(rest_rate, None, None, wobble_rate, drift) if wobbling else EarlyExit(rest_rate, None)
+    threshold = params.jitter_threshold
+    rest_rate = REST_SHARE * threshold / params.settle_time
+    moving = moving and not complete
+    jitter_threshold = None if complete else threshold
+    wobble_rate, drift = (WOBBLE_SHARE * rest_rate, REST_SHARE * threshold) if wobbling or moving else (None, None)
     if moving:
-        moving_beyond = MOVING_BEYOND_SHARE * params.jitter_threshold
-        return EarlyExit(rest_rate, params.jitter_threshold, moving_beyond, wobble_rate, drift, MOVING_BEYOND_LOOKS)
-    if wobbling:
-        return EarlyExit(rest_rate, params.jitter_threshold, None, wobble_rate, drift)
-    return EarlyExit(rest_rate, params.jitter_threshold)
+        beyond = MOVING_BEYOND_SHARE * threshold
+        return EarlyExit(rest_rate, jitter_threshold, beyond, wobble_rate, drift, MOVING_BEYOND_LOOKS)
+    return EarlyExit(rest_rate, jitter_threshold, None, wobble_rate, drift)
 
 
 @dataclass(frozen=True)

@@ -30,8 +30,8 @@ parent of D, or D itself, is above the bound). Every X <= D (rank by rank) other
 above the bound too: it is at least as probable as a parent of D. Follow queued nodes X <= D from
 the root towards D: if X is valid, every child is queued; if X contains a conflict K, D does not (D
 is valid), so D has some object of K at a rank outside K's ranks of it, beyond X's, and the child
-of X that advances that object to its first such rank is queued, and is at most D. So every valid configuration the
-paper's search visits is visited here, in the same order, and no other (nothing below the bound is
+of X that advances that object to its first such rank is queued, and is at most D. So every valid
+configuration the paper's search visits is visited here, in the same order, and no other (nothing below the bound is
 queued); the least J among them, the first of equal ones, is the same answer. The same argument
 with collision conflicts only gives the ``settled`` fallback's configuration, the first collision-free
 one: before it, every rejection was a collision. The search ends ``exhausted`` when the bound kept no
