@@ -438,7 +438,7 @@ def test_hypotheses_in_another_frame_leave_nothing_to_search(
     capsys.readouterr()
     assert main(["replay", str(bag), "--scene", str(SCENES / "pyramid.yaml"), "--offline"]) == 0
     captured = capsys.readouterr()
-    assert "warning: at no time does any object have usable hypotheses (frame_id must be 'world'" in captured.err
+    assert "warning: at no time does every object have usable hypotheses (frame_id must be 'world'" in captured.err
     assert captured.out.startswith("0 snapshots, 0 with a configuration")
 
 

@@ -1,11 +1,7 @@
 """A bag's hypotheses as the node would see them: its input snapshots, burst by burst (ROS-free).
 
-The bag's messages go through the node's own input rules (:mod:`physics_mapper.mapping.inputs`),
-detections through its association of instances (:mod:`physics_mapper.mapping.association`) and
-every object through its rules of existence (:mod:`physics_mapper.mapping.existence`), with the
-bag's receive times as the node's clock. An object without usable hypotheses is *absent* in a
-snapshot; the replay keeps no map between snapshots, so a silent object is left out rather than
-kept at its last map pose as the node keeps it. A *snapshot* is taken at the end of every
+The bag's messages go through the node's own input rules (:mod:`physics_mapper.mapping.inputs`)
+with the bag's receive times as the node's clock. A *snapshot* is taken at the end of every
 burst of messages (messages less than :data:`BURST_GAP_NS` apart, such as one iteration of
 ``generate``), and in a continuous stream at least every :data:`MAX_BURST_NS` (the node's
 default tick period); a snapshot whose hypotheses differ from the previous one is a new search
@@ -15,7 +11,7 @@ problem, as it would be for the node, which otherwise resumes its search.
 from __future__ import annotations
 
 from collections.abc import Iterator, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 from physics_mapper.bags.storage import (
     Bag,
@@ -26,9 +22,7 @@ from physics_mapper.bags.storage import (
     pose_array_from_cdr,
     weights_from_cdr,
 )
-from physics_mapper.mapping.association import AssociationSettings, InstanceTracks
 from physics_mapper.mapping.detections import RECORDED_DETECTIONS_TOPIC, detection_inputs
-from physics_mapper.mapping.existence import MapMemory, searched_hypotheses
 from physics_mapper.mapping.inputs import InputSettings, InputTracker, check_poses, check_weights
 from physics_mapper.mapping.stamps import NANOSECONDS_PER_SECOND
 from physics_mapper.mapping.topics import GROUND_TRUTH_TOPIC, recorded_poses_topic, recorded_weights_topic
@@ -87,9 +81,9 @@ def input_topics(scene: Scene) -> tuple[str, ...]:
 
 
 def no_snapshot_reason(scene: Scene) -> str:
-    """What a bag that gives no snapshot lacks: usable hypotheses of some object."""
+    """What a bag that gives no snapshot lacks: hypotheses of every object that pass the input rules."""
     return (
-        "at no time does any object have usable hypotheses "
+        "at no time does every object have usable hypotheses "
         f"(frame_id must be {scene.frame_id!r}, poses finite with unit quaternions, weights valid)"
     )
 
@@ -103,8 +97,6 @@ def bag_snapshots(bag: Bag, scene: Scene, settings: InputSettings | None = None)
     """
     settings = settings or InputSettings()
     tracker = InputTracker(scene.object_names)
-    tracks = InstanceTracks(scene, replace(AssociationSettings(), max_age=settings.max_age))
-    memory = MapMemory()  # no map here: a silent object is left out (the node keeps its last map pose)
     poses_of = {recorded_poses_topic(name): name for name in scene.object_names}
     weights_of = {recorded_weights_topic(name): name for name in scene.object_names}
     wanted = set(input_topics(scene))
@@ -131,22 +123,16 @@ def bag_snapshots(bag: Bag, scene: Scene, settings: InputSettings | None = None)
                     )
                 elif message.topic == RECORDED_DETECTIONS_TOPIC:
                     detected = detection_inputs(
-                        detections_from_cdr(message.raw, bag.definitions), scene, received=received, tracks=tracks
+                        detections_from_cdr(message.raw, bag.definitions), scene, received=received
                     )
                     for name, poses in detected.objects.items():
                         tracker.add_poses(name, poses)
-                    for name in () if detected.association is None else detected.association.ended:
-                        tracker.forget(name)
                 else:
                     truth = _ground_truth(message, scene)
-        now = burst[-1].time_ns / NANOSECONDS_PER_SECOND
-        for name in tracks.expire(now):
-            tracker.forget(name)
-        snapshot = tracker.snapshot(now, settings)
-        hypotheses = searched_hypotheses(snapshot, memory, tracks.absent_weight, now, settings.max_age)
-        stamp_ns = snapshot.stamp_ns
+        snapshot = tracker.snapshot(burst[-1].time_ns / NANOSECONDS_PER_SECOND, settings)
+        hypotheses, stamp_ns = snapshot.hypotheses, snapshot.stamp_ns
         new = not snapshots or hypotheses != snapshots[-1].hypotheses
-        if stamp_ns is not None and new:
+        if hypotheses is not None and stamp_ns is not None and new:
             stamps = tuple(o.stamp_ns for o in snapshot.objects if o.stamp_ns is not None)
             snapshots.append(BagSnapshot(burst[-1].time_ns, stamp_ns, hypotheses, truth, stamps))
     return snapshots
