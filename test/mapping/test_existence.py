@@ -144,3 +144,15 @@ def test_no_configuration_only_swaps_identical_instances() -> None:
         for entry in trace
     }
     assert len(placements) == len(trace)  # no configuration is another's with instances swapped
+
+
+def test_a_persistent_impossible_detection_is_never_confirmed() -> None:
+    """A reflection detected in the air in every frame: physics leaves it out each time, so its track stays
+    tentative and a count: K scene keeps a valid map (a confirmed instance of count: K would have no absent)."""
+    mapper = Mapper(make_scene({"name": "box", "count": 4, **BOX}))
+    for step in range(5):
+        feed(mapper, [*FLOOR_BOXES, (0.3, 0.3, 0.4)], 0.5 * step)
+        report = mapper.tick(0.5 * step + 0.1, SETTINGS)
+        assert report.result is not None and report.result.valid
+        assert report.absent == ("box_4",)
+    assert mapper.tracks.tentative("box_4") is False and "box_4" not in mapper.tracks.tracks  # ended by the map
