@@ -50,6 +50,7 @@ INSTALLED = ("physics_mapper",)
 #: Their source folders: msg_adapters/ is installed as physics_mapper.msg_adapters.
 SOURCE_FOLDERS = ("physics_mapper", "msg_adapters")
 TESTS = REPO / "test"
+BENCHMARKS = REPO / "benchmarks"
 
 
 def is_ros_package(module: str) -> bool:
@@ -119,8 +120,9 @@ def test_every_import_of_the_installed_package_is_an_exec_depend() -> None:
 
 
 def test_every_import_of_the_tests_is_a_test_or_exec_depend() -> None:
-    files = sorted(TESTS.glob("*.py"))
-    local = {path.stem for path in files}  # conftest, ros_helpers, ...
+    files = sorted(TESTS.rglob("*.py"))
+    # conftest, ros_helpers, ... and the benchmarks a test imports by name (benchmarks/ on sys.path)
+    local = {path.stem for path in [*files, *BENCHMARKS.glob("*.py")]}
     found = third_party_imports(files, {*INSTALLED, *local})
     assert missing(found, declared("exec_depend") | declared("test_depend"), "test_depend") == []
 
