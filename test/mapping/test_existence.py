@@ -9,6 +9,7 @@ from typing import Any
 import numpy as np
 from detection_builders import array, detection, result
 
+from physics_mapper.mapping.existence import silent_absent_weight
 from physics_mapper.mapping.inputs import InputSettings, check_poses, check_weights
 from physics_mapper.mapping.mapper import Mapper, MapperSettings, TickReport
 from physics_mapper.model.scene import Scene, SearchParams
@@ -156,3 +157,8 @@ def test_a_persistent_impossible_detection_is_never_confirmed() -> None:
         assert report.result is not None and report.result.valid
         assert report.absent == ("box_4",)
     assert mapper.tracks.tentative("box_4") is False and "box_4" not in mapper.tracks.tracks  # ended by the map
+
+
+def test_a_silent_object_s_absent_weight_starts_at_one_half_and_grows() -> None:
+    weights = [silent_absent_weight(silence, max_age=2.0) for silence in (0.0, 1.0, 2.0, 10.0)]
+    assert weights[0] == 0.5 and weights == sorted(weights) and weights[-1] > 0.99
