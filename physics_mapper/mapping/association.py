@@ -29,7 +29,9 @@ saw, and keeps no order across frames. The rules that give each detection of a *
   (one without a track): the one whose ended track was last within the gate of the detection (an
   instance seen again after a long miss keeps its name), else a never-tracked one, in scene
   order, else the one whose track ended longest ago. With no free instance it is counted as
-  outside every gate and not used (``count: {max: K}`` stops at K).
+  outside every gate and not used (``count: {max: K}`` stops at K). Detections born together
+  take their instances in the order of their best results' positions (x, then y, then z), not of
+  the array: even a first frame names the same boxes the same way however it is ordered.
 - **Misses and ends.** An instance no detection matched keeps its own state and hypotheses; it
   never takes another's. A tentative track (matched fewer than ``confirm_hits`` times) ends at
   its first miss, and when the map leaves its instance out (:meth:`InstanceTracks.reject`: a
@@ -100,6 +102,10 @@ class Observation:
     def best(self) -> int:
         """The index of the best-scored result (the first of equal ones)."""
         return int(np.argmax(self.scores))
+
+    def place(self) -> tuple[float, ...]:
+        """Where its best-scored result is, (x, y, z) in metres: the order in which new tracks are born."""
+        return tuple(self.positions[self.best].tolist())
 
     def nearest(self, point: NDArray[np.float64]) -> tuple[int, float]:
         """The result nearest ``point`` and its distance (m)."""
@@ -243,7 +249,8 @@ class InstanceTracks:
                 self._update(name, observation, now)
                 assigned[observation.index] = name
                 matched.add(name)
-            for observation in (o for o in of_class if o.index not in assigned):
+            unmatched = sorted((o for o in of_class if o.index not in assigned), key=Observation.place)
+            for observation in unmatched:
                 free = self._free(names, observation, self.gate(class_id))
                 if free is None:
                     outside[class_id] = outside.get(class_id, 0) + 1
