@@ -71,6 +71,15 @@ def test_shuffled_order_keeps_identities() -> None:
     assert tracks.births == 6 and tracks.ends == 0
 
 
+def test_a_first_frame_names_the_boxes_the_same_way_in_any_order() -> None:
+    scene = bin_scene()
+    (first,) = frames(1, seed=5)
+    named = [
+        identities(scene, [order], InstanceTracks(scene))[0] for order in (first, first[::-1], first[2:] + first[:2])
+    ]
+    assert named[0] == named[1] == named[2]
+
+
 def test_a_stable_id_wins_over_distance() -> None:
     scene = bin_scene(2)
     tracks = InstanceTracks(scene)
