@@ -53,7 +53,13 @@ from rosbags.rosbag2 import Reader, ReaderError, StoragePlugin, Writer, WriterEr
 from rosbags.typesys.store import Typestore
 
 from physics_mapper.bags.mcap_storage import ROS_DISTRO, ChecksummedMcapStorage, verify_checksums
-from physics_mapper.bags.vision_msgs import BagDefinitions, bag_definitions, bag_typestore, jazzy_typestore
+from physics_mapper.bags.vision_msgs import (
+    BagDefinitions,
+    DefinitionError,
+    bag_definitions,
+    bag_typestore,
+    jazzy_typestore,
+)
 from physics_mapper.mapping.detections import DETECTION_ARRAY, RECORDED_DETECTIONS_TOPIC
 from physics_mapper.mapping.stamps import time_parts, to_nanoseconds
 from physics_mapper.mapping.topics import (
@@ -72,6 +78,10 @@ Storage = Literal["mcap", "sqlite3"]
 _PLUGINS = {"mcap": StoragePlugin.MCAP, "sqlite3": StoragePlugin.SQLITE3}
 #: rosbag2 metadata version written (the one ROS 2 Jazzy writes).
 BAG_VERSION: Final = 9
+#: Largest ``metadata.yaml`` read, bytes. A bag of 300 topics (the node's inputs at 128 objects and
+#: its outputs) with rosbag2's offered QoS profiles has a few hundred kB of it; rosbags reads YAML
+#: slowly (8 MB of aliases: 23 s, 406 MiB; at this cap in ``BENCHMARKS.md``, "Hostile inputs").
+MAX_METADATA_BYTES = 1024 * 1024
 
 POSE_ARRAY = "geometry_msgs/msg/PoseArray"
 WEIGHTS = "std_msgs/msg/Float64MultiArray"
@@ -396,6 +406,9 @@ def _reading(path: Path, verify: bool = True) -> Iterator[Reader]:
             f"{path}: no metadata.yaml: not a rosbag2 bag, or its recording did not end cleanly "
             "(`ros2 bag reindex` rebuilds it)"
         )
+    metadata_bytes = (path / "metadata.yaml").stat().st_size if path.is_dir() else 0
+    if metadata_bytes > MAX_METADATA_BYTES:
+        raise BagError(f"{path}: its metadata.yaml has {metadata_bytes} bytes (at most {MAX_METADATA_BYTES})")
     try:
         if verify:
             for storage_file in sorted(path.glob("*.mcap")) if path.is_dir() else [path]:
@@ -433,6 +446,10 @@ def read_bag(path: str | Path, topics: Collection[str] | None = None) -> Bag:
     with _reading(path) as reader:
         types = {recorded(c.topic): c.msgtype for c in reader.connections}
         definitions = bag_definitions(list(reader.connections))
+        try:
+            bag_typestore(definitions)  # parsed once here, so that a bad one is the bag's error
+        except DefinitionError as error:
+            raise BagError(f"{path}: {error}") from None
         wanted = _wanted(reader, topics)
         # rosbags reads every connection when given none; no wanted connection means no message.
         messages = (

@@ -1,0 +1,115 @@
+"""What the caps on hostile inputs cost at the cap, and what refusing beyond it costs.
+
+Run: ``.venv/bin/python benchmarks/hostile_inputs.py [NAME ...]``. Each measurement runs in a fresh
+process (so that its peak RSS is its own) and prints one line: seconds and peak RSS added.
+
+* ``obj_polygon``: a 64 MiB OBJ file of one polygon (32 million triangles), refused by its count;
+* ``definition``: a bag's Detection3DArray definition of ``MAX_DEFINITION_BYTES`` bytes of fields, parsed;
+* ``metadata``: a ``metadata.yaml`` of ``MAX_METADATA_BYTES`` bytes of YAML aliases, read by rosbags.
+"""
+
+from __future__ import annotations
+
+import argparse
+import resource
+import subprocess
+import sys
+import tempfile
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+BENCHMARKS = Path(__file__).resolve().parent
+
+
+def peak_rss_mib() -> float:
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+
+
+def obj_polygon(folder: Path) -> str:
+    from physics_mapper.model.meshes import MAX_MESH_FILE_BYTES, MeshError, MeshRequest, load_mesh_geometry
+
+    path = folder / "polygon.obj"
+    corners = (MAX_MESH_FILE_BYTES - 100) // 6
+    path.write_bytes(b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf " + b"1 2 3 " * corners + b"\n")
+    start = time.perf_counter()
+    try:
+        load_mesh_geometry(MeshRequest(path, mass_properties=False, collision="triangle_mesh"))
+    except MeshError as error:
+        seconds = time.perf_counter() - start
+        size, reason = path.stat().st_size / 2**20, str(error).split(": ")[-1]
+        return f"OBJ of one polygon, {size:.1f} MiB: refused ({reason}) in {seconds:.2f} s"
+    raise AssertionError("the polygon was not refused")
+
+
+def definition(folder: Path) -> str:
+    from physics_mapper.bags.vision_msgs import DEFINITIONS, MAX_DEFINITION_BYTES, bag_typestore
+
+    array = "vision_msgs/msg/Detection3DArray"
+    fields, index = [DEFINITIONS[array]], 0
+    while sum(map(len, fields)) + 20 < MAX_DEFINITION_BYTES:
+        fields.append(f"float64 field_{index}\n")
+        index += 1
+    start = time.perf_counter()
+    bag_typestore(((array, "".join(fields)),))
+    seconds = time.perf_counter() - start
+    return f"definition of {index} fields ({sum(map(len, fields))} bytes): parsed in {seconds:.2f} s"
+
+
+def metadata(folder: Path) -> str:
+    from rosbags.rosbag2 import Reader
+
+    from physics_mapper.bags.storage import MAX_METADATA_BYTES
+
+    bag = folder / "bag"
+    scene = BENCHMARKS.parent / "config" / "scenes" / "pyramid.yaml"
+    subprocess.run(
+        [sys.executable, "-m", "physics_mapper", "generate", str(scene), "-o", str(bag), "--iterations", "2"],
+        check=True,
+        capture_output=True,
+    )
+    text = (bag / "metadata.yaml").read_text(encoding="utf-8")
+    aliases = ["x-anchors:", "  - &a [1, 2, 3, 4, 5, 6, 7, 8]"]
+    while sum(len(line) + 1 for line in aliases) + len(text) + 40 < MAX_METADATA_BYTES:
+        aliases.append("  - [*a, *a, *a, *a, *a, *a, *a, *a]")
+    padded = "\n".join(aliases) + "\n" + text
+    (bag / "metadata.yaml").write_text(padded, encoding="utf-8")
+    start = time.perf_counter()
+    with Reader(bag):
+        pass
+    seconds = time.perf_counter() - start
+    return f"metadata.yaml of {len(padded)} bytes ({len(aliases)} lines of aliases): read in {seconds:.2f} s"
+
+
+MEASUREMENTS: dict[str, Callable[[Path], str]] = {
+    "obj_polygon": obj_polygon,
+    "definition": definition,
+    "metadata": metadata,
+}
+
+
+def measure_here(name: str) -> None:
+    import physics_mapper.model.meshes  # noqa: F401  # imports are not the cost measured
+
+    with tempfile.TemporaryDirectory() as folder:
+        before = peak_rss_mib()
+        what = MEASUREMENTS[name](Path(folder))
+        print(f"{what}, peak RSS +{peak_rss_mib() - before:.0f} MiB (the input's making included)")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("names", nargs="*", default=list(MEASUREMENTS), help=", ".join(MEASUREMENTS))
+    parser.add_argument("--here", action="store_true", help=argparse.SUPPRESS)
+    args = parser.parse_args()
+    if args.here:
+        measure_here(args.names[0])
+        return
+    with open("/proc/loadavg", encoding="ascii") as loadavg:
+        print(f"python {sys.version.split()[0]}, load average {' '.join(loadavg.read().split()[:3])}")
+    for name in args.names:
+        subprocess.run([sys.executable, __file__, "--here", name], check=True)
+
+
+if __name__ == "__main__":
+    main()
