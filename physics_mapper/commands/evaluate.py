@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING
 
 from physics_mapper.commands.files import input_file
 from physics_mapper.model.errors import EXIT_FAILURE, EXIT_INCOMPLETE, EXIT_INTERRUPTED, InputError
+from physics_mapper.model.limits import printable
 
 if TYPE_CHECKING:
     from physics_mapper.evaluation.executors import Executor
@@ -191,7 +192,7 @@ def run_batch_command(args: argparse.Namespace, scene: Scene, settings: Sequence
                 survey_time=survey_time,
             )
     except RayUnavailable as error:
-        print(f"physics-mapper {name}: error: {error}", file=sys.stderr)
+        print(f"physics-mapper {name}: error: {printable(str(error))}", file=sys.stderr)
         return None
     if batch.interrupted:
         progress(name, "interrupted: writing the report of what finished")
@@ -199,7 +200,7 @@ def run_batch_command(args: argparse.Namespace, scene: Scene, settings: Sequence
 
 
 def progress(name: str, text: str) -> None:
-    print(f"{name}: {text}", file=sys.stderr, flush=True)
+    print(f"{name}: {printable(text)}", file=sys.stderr, flush=True)
 
 
 def exit_code(batch: BatchRun) -> int:

@@ -9,6 +9,7 @@ from pathlib import Path
 
 from physics_mapper.model.atomic_files import write_atomically
 from physics_mapper.model.errors import InputError
+from physics_mapper.model.limits import printable
 from physics_mapper.model.resources import ResourceError, resolve_resource
 from physics_mapper.model.scene import Problem
 from physics_mapper.model.scene_files import load_problem
@@ -29,7 +30,7 @@ def load_problem_file(path: Path, command: str) -> Problem:
     of its own); what loading changed goes to stderr as warnings."""
     problem = load_stoppably(path, load_problem)
     for note in problem.notes:
-        print(f"physics-mapper {command}: warning: {note}", file=sys.stderr)
+        print(f"physics-mapper {command}: warning: {printable(note)}", file=sys.stderr)
     return problem
 
 

@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING
 
 from physics_mapper.commands.files import check_output_folder, input_file, write_output
 from physics_mapper.model.errors import EXIT_FAILURE, InputError
+from physics_mapper.model.limits import printable
 
 if TYPE_CHECKING:
     from physics_mapper.bags.storage import Bag
@@ -85,7 +86,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def _progress(text: str) -> None:
-    print(f"replay: {text}", file=sys.stderr, flush=True)
+    print(f"replay: {printable(text)}", file=sys.stderr, flush=True)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -211,7 +212,7 @@ def _live(
         try:
             counts = play_and_record(info, inputs, writer, playback, _progress, alive, snapshots, names)
         except ReplayError as error:
-            print(f"physics-mapper replay: error: {error}", file=sys.stderr)
+            print(f"physics-mapper replay: error: {printable(str(error))}", file=sys.stderr)
             if not alive():
                 log.seek(0)
                 print(f"node output:\n{log.read()}", file=sys.stderr)

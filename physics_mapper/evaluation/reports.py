@@ -25,6 +25,7 @@ from physics_mapper.evaluation.summary import bag_summary, overall_summary, time
 from physics_mapper.evaluation.tasks import TaskOutput
 from physics_mapper.model.atomic_files import write_atomically
 from physics_mapper.model.errors import InputError
+from physics_mapper.model.limits import printable
 
 Criterion = Literal["settled", "chosen", "valid"]
 #: What each ``--criterion`` picks, for the reports.
@@ -259,12 +260,24 @@ def _summary_lines(summary: dict[str, Any], names: Sequence[str]) -> list[str]:
     return lines
 
 
+def _cell(text: object) -> str:
+    """Input-controlled text (an error naming a bag) in a Markdown table cell: one line, escaped, no ``|``."""
+    return printable(str(text)).replace("|", "\\|")
+
+
+def _code(text: str) -> str:
+    """Input-controlled text (a path, a command line) as Markdown code in a table or a line: escaped as
+    :func:`_cell`, in a span of two backticks if it holds one."""
+    escaped = _cell(text)
+    return f"`` {escaped} ``" if "`" in escaped else f"`{escaped}`"
+
+
 def _problem_lines(bags: Sequence[dict[str, Any]]) -> list[str]:
     problems = [bag for bag in bags if bag["status"] != "evaluated"]
     if not problems:
         return []
     lines = ["", "## Bags not evaluated", "", "| bag | status | error |", "| --- | --- | --- |"]
-    lines += [f"| `{bag['path']}` | {bag['status']} | {bag['error']} |" for bag in problems]
+    lines += [f"| {_code(bag['path'])} | {bag['status']} | {_cell(bag['error'])} |" for bag in problems]
     return lines
 
 
@@ -275,9 +288,9 @@ def evaluation_markdown(data: dict[str, Any], png_name: str) -> str:
     searches = overall["snapshots"] if overall else 0
     title = "Evaluation (interrupted: partial)" if data["interrupted"] else "Evaluation"
     lines = [
-        f"# {title} of {counts['bags']} bag(s) on `{data['scene']}`",
+        f"# {title} of {counts['bags']} bag(s) on {_code(data['scene'])}",
         "",
-        f"`{run['command']}`",
+        _code(run["command"]),
         "",
         f"- Objects: {', '.join(names)}; search: {_search_text(data['search'])}.",
         f"- Searches: {_mode_text(data, stopped, searches, data['search']['deadline'])}.",
@@ -316,7 +329,7 @@ def _bag_table(bags: Sequence[dict[str, Any]], times: dict[str, Any]) -> list[st
         p = MISSING if tests is None else _p(tests["settled_vs_top"]["total"])
         time = times[bag["path"]]
         lines.append(
-            f"| `{bag['path']}` | {bag['storage']} | {n} | {_share(summary['valid'], n)} | "
+            f"| {_code(bag['path'])} | {bag['storage']} | {n} | {_share(summary['valid'], n)} | "
             f"{_share(summary['fallback'], n)} | {_share(summary['no_map'], n)} | {errors} | {p} | "
             f"{_ms(time['p50_s'])} / {_ms(time['p90_s'])} |"
         )
@@ -446,9 +459,10 @@ def sweep_markdown(data: dict[str, Any], png_name: str, params_file: str | None)
     title = "Sweep (interrupted: partial)" if data["interrupted"] else "Sweep"
     criterion = data["criterion"]
     lines = [
-        f"# {title} of {len(data['settings'])} search settings over {len(data['bags'])} bag(s) on `{data['scene']}`",
+        f"# {title} of {len(data['settings'])} search settings over {len(data['bags'])} bag(s) "
+        f"on {_code(data['scene'])}",
         "",
-        f"`{run['command']}`",
+        _code(run["command"]),
         "",
         "- Grid: " + "; ".join(f"{key} = {', '.join(map(value_text, values))}" for key, values in grid.items()) + ".",
         f"- Searches: {SEARCH_MODES[data['search_mode']]}; run: {_run_text(run)}.",
@@ -463,11 +477,12 @@ def sweep_markdown(data: dict[str, Any], png_name: str, params_file: str | None)
     if best is None:
         lines.append("- Best: none (no setting has results from every usable bag).")
     elif params_file is None:
-        lines.append(f"- Best: #{best['index']} ({best['label']}); no parameters file: {best['params_file_error']}.")
+        reason = _cell(best["params_file_error"])
+        lines.append(f"- Best: #{best['index']} ({best['label']}); no parameters file: {reason}.")
     else:
         lines.append(
-            f"- Best: #{best['index']} ({best['label']}), as node parameters in `{params_file}`: "
-            f"`physics-mapper node --ros-args --params-file {params_file}`."
+            f"- Best: #{best['index']} ({best['label']}), as node parameters in {_code(params_file)}: "
+            f"{_code(f'physics-mapper node --ros-args --params-file {params_file}')}."
         )
     if best is not None:
         times = run["time_to_answer"]["settings"][best["index"]]
