@@ -23,7 +23,6 @@ from physics_mapper.evaluation.runner import BatchRun
 from physics_mapper.evaluation.settings import Setting, node_parameters_yaml, value_text
 from physics_mapper.evaluation.summary import bag_summary, overall_summary, time_summary
 from physics_mapper.evaluation.tasks import TaskOutput
-from physics_mapper.model.atomic_files import write_atomically
 from physics_mapper.model.errors import InputError
 from physics_mapper.model.limits import printable
 
@@ -535,13 +534,20 @@ def write_sweep(
     run: BatchRun, context: ReportContext, criterion: Criterion, output_dir: Path
 ) -> tuple[ReportFiles, Path | None]:
     """Write ``sweep.json``, ``sweep.md``, ``sweep.png`` and, if a setting is best, its node parameters
-    file ``best_params.yaml`` (returned; None when there is no best or the node would refuse it)."""
+    file ``best_params.yaml`` (returned; None when there is no best or the node would refuse it).
+
+    The parameters file says of how many settings it is the best (those with results from every usable
+    bag, and whether the run was interrupted), and is renamed into place with the report, never before.
+    """
     data = sweep_data(run, context, criterion)
-    best, params_path = data["best"], None
+    best, params_path, params_text = data["best"], None, ""
     if best is not None:
         setting = run.settings[best["index"]]
+        compared = sum(1 for entry in data["settings"] if entry["complete"])
+        among = f"{len(run.settings)}" if compared == len(run.settings) else f"{compared} of {len(run.settings)}"
+        stopped = " (interrupted: the others did not finish)" if run.interrupted else ""
         header = [
-            f"physics-mapper sweep: the best of {len(run.settings)} search settings ({setting.label}),",
+            f"physics-mapper sweep: the best of {among} search settings{stopped} ({setting.label}),",
             f"by {data['criterion']['name']}: {data['criterion']['text']};",
             f"over {_counts(run, best['index'])['evaluated']} bag(s), searches {data['search_mode']}.",
             f"Made by: {context.command}",
@@ -551,16 +557,12 @@ def write_sweep(
         if data["search_mode"] == "exhaustive" and note is not None:
             header.append(f"Note: {note}.")
         try:
-            text = node_parameters_yaml(context.scene_file, setting.params, header)
+            params_text = node_parameters_yaml(context.scene_file, setting.params, header)
         except InputError as error:
             best["params_file_error"] = str(error)
         else:
             params_path = output_dir / PARAMS_FILE
-            try:
-                output_dir.mkdir(parents=True, exist_ok=True)
-                write_atomically(params_path, text)
-            except OSError as error:
-                raise InputError(f"cannot write {params_path}: {error.strerror or error}") from None
             best["params_file"] = PARAMS_FILE
     markdown = sweep_markdown(data, "sweep.png", None if params_path is None else str(params_path))
-    return write_outputs(output_dir, "sweep", sweep_figure(data), data, markdown), params_path
+    extra = [] if params_path is None else [(params_path, params_text)]
+    return write_outputs(output_dir, "sweep", sweep_figure(data), data, markdown, extra), params_path
