@@ -30,9 +30,14 @@ if TYPE_CHECKING:
 HELP = "search every snapshot of many bags offline, as the node would, in parallel; one report of validity and errors"
 
 
+#: Most local worker processes: each holds its own interpreter, pybullet and a bag's inputs, about 80 MB.
+MAX_WORKERS = 64
+
+
 def default_workers() -> int:
-    """The cores this process may run on."""
-    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
+    """The cores this process may run on (at most :data:`MAX_WORKERS`)."""
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
+    return min(cores, MAX_WORKERS)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -109,6 +114,8 @@ def load_scene_and_search(args: argparse.Namespace) -> tuple[Scene, SearchParams
         raise InputError(f"{args.output} exists and is not a folder")
     if args.workers is not None and args.workers < 0:
         raise InputError(f"--workers must not be negative, got {args.workers}")
+    if args.workers is not None and args.workers > MAX_WORKERS:
+        raise InputError(f"--workers must be at most {MAX_WORKERS} (each takes about 80 MB), got {args.workers}")
     if args.ray is not None and args.ray != "local" and args.workers is not None:
         raise InputError("--workers is for the local pool and --ray local; a cluster's CPUs set its parallelism")
     return scene, params

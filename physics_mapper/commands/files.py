@@ -10,7 +10,7 @@ from pathlib import Path
 from physics_mapper.model.atomic_files import write_atomically
 from physics_mapper.model.errors import InputError
 from physics_mapper.model.limits import printable
-from physics_mapper.model.resources import ResourceError, resolve_resource
+from physics_mapper.model.resources import ResourceError, file_problem, resolve_resource
 from physics_mapper.model.scene import Problem
 from physics_mapper.model.scene_files import load_problem
 from physics_mapper.model.scene_loading import load_stoppably
@@ -35,9 +35,13 @@ def load_problem_file(path: Path, command: str) -> Problem:
 
 
 def check_output_folder(path: Path) -> None:
-    """Refuse (InputError), before any work is done, an output file whose folder does not exist."""
+    """Refuse (InputError), before any work is done, an output file whose folder does not exist (or is a
+    file, or a symbolic link loop)."""
     if not path.parent.is_dir():
-        raise InputError(f"cannot write {path}: folder {path.parent} does not exist")
+        problem = file_problem(path.parent)
+        reasons = {None: "is a file, not a folder", "missing file": "does not exist", "not a file": "is not a folder"}
+        reason = reasons.get(problem, f"does not exist: {problem}")
+        raise InputError(f"cannot write {path}: folder {path.parent} {reason}")
 
 
 def write_output(path: Path, text: str) -> None:

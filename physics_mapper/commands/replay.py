@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 import tempfile
 import time
@@ -96,8 +97,11 @@ def run(args: argparse.Namespace) -> int:
     from physics_mapper.model.scene_files import load_scene
     from physics_mapper.model.scene_loading import load_stoppably
 
-    if not args.rate > 0.0:
-        raise InputError(f"--rate must be positive, got {args.rate}")
+    if not 0.0 < args.rate < math.inf:
+        raise InputError(f"--rate must be positive and finite, got {args.rate}")
+    for option, seconds in (("--wait", args.wait), ("--tail", args.tail)):
+        if not 0.0 <= seconds < math.inf:
+            raise InputError(f"{option} must be a finite number of seconds, 0 or more, got {seconds}")
     if args.offline and args.start_node:
         raise InputError("--start-node is for a live replay; --offline runs no node")
     if not args.offline and args.deadline is not None:
