@@ -6,7 +6,8 @@
   :func:`physics_mapper.cli.build_parser`, and every ``--option`` written after it (same code span,
   or same command line of a code block) is one of that subcommand's options; an inline
   ```--option``` on its own is an option of some subcommand, or of another tool named in
-  :data:`OTHER_TOOLS_OPTIONS`;
+  :data:`OTHER_TOOLS_OPTIONS`; after ``physics-mapper bench NAME``, the options are those of the
+  benchmark ``benchmarks/NAME.py`` (its ``--help``);
 - the parameter table of ``docs/node.md`` names exactly the node's parameters
   (``scene_file`` and :data:`physics_mapper.ros.node.PARAMETERS`);
 - the README stays a short guide, and its first ``python`` block runs from the repository root.
@@ -15,7 +16,10 @@
 from __future__ import annotations
 
 import argparse
+import functools
 import re
+import subprocess
+import sys
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -46,6 +50,8 @@ FENCE = re.compile(r"^```")
 LINK = re.compile(r"!?\[[^\]]*\]\(([^)\s]+)\)")
 INLINE_CODE = re.compile(r"`([^`\n]+)`")
 COMMAND = re.compile(r"physics-mapper\s+([a-z][a-z_-]*)")
+#: ``physics-mapper bench NAME``: the benchmark's name.
+BENCHMARK = re.compile(r"physics-mapper\s+bench\s+([a-z][a-z0-9_]*)")
 OPTION = re.compile(r"(?<![\w-])(--[a-z][a-z0-9-]*)")
 
 
@@ -166,22 +172,49 @@ def written_commands(text: str) -> Iterator[tuple[str, list[str]]]:
         yield match.group(1), options
 
 
+@functools.cache
+def benchmark_options(name: str) -> frozenset[str] | None:
+    """The options of the benchmark ``benchmarks/NAME.py`` (from its ``--help``), or None for no such benchmark."""
+    script = REPO / "benchmarks" / f"{name}.py"
+    if not script.is_file():
+        return None
+    shown = subprocess.run(
+        [sys.executable, str(script), "--help"], capture_output=True, text=True, timeout=120, check=False
+    )
+    assert shown.returncode == 0, shown.stderr
+    return frozenset(OPTION.findall(shown.stdout))
+
+
+def benchmarks_named(page: Path) -> set[str]:
+    """The benchmarks a page runs with ``physics-mapper bench NAME``."""
+    return {name for text in command_texts(page) for name in BENCHMARK.findall(text)}
+
+
 @pytest.mark.parametrize("page", PAGES, ids=page_id)
 def test_every_command_and_option_written_exists(page: Path) -> None:
     known = subcommands()
     wrong = []
     for text in command_texts(page):
+        named = BENCHMARK.findall(text)
         for command, options in written_commands(text):
             if command not in known:
                 wrong.append(f"physics-mapper {command}: no such command")
                 continue
-            wrong += [f"physics-mapper {command} {o}: no such option" for o in options if o not in known[command]]
+            allowed = set(known[command])
+            if command == "bench" and named:
+                benchmark = benchmark_options(named.pop(0))
+                if benchmark is None:
+                    wrong.append(f"physics-mapper bench: no benchmark in {text!r}")
+                    continue
+                allowed |= benchmark
+            wrong += [f"physics-mapper {command} {o}: no such option" for o in options if o not in allowed]
     assert wrong == []
 
 
 @pytest.mark.parametrize("page", PAGES, ids=page_id)
 def test_every_option_written_alone_exists(page: Path) -> None:
-    every_option = set().union(*subcommands().values()) | OTHER_TOOLS_OPTIONS
+    benchmarks = [benchmark_options(name) or frozenset() for name in benchmarks_named(page)]
+    every_option = set().union(*subcommands().values(), *benchmarks) | OTHER_TOOLS_OPTIONS
     prose, _ = prose_and_code(page.read_text())
     alone = {span.split()[0].split("=")[0] for line in prose for span in INLINE_CODE.findall(line)}
     assert sorted(o for o in alone if OPTION.fullmatch(o) and o not in every_option) == []
