@@ -5,7 +5,8 @@ process (so that its peak RSS is its own) and prints one line: seconds and peak 
 
 * ``obj_polygon``: a 64 MiB OBJ file of one polygon (32 million triangles), refused by its count;
 * ``definition``: a bag's Detection3DArray definition of ``MAX_DEFINITION_BYTES`` bytes of fields, parsed;
-* ``metadata``: a ``metadata.yaml`` of ``MAX_METADATA_BYTES`` bytes of YAML aliases, read by rosbags.
+* ``metadata``: a ``metadata.yaml`` of ``MAX_METADATA_BYTES`` bytes of YAML aliases, read by rosbags;
+* ``params_file``: a ``--params-file`` of ``MAX_PARAMS_FILE_BYTES`` bytes, parsed by rcl (``rclpy.init``).
 """
 
 from __future__ import annotations
@@ -81,10 +82,29 @@ def metadata(folder: Path) -> str:
     return f"metadata.yaml of {len(padded)} bytes ({len(aliases)} lines of aliases): read in {seconds:.2f} s"
 
 
+def params_file(folder: Path) -> str:
+    import rclpy
+
+    from physics_mapper.ros.run_node import MAX_PARAMS_FILE_BYTES
+
+    lines = ["/**:", "  ros__parameters:"]
+    while sum(len(line) + 1 for line in lines) + 30 < MAX_PARAMS_FILE_BYTES:
+        lines.append(f"    parameter_{len(lines)}: {len(lines)}.5")
+    path = folder / "params.yaml"
+    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    start = time.perf_counter()
+    rclpy.init(args=["node", "--ros-args", "--params-file", str(path)])
+    seconds = time.perf_counter() - start
+    rclpy.shutdown()
+    size = path.stat().st_size
+    return f"--params-file of {size} bytes ({len(lines) - 2} parameters): parsed by rcl in {seconds:.2f} s"
+
+
 MEASUREMENTS: dict[str, Callable[[Path], str]] = {
     "obj_polygon": obj_polygon,
     "definition": definition,
     "metadata": metadata,
+    "params_file": params_file,
 }
 
 
