@@ -6,7 +6,9 @@ process (so that its peak RSS is its own) and prints one line: seconds and peak 
 * ``obj_polygon``: a 64 MiB OBJ file of one polygon (32 million triangles), refused by its count;
 * ``definition``: a bag's Detection3DArray definition of ``MAX_DEFINITION_BYTES`` bytes of fields, parsed;
 * ``metadata``: a ``metadata.yaml`` of ``MAX_METADATA_BYTES`` bytes of YAML aliases, read by rosbags;
-* ``params_file``: a ``--params-file`` of ``MAX_PARAMS_FILE_BYTES`` bytes, parsed by rcl (``rclpy.init``).
+* ``params_file``: a ``--params-file`` of ``MAX_PARAMS_FILE_BYTES`` bytes, parsed by rcl (``rclpy.init``);
+* ``history``: what one object's input history holds (``tracemalloc``) after 16 large messages of each
+  kind, with ``HISTORY_BYTES`` and without it, side by side.
 """
 
 from __future__ import annotations
@@ -100,11 +102,45 @@ def params_file(folder: Path) -> str:
     return f"--params-file of {size} bytes ({len(lines) - 2} parameters): parsed by rcl in {seconds:.2f} s"
 
 
+def history(folder: Path) -> str:
+    import tracemalloc
+
+    import numpy as np
+
+    from physics_mapper.mapping import inputs
+    from physics_mapper.model.scene import Workspace
+
+    workspace = Workspace((-10.0, -10.0, -10.0), (10.0, 10.0, 10.0))
+
+    def held(history_bytes: int) -> float:
+        inputs.HISTORY_BYTES = history_bytes
+        tracemalloc.start()
+        tracker = inputs.InputTracker(["cube"])
+        for index in range(inputs.HISTORY_LENGTH):
+            block = np.zeros((100_000, 7))  # each message its own array, as received
+            block[:, 6] = 1.0
+            poses = inputs.check_poses(
+                block, frame_id="w", expected_frame="w", workspace=workspace, stamp_ns=0, received=float(index)
+            )
+            tracker.add_poses("cube", poses)
+            tracker.add_weights("cube", inputs.check_weights(np.ones(1_000_000), received=float(index)))
+        current = tracemalloc.get_traced_memory()[0] / 2**20
+        tracemalloc.stop()
+        return current
+
+    capped, uncapped = held(inputs.HISTORY_BYTES), held(2**62)
+    return (
+        f"one object fed 16 arrays of 100,000 poses and 16 of 1M weights: {capped:.0f} MiB held "
+        f"(HISTORY_BYTES), {uncapped:.0f} MiB without the byte cap"
+    )
+
+
 MEASUREMENTS: dict[str, Callable[[Path], str]] = {
     "obj_polygon": obj_polygon,
     "definition": definition,
     "metadata": metadata,
     "params_file": params_file,
+    "history": history,
 }
 
 

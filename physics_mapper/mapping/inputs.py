@@ -56,8 +56,8 @@ WEIGHTS_GRACE = 0.5
 HISTORY_LENGTH = 16
 #: Bytes of the messages remembered per object, of each kind (a pose takes 56, a weight 8): beyond them
 #: the oldest are forgotten, but the newest message is kept however large. 128 objects remember at most
-#: 1 GiB beside their newest messages; 16 arrays of 100,000 poses and 1M weights took 690 MiB for one
-#: object before this cap (``BENCHMARKS.md``, "Hostile inputs").
+#: 1 GiB beside their newest messages; 16 arrays of 100,000 poses and of 1M weights held 208 MiB for one
+#: object without this cap, 13 MiB with it (``BENCHMARKS.md``, "Hostile inputs").
 HISTORY_BYTES = 4 * 1024 * 1024
 #: Backward clock jumps remembered (the newest; all are counted).
 JUMPS_REMEMBERED = 16
