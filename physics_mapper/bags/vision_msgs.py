@@ -8,7 +8,7 @@ then carry them too, as ``ros2 bag record`` would.
 
 from __future__ import annotations
 
-from functools import cache
+from functools import lru_cache
 
 from rosbags.interfaces import Connection, MessageDefinitionFormat
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
@@ -73,7 +73,12 @@ def bag_definitions(connections: list[Connection]) -> BagDefinitions:
     return tuple(sorted(found))
 
 
-@cache
+#: Type stores kept for the bags' definitions last used (each about 2 MB): a process evaluating bags
+#: of many estimators keeps at most this many, about 16 MB.
+TYPESTORES_CACHED = 8
+
+
+@lru_cache(maxsize=TYPESTORES_CACHED)
 def bag_typestore(definitions: BagDefinitions) -> Typestore:
     """A store decoding the types of ``definitions`` as they say, the others as Jazzy and :data:`DEFINITIONS` do.
 
