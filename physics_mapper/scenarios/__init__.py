@@ -1,1 +1,1 @@
-"""Seeded problem suites and generators shared by the tests, the benchmarks and ``generate`` (ROS-free)."""
+"""Seeded problem suites and generators, with their known answers, shared by the tests and the benchmarks (ROS-free)."""

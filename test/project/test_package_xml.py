@@ -101,8 +101,9 @@ def missing(found: dict[str, list[str]], allowed: set[str], tag: str) -> list[st
         where = f"{module} (imported by {', '.join(sorted(files)[:3])})"
         if not is_ros_package(module) and module not in PROVIDERS:
             problems.append(
-                f"{where}: no row in PROVIDERS of test/test_package_xml.py; add its rosdep key from rosdistro's "
-                f"rosdep/python.yaml (pip-only libraries end in -pip), then <{tag}>KEY</{tag}> to package.xml"
+                f"{where}: no row in PROVIDERS of test/project/test_package_xml.py; add its rosdep key from "
+                f"rosdistro's rosdep/python.yaml (pip-only libraries end in -pip), then <{tag}>KEY</{tag}> to "
+                "package.xml"
             )
         elif (key := key_of(module)) is not None and key not in allowed:
             problems.append(f"{where}: add <{tag}>{key}</{tag}> to package.xml")
@@ -153,7 +154,7 @@ def test_a_missing_declaration_is_reported_with_the_key_to_add() -> None:
         "nav_msgs (imported by y.py): add <exec_depend>nav_msgs</exec_depend> to package.xml",
         "pybullet (imported by physics_mapper/physics/checker.py): add <exec_depend>python3-pybullet-pip</exec_depend> "
         "to package.xml",
-        "trimesh_like (imported by x.py): no row in PROVIDERS of test/test_package_xml.py; add its rosdep key from "
-        "rosdistro's rosdep/python.yaml (pip-only libraries end in -pip), then <exec_depend>KEY</exec_depend> to "
+        "trimesh_like (imported by x.py): no row in PROVIDERS of test/project/test_package_xml.py; add its rosdep key "
+        "from rosdistro's rosdep/python.yaml (pip-only libraries end in -pip), then <exec_depend>KEY</exec_depend> to "
         "package.xml",
     ]

@@ -1,8 +1,8 @@
 """The grouped search: Algorithm 1 per interaction group, against the paper's joint search.
 
-Real pybullet throughout. The reduced suite is the benchmark's generator (``physics_mapper.bench.
-scale_suite``) at small sizes, where the joint search finishes: piles of cubes whose only valid
-configuration is known by construction.
+Real pybullet throughout. The reduced suite is the benchmark's generator
+(``physics_mapper.scenarios.scale_suite``) at small sizes, where the joint search finishes: piles of
+cubes whose only valid configuration is known by construction.
 """
 
 from __future__ import annotations
