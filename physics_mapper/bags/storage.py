@@ -79,9 +79,10 @@ _PLUGINS = {"mcap": StoragePlugin.MCAP, "sqlite3": StoragePlugin.SQLITE3}
 #: rosbag2 metadata version written (the one ROS 2 Jazzy writes).
 BAG_VERSION: Final = 9
 #: Largest ``metadata.yaml`` read, bytes. A bag of 300 topics (the node's inputs at 128 objects and
-#: its outputs) with rosbag2's offered QoS profiles has a few hundred kB of it; rosbags reads YAML
-#: slowly (8 MB of aliases: 23 s, 406 MiB; at this cap in ``BENCHMARKS.md``, "Hostile inputs").
-MAX_METADATA_BYTES = 1024 * 1024
+#: its outputs) with rosbag2's offered QoS profiles has about 210 kB of it (700 bytes a topic); rosbags
+#: reads YAML in pure Python, about 0.07 MB/s on a loaded machine (8 MB of aliases: 23 s, 406 MiB;
+#: aliases are refused now), measured at this cap in ``BENCHMARKS.md``, "Hostile inputs".
+MAX_METADATA_BYTES = 256 * 1024
 
 POSE_ARRAY = "geometry_msgs/msg/PoseArray"
 WEIGHTS = "std_msgs/msg/Float64MultiArray"
@@ -406,9 +407,8 @@ def _reading(path: Path, verify: bool = True) -> Iterator[Reader]:
             f"{path}: no metadata.yaml: not a rosbag2 bag, or its recording did not end cleanly "
             "(`ros2 bag reindex` rebuilds it)"
         )
-    metadata_bytes = (path / "metadata.yaml").stat().st_size if path.is_dir() else 0
-    if metadata_bytes > MAX_METADATA_BYTES:
-        raise BagError(f"{path}: its metadata.yaml has {metadata_bytes} bytes (at most {MAX_METADATA_BYTES})")
+    if path.is_dir():
+        _check_metadata(path)
     try:
         if verify:
             for storage_file in sorted(path.glob("*.mcap")) if path.is_dir() else [path]:
@@ -422,6 +422,26 @@ def _reading(path: Path, verify: bool = True) -> Iterator[Reader]:
         # A damaged file surfaces as whatever layer notices it first (a ChecksumError, ReaderError,
         # apsw's CorruptError, struct.error, OverflowError, ...); the try holds only bag-reading calls.
         raise _unreadable(path, error) from None
+
+
+def _check_metadata(bag: Path) -> None:
+    """Refuse (BagError) a ``metadata.yaml`` over :data:`MAX_METADATA_BYTES` or with YAML anchors or aliases
+    (rosbag2 writes none; expanding them is what makes a small file cost minutes), before rosbags reads it.
+
+    Its tokens are scanned by libyaml (no document is built: 0.04 s for 500 kB); text that does not
+    scan is left for rosbags to report.
+    """
+    metadata = bag / "metadata.yaml"
+    size = metadata.stat().st_size
+    if size > MAX_METADATA_BYTES:
+        raise BagError(f"{bag}: its metadata.yaml has {size} bytes (at most {MAX_METADATA_BYTES})")
+    loader = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
+    try:
+        tokens = yaml.scan(metadata.read_text(encoding="utf-8"), Loader=loader)
+        if any(isinstance(token, yaml.AnchorToken | yaml.AliasToken) for token in tokens):
+            raise BagError(f"{bag}: its metadata.yaml has YAML anchors or aliases, which rosbag2 never writes")
+    except (yaml.YAMLError, UnicodeDecodeError):
+        return
 
 
 def _unreadable(path: Path, error: Exception) -> BagError:

@@ -70,6 +70,14 @@ def test_the_bag_s_own_good_definition_still_decodes(tmp_path: Path) -> None:
     assert completed.returncode == 0, completed.stderr
 
 
+def test_a_metadata_file_with_yaml_aliases_is_one_error_line(tmp_path: Path) -> None:
+    bag = detections_bag(tmp_path / "bag", DEFINITIONS[DETECTION_ARRAY] + TREE)
+    text = (bag / "metadata.yaml").read_text(encoding="utf-8")
+    bomb = "x-anchors:\n  - &a [1, 2, 3]\n" + "  - [*a, *a, *a]\n" * 100
+    (bag / "metadata.yaml").write_text(bomb + text, encoding="utf-8")
+    assert "its metadata.yaml has YAML anchors or aliases" in replay(bag)
+
+
 def test_a_metadata_file_beyond_its_cap_is_one_error_line(tmp_path: Path) -> None:
     bag = detections_bag(tmp_path / "bag", DEFINITIONS[DETECTION_ARRAY] + TREE)
     with (bag / "metadata.yaml").open("a", encoding="utf-8") as metadata:
