@@ -51,7 +51,7 @@ BagDefinitions = tuple[tuple[str, str], ...]
 #: tree of definitions, comments included, in a few kB (2 kB without); rosbags' parser takes time and memory
 #: growing faster than the text (60,000 fields: 47 s, 752 MiB), measured at this cap in
 #: ``BENCHMARKS.md`` ("Hostile inputs").
-MAX_DEFINITION_BYTES = 64 * 1024
+MAX_DEFINITION_BYTES = 32 * 1024
 
 
 class DefinitionError(ValueError):
