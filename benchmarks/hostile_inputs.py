@@ -75,7 +75,7 @@ def metadata(folder: Path) -> str:
     text = (bag / "metadata.yaml").read_text(encoding="utf-8")
     head, marker, rest = text.partition("  topics_with_message_count:\n")
     entry = rest.split("  - message_count:")[1]  # one topic's entry, repeated under other names
-    entries = []
+    entries: list[str] = []
     while len(head) + sum(map(len, entries)) + len(rest) + len(entry) + 40 < MAX_METADATA_BYTES:
         entries.append(f"  - message_count:{entry}".replace("/hypotheses/cube_left", f"/topic_{len(entries)}", 1))
     (bag / "metadata.yaml").write_text(head + marker + "".join(entries) + rest, encoding="utf-8")
