@@ -9,7 +9,9 @@ process (so that its peak RSS is its own) and prints one line: seconds and peak 
   refused (and read by rosbags alone, side by side);
 * ``params_file``: a ``--params-file`` of ``MAX_PARAMS_FILE_BYTES`` bytes, parsed by rcl (``rclpy.init``);
 * ``history``: what one object's input history holds (``tracemalloc``) after 16 large messages of each
-  kind, with ``HISTORY_BYTES`` and without it, side by side.
+  kind, with ``HISTORY_BYTES`` and without it, side by side;
+* ``notes``: what the node's input notes hold after 1,100 unknown class ids of 100 kB each;
+* ``typestores``: what the cached type stores hold after 16 bags with definitions of their own.
 """
 
 from __future__ import annotations
@@ -153,12 +155,46 @@ def history(folder: Path) -> str:
     )
 
 
+def notes(folder: Path) -> str:
+    import tracemalloc
+
+    from physics_mapper.ros.node_inputs import MAX_LOGGED_INPUT_NOTES, InputNotes
+
+    class Discard:
+        def warning(self, text: str, **options: object) -> None:
+            pass
+
+    tracemalloc.start()
+    notes = InputNotes(Discard())
+    for index in range(MAX_LOGGED_INPUT_NOTES + 100):
+        notes.log_once("/detections", f"class id {str(index) + 'x' * 100_000!r} is no object of the scene")
+    held = tracemalloc.get_traced_memory()[0] / 2**10
+    tracemalloc.stop()
+    return f"{MAX_LOGGED_INPUT_NOTES + 100} unknown class ids of 100 kB each: the input notes hold {held:.0f} KiB"
+
+
+def typestores(folder: Path) -> str:
+    import tracemalloc
+
+    from physics_mapper.bags.vision_msgs import DEFINITIONS, TYPESTORES_CACHED, bag_typestore
+
+    tracemalloc.start()
+    for index in range(2 * TYPESTORES_CACHED):  # as many estimators, each its own Detection3D
+        definition = DEFINITIONS["vision_msgs/msg/Detection3D"] + f"bool field_{index}\n"
+        bag_typestore((("vision_msgs/msg/Detection3D", definition),))
+    held = tracemalloc.get_traced_memory()[0] / 2**20
+    tracemalloc.stop()
+    return f"{2 * TYPESTORES_CACHED} bags' own definitions: the type stores cached hold {held:.1f} MiB"
+
+
 MEASUREMENTS: dict[str, Callable[[Path], str]] = {
     "obj_polygon": obj_polygon,
     "definition": definition,
     "metadata": metadata,
     "params_file": params_file,
     "history": history,
+    "notes": notes,
+    "typestores": typestores,
 }
 
 

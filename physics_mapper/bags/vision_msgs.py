@@ -73,8 +73,8 @@ def bag_definitions(connections: list[Connection]) -> BagDefinitions:
     return tuple(sorted(found))
 
 
-#: Type stores kept for the bags' definitions last used (each about 2 MB): a process evaluating bags
-#: of many estimators keeps at most this many, about 16 MB.
+#: Type stores kept for the bags' definitions last used: a process evaluating bags of many estimators
+#: keeps at most this many (2.8 MiB, ``BENCHMARKS.md``, "Hostile inputs").
 TYPESTORES_CACHED = 8
 
 
