@@ -7,6 +7,7 @@ from typing import TYPE_CHECKING
 
 from physics_mapper.commands.files import input_file, load_problem_file
 from physics_mapper.model.errors import InputError
+from physics_mapper.model.limits import MAX_QUOTED_TEXT, clipped
 
 if TYPE_CHECKING:
     from physics_mapper.model.scene import Problem
@@ -49,7 +50,8 @@ def run(args: argparse.Namespace) -> int:
     try:
         validate_namespace(namespace)
     except InvalidNamespaceException:
-        raise InputError(f"--namespace {args.namespace!r} is not a valid ROS namespace") from None
+        shown = clipped(args.namespace, MAX_QUOTED_TEXT)
+        raise InputError(f"--namespace {shown!r} is not a valid ROS namespace") from None
     try:
         with ros_for_command():
             _publish(args, problem, namespace)

@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING
 
 from physics_mapper.commands.files import check_output_folder, input_file, write_output
 from physics_mapper.model.errors import EXIT_FAILURE, InputError
-from physics_mapper.model.limits import printable
+from physics_mapper.model.limits import MAX_KEY_TEXT, clipped, printable
 
 if TYPE_CHECKING:
     from physics_mapper.bags.storage import Bag
@@ -181,11 +181,11 @@ def _live(
     try:
         validate_namespace(args.namespace)
     except InvalidNamespaceException as error:
-        raise InputError(f"--namespace: {' '.join(str(error).split()).rstrip(' ^')}") from None
+        raise InputError(f"--namespace: {clipped(' '.join(str(error).split()).rstrip(' ^'), MAX_KEY_TEXT)}") from None
     try:
         validate_node_name(args.node_name)
     except InvalidNodeNameException as error:
-        raise InputError(f"--node-name: {' '.join(str(error).split()).rstrip(' ^')}") from None
+        raise InputError(f"--node-name: {clipped(' '.join(str(error).split()).rstrip(' ^'), MAX_KEY_TEXT)}") from None
     output = args.output or Path(f"{args.bag.resolve().name}_replay_{time.strftime('%Y_%m_%d-%H_%M_%S')}")
     playback = Playback(
         rate=args.rate,

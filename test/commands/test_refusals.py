@@ -112,7 +112,7 @@ CASES: dict[str, tuple[list[str], str]] = {
         "metadata.yaml has",
     ),
     "replay: long namespace": (
-        ["replay", str(PYRAMID_BAG), "--scene", str(PYRAMID_SCENE), "--namespace", "/" + "n" * 300],
+        ["replay", str(PYRAMID_BAG), "--scene", str(PYRAMID_SCENE), "--namespace", "/" + "n" * 5000],
         "--namespace",
     ),
     "evaluate: --workers beyond the ceiling": (
@@ -142,6 +142,7 @@ CASES: dict[str, tuple[list[str], str]] = {
     "generate: no ground truth": (["generate", "{hostile_yaml}", "-o", "{folder}/g"], "\\x1b"),
     "publish: --rate 0": (["publish", str(PYRAMID_PROBLEM), "--rate", "0"], "--rate must be positive"),
     "publish: bad namespace": (["publish", str(PYRAMID_PROBLEM), "--namespace", "/a\nb"], "--namespace"),
+    "publish: long namespace": (["publish", str(PYRAMID_PROBLEM), "--namespace", "/" + "n" * 5000], "characters)"),
     "experiment: --runs 0": (["experiment", "fig4", "--runs", "0", "-o", "{folder}/x"], "--runs must be at least 1"),
     "bench: --repeats 0": (["bench", "physics_costs", "--repeats", "0"], "--repeats must be at least 1"),
     "decompose: hostile scene": (["decompose", "{hostile_yaml}"], "\\x1b"),
@@ -179,4 +180,5 @@ def test_every_refusal_is_an_escaped_error_line_exit_2_under_lc_all_c(files: dic
     error_lines = [line for line in stderr.splitlines() if "error: " in line]
     assert len(error_lines) == 1 and fragment.format(**files) in error_lines[0], stderr
     assert not any(line.startswith("physics-mapper solve: error: forged") for line in stderr.splitlines())
+    assert all(len(line) < 600 for line in error_lines), stderr  # input quoted clipped, never whole
     assert not (Path(files["folder"]) / "e").exists() and not (Path(files["folder"]) / "s").exists()
