@@ -66,7 +66,7 @@ def _target(path: Path) -> _Target:
         return _Target(resolved, None)
     mode = existing.st_mode
     if stat.S_ISDIR(mode):
-        raise IsADirectoryError(errno.EISDIR, "it is a directory", str(path))
+        raise IsADirectoryError(errno.EISDIR, os.strerror(errno.EISDIR), str(path))
     if not (stat.S_ISREG(mode) or stat.S_ISCHR(mode) or stat.S_ISFIFO(mode)):
         kind = "block device" if stat.S_ISBLK(mode) else "socket"
         reason = f"it is a {kind} (only regular files, character devices and FIFOs are written)"

@@ -93,7 +93,7 @@ CASES: dict[str, tuple[list[str], str]] = {
         ["solve", str(PYRAMID_PROBLEM), "--trace", "{plain}/t.json"],
         "folder {plain} is a file, not a folder",
     ),
-    "solve: trace onto a folder": (["solve", str(PYRAMID_PROBLEM), "--trace", "{folder}"], "it is a directory"),
+    "solve: trace onto a folder": (["solve", str(PYRAMID_PROBLEM), "--trace", "{folder}"], "Is a directory"),
     "solve: no problem (argparse)": (["solve"], "the following arguments are required: problem"),
     "replay: --tail nan": (["replay", str(PYRAMID_BAG), "--scene", str(PYRAMID_SCENE), "--tail", "nan"], "--tail"),
     "replay: --wait nan": (["replay", str(PYRAMID_BAG), "--scene", str(PYRAMID_SCENE), "--wait", "nan"], "--wait"),

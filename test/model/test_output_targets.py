@@ -87,7 +87,7 @@ def test_a_directory_or_socket_is_never_replaced(tmp_path: Path, kind: str) -> N
     target = tmp_path / "target"
     if kind == "directory":
         target.mkdir()
-        fragment = "it is a directory"
+        fragment = "Is a directory"
     else:
         os.mknod(target, 0o666 | stat.S_IFSOCK)
         fragment = "it is a socket"
