@@ -39,7 +39,11 @@ def check_output_folder(path: Path) -> None:
     file, or a symbolic link loop)."""
     if not path.parent.is_dir():
         problem = file_problem(path.parent)
-        reasons = {None: "is a file, not a folder", "not a file": "is not a folder", "a symbolic link loop": "is a symbolic link loop"}
+        reasons = {
+            None: "is a file, not a folder",
+            "not a file": "is not a folder",
+            "a symbolic link loop": "is a symbolic link loop",
+        }
         reason = reasons.get(problem) or "does not exist"
         raise InputError(f"cannot write {path}: folder {path.parent} {reason}")
 
