@@ -81,6 +81,8 @@ def files(tmp_path_factory: pytest.TempPathFactory) -> dict[str, str]:
     }
 
 
+#: ``sweep`` of the shipped bag on its scene (``evaluate`` takes the same after its name).
+BATCH = ["sweep", str(PYRAMID_BAG), "--scene", str(PYRAMID_SCENE)]
 #: (arguments with {placeholders} of the ``files`` fixture, a fragment of the error line).
 CASES: dict[str, tuple[list[str], str]] = {
     "solve: missing problem, hostile name": (["solve", "{hostile_missing}"], "x\\x1b[2J\\x07\\nphysics-mapper"),
@@ -140,6 +142,34 @@ CASES: dict[str, tuple[list[str], str]] = {
         "a value is repeated",
     ),
     "generate: no ground truth": (["generate", "{hostile_yaml}", "-o", "{folder}/g"], "\\x1b"),
+    "generate: --period nan": (["generate", str(PYRAMID_SCENE), "-o", "{folder}/g", "--period", "nan"], "--period"),
+    "sweep: --grid key twice": (
+        [*BATCH, "--grid", "deadline=0.1", "--grid", "deadline=0.2", "-o", "{folder}/s"],
+        "--grid deadline is given twice",
+    ),
+    "evaluate: --set key twice": (
+        ["evaluate", *BATCH[1:], "--set", "deadline=0.1", "--set", "deadline=1", "-o", "{folder}/e"],
+        "--set deadline is given twice",
+    ),
+    "evaluate: --set bad value": (
+        ["evaluate", str(PYRAMID_BAG), "--scene", str(PYRAMID_SCENE), "--set", "deadline=\x1b", "-o", "{folder}/e"],
+        "must be a number",
+    ),
+    "evaluate: --set without =": (
+        ["evaluate", str(PYRAMID_BAG), "--scene", str(PYRAMID_SCENE), "--set", "rate\n", "-o", "{folder}/e"],
+        "expected KEY=VALUE",
+    ),
+    "experiment: --seed -1": (["experiment", "fig4", "--seed", "-1", "-o", "{folder}/x"], "--seed must not be"),
+    "experiment: --search-budget 0": (["experiment", "fig4", "--search-budget", "0", "-o", "{folder}/x"], "budget"),
+    "publish: --count -1": (["publish", str(PYRAMID_PROBLEM), "--count", "-1"], "--count must not be negative"),
+    "replay: --topics offline": (
+        ["replay", str(PYRAMID_BAG), "--scene", str(PYRAMID_SCENE), "--offline", "--topics", "/x"],
+        "are for a live replay",
+    ),
+    "replay: --deadline live": (
+        ["replay", str(PYRAMID_BAG), "--scene", str(PYRAMID_SCENE), "--deadline", "1"],
+        "--deadline is for --offline",
+    ),
     "publish: --rate 0": (["publish", str(PYRAMID_PROBLEM), "--rate", "0"], "--rate must be positive"),
     "publish: bad namespace": (["publish", str(PYRAMID_PROBLEM), "--namespace", "/a\nb"], "--namespace"),
     "publish: long namespace": (["publish", str(PYRAMID_PROBLEM), "--namespace", "/" + "n" * 5000], "characters)"),
