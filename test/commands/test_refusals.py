@@ -153,7 +153,7 @@ CASES: dict[str, tuple[list[str], str]] = {
     ),
     "evaluate: --set bad value": (
         ["evaluate", str(PYRAMID_BAG), "--scene", str(PYRAMID_SCENE), "--set", "deadline=\x1b", "-o", "{folder}/e"],
-        "must be a number",
+        "--set deadline: not valid YAML: unacceptable character #x001b",
     ),
     "evaluate: --set without =": (
         ["evaluate", str(PYRAMID_BAG), "--scene", str(PYRAMID_SCENE), "--set", "rate\n", "-o", "{folder}/e"],
