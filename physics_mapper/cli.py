@@ -85,6 +85,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         _stop_on_sigterm_like_ctrl_c()
     try:
         from physics_mapper.model.errors import EXIT_BAD_INPUT, InputError
+        from physics_mapper.model.limits import printable
         from physics_mapper.model.scene_files import SceneError
 
         args = build_parser().parse_args(arguments)
@@ -93,7 +94,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             sys.stdout.flush()  # a full disk or a closed pipe shows here, not in the interpreter's exit
             return code
         except (SceneError, InputError) as error:
-            print(f"physics-mapper {args.command}: error: {error}", file=sys.stderr)
+            print(f"physics-mapper {args.command}: error: {printable(str(error))}", file=sys.stderr)
             return EXIT_BAD_INPUT
         except OSError as error:
             if error.filename is not None:  # a file's error, not the standard output's

@@ -34,6 +34,7 @@ from physics_mapper.mapping.topics import (
     poses_topic,
     weights_topic,
 )
+from physics_mapper.model.errors import EXIT_BAD_INPUT
 from physics_mapper.msg_adapters.hypotheses import nanoseconds_from_stamp
 from physics_mapper.ros.child_process import start_node, stop_node
 from physics_mapper.ros.qos import DIAGNOSTICS_QOS, MAP_QOS
@@ -240,3 +241,21 @@ def run_cli(*args: str, cwd: Path | None = None, timeout: float = 120.0) -> subp
     """Run ``physics-mapper ARGS`` in a child process (same interpreter and environment)."""
     command = [str(PHYSICS_MAPPER), *args]
     return subprocess.run(command, capture_output=True, text=True, timeout=timeout, cwd=cwd, check=False)
+
+
+def one_error_line(completed: subprocess.CompletedProcess[str], *fragments: str) -> str:
+    """The single stderr line of a refused command (exit 2), holding every fragment."""
+    assert completed.returncode == EXIT_BAD_INPUT, completed.stderr
+    lines = completed.stderr.splitlines()
+    assert len(lines) == 1 and "Traceback" not in completed.stderr, completed.stderr
+    for fragment in fragments:
+        assert fragment in lines[0], lines[0]
+    return lines[0]
+
+
+def last_error_line(completed: subprocess.CompletedProcess[str], *fragments: str) -> str:
+    """The error line ending a refused command's stderr (exit 2, no traceback), after its progress lines."""
+    assert completed.returncode == EXIT_BAD_INPUT and "Traceback" not in completed.stderr, completed.stderr
+    line = completed.stderr.splitlines()[-1]
+    assert ": error: " in line and all(fragment in line for fragment in fragments), line
+    return line

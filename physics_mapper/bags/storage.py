@@ -53,7 +53,13 @@ from rosbags.rosbag2 import Reader, ReaderError, StoragePlugin, Writer, WriterEr
 from rosbags.typesys.store import Typestore
 
 from physics_mapper.bags.mcap_storage import ROS_DISTRO, ChecksummedMcapStorage, verify_checksums
-from physics_mapper.bags.vision_msgs import BagDefinitions, bag_definitions, bag_typestore, jazzy_typestore
+from physics_mapper.bags.vision_msgs import (
+    BagDefinitions,
+    DefinitionError,
+    bag_definitions,
+    bag_typestore,
+    jazzy_typestore,
+)
 from physics_mapper.mapping.detections import DETECTION_ARRAY, RECORDED_DETECTIONS_TOPIC
 from physics_mapper.mapping.stamps import time_parts, to_nanoseconds
 from physics_mapper.mapping.topics import (
@@ -72,6 +78,11 @@ Storage = Literal["mcap", "sqlite3"]
 _PLUGINS = {"mcap": StoragePlugin.MCAP, "sqlite3": StoragePlugin.SQLITE3}
 #: rosbag2 metadata version written (the one ROS 2 Jazzy writes).
 BAG_VERSION: Final = 9
+#: Largest ``metadata.yaml`` read, bytes. A bag of 300 topics (the node's inputs at 128 objects and
+#: its outputs) with rosbag2's offered QoS profiles has about 210 kB of it (700 bytes a topic); rosbags
+#: reads YAML in pure Python, about 0.07 MB/s on a loaded machine (8 MB of aliases: 23 s, 406 MiB;
+#: aliases are refused now), measured at this cap in ``BENCHMARKS.md``, "Hostile inputs".
+MAX_METADATA_BYTES = 256 * 1024
 
 POSE_ARRAY = "geometry_msgs/msg/PoseArray"
 WEIGHTS = "std_msgs/msg/Float64MultiArray"
@@ -396,6 +407,8 @@ def _reading(path: Path, verify: bool = True) -> Iterator[Reader]:
             f"{path}: no metadata.yaml: not a rosbag2 bag, or its recording did not end cleanly "
             "(`ros2 bag reindex` rebuilds it)"
         )
+    if path.is_dir():
+        _check_metadata(path)
     try:
         if verify:
             for storage_file in sorted(path.glob("*.mcap")) if path.is_dir() else [path]:
@@ -409,6 +422,26 @@ def _reading(path: Path, verify: bool = True) -> Iterator[Reader]:
         # A damaged file surfaces as whatever layer notices it first (a ChecksumError, ReaderError,
         # apsw's CorruptError, struct.error, OverflowError, ...); the try holds only bag-reading calls.
         raise _unreadable(path, error) from None
+
+
+def _check_metadata(bag: Path) -> None:
+    """Refuse (BagError) a ``metadata.yaml`` over :data:`MAX_METADATA_BYTES` or with YAML anchors or aliases
+    (rosbag2 writes none; expanding them is what makes a small file cost minutes), before rosbags reads it.
+
+    Its tokens are scanned by libyaml (no document is built: 0.04 s for 500 kB); text that does not
+    scan is left for rosbags to report.
+    """
+    metadata = bag / "metadata.yaml"
+    size = metadata.stat().st_size
+    if size > MAX_METADATA_BYTES:
+        raise BagError(f"{bag}: its metadata.yaml has {size} bytes (at most {MAX_METADATA_BYTES})")
+    loader = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
+    try:
+        tokens = yaml.scan(metadata.read_text(encoding="utf-8"), Loader=loader)
+        if any(isinstance(token, yaml.AnchorToken | yaml.AliasToken) for token in tokens):
+            raise BagError(f"{bag}: its metadata.yaml has YAML anchors or aliases, which rosbag2 never writes")
+    except (yaml.YAMLError, UnicodeDecodeError):
+        return
 
 
 def _unreadable(path: Path, error: Exception) -> BagError:
@@ -433,6 +466,10 @@ def read_bag(path: str | Path, topics: Collection[str] | None = None) -> Bag:
     with _reading(path) as reader:
         types = {recorded(c.topic): c.msgtype for c in reader.connections}
         definitions = bag_definitions(list(reader.connections))
+        try:
+            bag_typestore(definitions)  # parsed once here, so that a bad one is the bag's error
+        except DefinitionError as error:
+            raise BagError(f"{path}: {error}") from None
         wanted = _wanted(reader, topics)
         # rosbags reads every connection when given none; no wanted connection means no message.
         messages = (

@@ -8,11 +8,13 @@ then carry them too, as ``ros2 bag record`` would.
 
 from __future__ import annotations
 
-from functools import cache
+from functools import lru_cache
 
 from rosbags.interfaces import Connection, MessageDefinitionFormat
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from rosbags.typesys.store import Typestore
+
+from physics_mapper.model.limits import MAX_KEY_TEXT, clipped, printable
 
 #: Message type -> its definition (``.msg``), dependencies before the types that use them.
 DEFINITIONS = {
@@ -42,28 +44,55 @@ def _with_definitions(typestore: Typestore) -> Typestore:
     return typestore
 
 
-#: A bag's own definitions of the types Jazzy's store lacks: (message type, ``.msg`` text) pairs.
+#: A bag's own definitions of the vision types it records: (message type, ``.msg`` text) pairs.
 BagDefinitions = tuple[tuple[str, str], ...]
+
+#: Longest definition a bag may carry for one type, bytes. rosbag2 records a Detection3DArray's whole
+#: tree of definitions, comments included, in a few kB (2 kB without); rosbags' parser takes time and memory
+#: growing faster than the text (60,000 fields: 47 s, 752 MiB), measured at this cap in
+#: ``BENCHMARKS.md`` ("Hostile inputs").
+MAX_DEFINITION_BYTES = 32 * 1024
+
+
+class DefinitionError(ValueError):
+    """A bag's definition of a vision type cannot be used: too long, not ``.msg`` text, or redefining a
+    standard type (its message is one line, naming the type)."""
 
 
 def bag_definitions(connections: list[Connection]) -> BagDefinitions:
-    """The ``.msg`` definitions a bag carries (as rosbag2 records them) of types Jazzy's store lacks.
+    """The ``.msg`` definitions a bag carries (as rosbag2 records them) of the vision types decoded here.
 
-    Plain text, so that a bag in memory can be sent to another process (a pool or Ray worker).
+    Definitions of other types are never parsed: their messages are not decoded. Plain text, so that
+    a bag in memory can be sent to another process (a pool or Ray worker).
     """
-    standard = get_typestore(Stores.ROS2_JAZZY).types
     found = {
         (c.msgtype, c.msgdef.data)
         for c in connections
-        if c.msgtype not in standard and c.msgdef.format == MessageDefinitionFormat.MSG and c.msgdef.data
+        if c.msgtype in DEFINITIONS and c.msgdef.format == MessageDefinitionFormat.MSG and c.msgdef.data
     }
     return tuple(sorted(found))
 
 
-@cache
+#: Type stores kept for the bags' definitions last used: a process evaluating bags of many estimators
+#: keeps at most this many (2.8 MiB, ``BENCHMARKS.md``, "Hostile inputs").
+TYPESTORES_CACHED = 8
+
+
+@lru_cache(maxsize=TYPESTORES_CACHED)
 def bag_typestore(definitions: BagDefinitions) -> Typestore:
-    """A store decoding the types of ``definitions`` as they say, the others as Jazzy and :data:`DEFINITIONS` do."""
+    """A store decoding the types of ``definitions`` as they say, the others as Jazzy and :data:`DEFINITIONS` do.
+
+    Raises DefinitionError for a definition that is too long, cannot be parsed, or changes a type the
+    store has (a standard type, or one of two definitions of the same type).
+    """
     typestore = get_typestore(Stores.ROS2_JAZZY)
     for msgtype, text in definitions:
-        typestore.register(get_types_from_msg(text, msgtype))
+        size = len(text.encode("utf-8", "surrogateescape"))
+        if size > MAX_DEFINITION_BYTES:
+            raise DefinitionError(f"its definition of {msgtype} has {size} bytes (at most {MAX_DEFINITION_BYTES})")
+        try:
+            typestore.register(get_types_from_msg(text, msgtype))
+        except Exception as error:  # rosbags' parser and store raise TypesysError, and others on garbage
+            reason = clipped(printable(" ".join(str(error).split())), MAX_KEY_TEXT)
+            raise DefinitionError(f"its definition of {msgtype} cannot be used: {reason}") from None
     return _with_definitions(typestore)

@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING
 
 from physics_mapper.commands.files import input_file
 from physics_mapper.model.errors import EXIT_FAILURE, EXIT_INCOMPLETE, EXIT_INTERRUPTED, InputError
+from physics_mapper.model.limits import printable
 
 if TYPE_CHECKING:
     from physics_mapper.evaluation.executors import Executor
@@ -29,9 +30,14 @@ if TYPE_CHECKING:
 HELP = "search every snapshot of many bags offline, as the node would, in parallel; one report of validity and errors"
 
 
+#: Most local worker processes: each holds its own interpreter, pybullet and a bag's inputs, about 80 MB.
+MAX_WORKERS = 64
+
+
 def default_workers() -> int:
-    """The cores this process may run on."""
-    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
+    """The cores this process may run on (at most :data:`MAX_WORKERS`)."""
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
+    return min(cores, MAX_WORKERS)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -108,6 +114,8 @@ def load_scene_and_search(args: argparse.Namespace) -> tuple[Scene, SearchParams
         raise InputError(f"{args.output} exists and is not a folder")
     if args.workers is not None and args.workers < 0:
         raise InputError(f"--workers must not be negative, got {args.workers}")
+    if args.workers is not None and args.workers > MAX_WORKERS:
+        raise InputError(f"--workers must be at most {MAX_WORKERS} (each takes about 80 MB), got {args.workers}")
     if args.ray is not None and args.ray != "local" and args.workers is not None:
         raise InputError("--workers is for the local pool and --ray local; a cluster's CPUs set its parallelism")
     return scene, params
@@ -191,7 +199,7 @@ def run_batch_command(args: argparse.Namespace, scene: Scene, settings: Sequence
                 survey_time=survey_time,
             )
     except RayUnavailable as error:
-        print(f"physics-mapper {name}: error: {error}", file=sys.stderr)
+        print(f"physics-mapper {name}: error: {printable(str(error))}", file=sys.stderr)
         return None
     if batch.interrupted:
         progress(name, "interrupted: writing the report of what finished")
@@ -199,7 +207,7 @@ def run_batch_command(args: argparse.Namespace, scene: Scene, settings: Sequence
 
 
 def progress(name: str, text: str) -> None:
-    print(f"{name}: {text}", file=sys.stderr, flush=True)
+    print(f"{name}: {printable(text)}", file=sys.stderr, flush=True)
 
 
 def exit_code(batch: BatchRun) -> int:

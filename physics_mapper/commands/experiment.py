@@ -10,6 +10,7 @@ from dataclasses import replace
 from pathlib import Path
 
 from physics_mapper.model.errors import InputError
+from physics_mapper.model.limits import printable
 
 HELP = (
     "reproduce the paper's experiments (Figs. 4, 6, 8 and the peg in a hole) and the cluttered mesh scenes "
@@ -95,4 +96,4 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _progress(line: str) -> None:
-    print(line, file=sys.stderr, flush=True)
+    print(printable(line), file=sys.stderr, flush=True)

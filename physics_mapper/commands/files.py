@@ -9,7 +9,8 @@ from pathlib import Path
 
 from physics_mapper.model.atomic_files import write_atomically
 from physics_mapper.model.errors import InputError
-from physics_mapper.model.resources import ResourceError, resolve_resource
+from physics_mapper.model.limits import printable
+from physics_mapper.model.resources import ResourceError, file_problem, resolve_resource
 from physics_mapper.model.scene import Problem
 from physics_mapper.model.scene_files import load_problem
 from physics_mapper.model.scene_loading import load_stoppably
@@ -29,14 +30,22 @@ def load_problem_file(path: Path, command: str) -> Problem:
     of its own); what loading changed goes to stderr as warnings."""
     problem = load_stoppably(path, load_problem)
     for note in problem.notes:
-        print(f"physics-mapper {command}: warning: {note}", file=sys.stderr)
+        print(f"physics-mapper {command}: warning: {printable(note)}", file=sys.stderr)
     return problem
 
 
 def check_output_folder(path: Path) -> None:
-    """Refuse (InputError), before any work is done, an output file whose folder does not exist."""
+    """Refuse (InputError), before any work is done, an output file whose folder does not exist (or is a
+    file, or a symbolic link loop)."""
     if not path.parent.is_dir():
-        raise InputError(f"cannot write {path}: folder {path.parent} does not exist")
+        problem = file_problem(path.parent)
+        reasons = {
+            None: "is a file, not a folder",
+            "not a file": "is not a folder",
+            "a symbolic link loop": "is a symbolic link loop",
+        }
+        reason = reasons.get(problem) or "does not exist"
+        raise InputError(f"cannot write {path}: folder {path.parent} {reason}")
 
 
 def write_output(path: Path, text: str) -> None:

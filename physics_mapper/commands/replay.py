@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 import tempfile
 import time
@@ -15,6 +16,7 @@ from typing import TYPE_CHECKING
 
 from physics_mapper.commands.files import check_output_folder, input_file, write_output
 from physics_mapper.model.errors import EXIT_FAILURE, InputError
+from physics_mapper.model.limits import MAX_KEY_TEXT, clipped, printable
 
 if TYPE_CHECKING:
     from physics_mapper.bags.storage import Bag
@@ -85,7 +87,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def _progress(text: str) -> None:
-    print(f"replay: {text}", file=sys.stderr, flush=True)
+    print(f"replay: {printable(text)}", file=sys.stderr, flush=True)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -95,8 +97,11 @@ def run(args: argparse.Namespace) -> int:
     from physics_mapper.model.scene_files import load_scene
     from physics_mapper.model.scene_loading import load_stoppably
 
-    if not args.rate > 0.0:
-        raise InputError(f"--rate must be positive, got {args.rate}")
+    if not 0.0 < args.rate < math.inf:
+        raise InputError(f"--rate must be positive and finite, got {args.rate}")
+    for option, seconds in (("--wait", args.wait), ("--tail", args.tail)):
+        if not 0.0 <= seconds < math.inf:
+            raise InputError(f"{option} must be a finite number of seconds, 0 or more, got {seconds}")
     if args.offline and args.start_node:
         raise InputError("--start-node is for a live replay; --offline runs no node")
     if not args.offline and args.deadline is not None:
@@ -176,11 +181,11 @@ def _live(
     try:
         validate_namespace(args.namespace)
     except InvalidNamespaceException as error:
-        raise InputError(f"--namespace: {' '.join(str(error).split()).rstrip(' ^')}") from None
+        raise InputError(f"--namespace: {clipped(' '.join(str(error).split()).rstrip(' ^'), MAX_KEY_TEXT)}") from None
     try:
         validate_node_name(args.node_name)
     except InvalidNodeNameException as error:
-        raise InputError(f"--node-name: {' '.join(str(error).split()).rstrip(' ^')}") from None
+        raise InputError(f"--node-name: {clipped(' '.join(str(error).split()).rstrip(' ^'), MAX_KEY_TEXT)}") from None
     output = args.output or Path(f"{args.bag.resolve().name}_replay_{time.strftime('%Y_%m_%d-%H_%M_%S')}")
     playback = Playback(
         rate=args.rate,
@@ -211,7 +216,7 @@ def _live(
         try:
             counts = play_and_record(info, inputs, writer, playback, _progress, alive, snapshots, names)
         except ReplayError as error:
-            print(f"physics-mapper replay: error: {error}", file=sys.stderr)
+            print(f"physics-mapper replay: error: {printable(str(error))}", file=sys.stderr)
             if not alive():
                 log.seek(0)
                 print(f"node output:\n{log.read()}", file=sys.stderr)

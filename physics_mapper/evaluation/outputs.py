@@ -16,6 +16,7 @@ import io
 import json
 import math
 import os
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, Any
@@ -23,7 +24,7 @@ from typing import IO, Any
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-from physics_mapper.model.atomic_files import write_all_atomically
+from physics_mapper.model.atomic_files import Contents, write_all_atomically
 from physics_mapper.model.errors import InputError
 
 #: The colours of the two estimates, as in the paper's plots: without physics blue, with black;
@@ -64,10 +65,18 @@ def check_finite(data: Any, key: str = "summary") -> None:
             check_finite(value, f"{key}[{index}]")
 
 
-def write_outputs(output_dir: Path, name: str, figure: Figure, summary: dict[str, Any], markdown: str) -> ReportFiles:
-    """Write ``<name>.png``, ``<name>.json`` and ``<name>.md`` into ``output_dir`` (created if missing).
+def write_outputs(
+    output_dir: Path,
+    name: str,
+    figure: Figure,
+    summary: dict[str, Any],
+    markdown: str,
+    extra: Sequence[tuple[Path, Contents]] = (),
+) -> ReportFiles:
+    """Write ``<name>.png``, ``<name>.json`` and ``<name>.md`` into ``output_dir`` (created if missing),
+    and the ``extra`` files (a sweep's parameters file) with them.
 
-    All three or none: InputError (one line) if they cannot be written, the old ones untouched.
+    All or none: InputError (one line) if they cannot be written, the old ones untouched.
     """
     check_finite(summary)
     png, json_path, markdown_path = (output_dir / f"{name}.{ext}" for ext in ("png", "json", "md"))
@@ -80,6 +89,7 @@ def write_outputs(output_dir: Path, name: str, figure: Figure, summary: dict[str
                 (png, plot.getvalue()),
                 (json_path, json.dumps(summary, indent=1) + "\n"),
                 (markdown_path, markdown.rstrip() + "\n"),
+                *extra,
             ]
         )
     except OSError as error:

@@ -17,6 +17,8 @@ from typing import Literal, TextIO
 
 from tqdm import tqdm
 
+from physics_mapper.model.limits import printable
+
 ProgressMode = Literal["auto", "bar", "lines", "off"]
 
 #: Seconds between two redraws of the bar.
@@ -72,7 +74,8 @@ class Progress:
         """One more task ended (``what`` says which, and how, for the log line)."""
         self.tasks += 1
         if self.mode == "lines":
-            print(f"{self.prefix}: {self.tasks}/{self.total_tasks} {what}; {self.status()}", file=self.stream)
+            line = f"{self.prefix}: {self.tasks}/{self.total_tasks} {printable(what)}; {self.status()}"
+            print(line, file=self.stream)
             self.stream.flush()
         else:
             self._redraw()

@@ -23,8 +23,8 @@ from physics_mapper.evaluation.runner import BatchRun
 from physics_mapper.evaluation.settings import Setting, node_parameters_yaml, value_text
 from physics_mapper.evaluation.summary import bag_summary, overall_summary, time_summary
 from physics_mapper.evaluation.tasks import TaskOutput
-from physics_mapper.model.atomic_files import write_atomically
 from physics_mapper.model.errors import InputError
+from physics_mapper.model.limits import printable
 
 Criterion = Literal["settled", "chosen", "valid"]
 #: What each ``--criterion`` picks, for the reports.
@@ -259,12 +259,24 @@ def _summary_lines(summary: dict[str, Any], names: Sequence[str]) -> list[str]:
     return lines
 
 
+def _cell(text: object) -> str:
+    """Input-controlled text (an error naming a bag) in a Markdown table cell: one line, escaped, no ``|``."""
+    return printable(str(text)).replace("|", "\\|")
+
+
+def _code(text: str) -> str:
+    """Input-controlled text (a path, a command line) as Markdown code in a table or a line: escaped as
+    :func:`_cell`, in a span of two backticks if it holds one."""
+    escaped = _cell(text)
+    return f"`` {escaped} ``" if "`" in escaped else f"`{escaped}`"
+
+
 def _problem_lines(bags: Sequence[dict[str, Any]]) -> list[str]:
     problems = [bag for bag in bags if bag["status"] != "evaluated"]
     if not problems:
         return []
     lines = ["", "## Bags not evaluated", "", "| bag | status | error |", "| --- | --- | --- |"]
-    lines += [f"| `{bag['path']}` | {bag['status']} | {bag['error']} |" for bag in problems]
+    lines += [f"| {_code(bag['path'])} | {bag['status']} | {_cell(bag['error'])} |" for bag in problems]
     return lines
 
 
@@ -275,9 +287,9 @@ def evaluation_markdown(data: dict[str, Any], png_name: str) -> str:
     searches = overall["snapshots"] if overall else 0
     title = "Evaluation (interrupted: partial)" if data["interrupted"] else "Evaluation"
     lines = [
-        f"# {title} of {counts['bags']} bag(s) on `{data['scene']}`",
+        f"# {title} of {counts['bags']} bag(s) on {_code(data['scene'])}",
         "",
-        f"`{run['command']}`",
+        _code(run["command"]),
         "",
         f"- Objects: {', '.join(names)}; search: {_search_text(data['search'])}.",
         f"- Searches: {_mode_text(data, stopped, searches, data['search']['deadline'])}.",
@@ -316,7 +328,7 @@ def _bag_table(bags: Sequence[dict[str, Any]], times: dict[str, Any]) -> list[st
         p = MISSING if tests is None else _p(tests["settled_vs_top"]["total"])
         time = times[bag["path"]]
         lines.append(
-            f"| `{bag['path']}` | {bag['storage']} | {n} | {_share(summary['valid'], n)} | "
+            f"| {_code(bag['path'])} | {bag['storage']} | {n} | {_share(summary['valid'], n)} | "
             f"{_share(summary['fallback'], n)} | {_share(summary['no_map'], n)} | {errors} | {p} | "
             f"{_ms(time['p50_s'])} / {_ms(time['p90_s'])} |"
         )
@@ -446,9 +458,10 @@ def sweep_markdown(data: dict[str, Any], png_name: str, params_file: str | None)
     title = "Sweep (interrupted: partial)" if data["interrupted"] else "Sweep"
     criterion = data["criterion"]
     lines = [
-        f"# {title} of {len(data['settings'])} search settings over {len(data['bags'])} bag(s) on `{data['scene']}`",
+        f"# {title} of {len(data['settings'])} search settings over {len(data['bags'])} bag(s) "
+        f"on {_code(data['scene'])}",
         "",
-        f"`{run['command']}`",
+        _code(run["command"]),
         "",
         "- Grid: " + "; ".join(f"{key} = {', '.join(map(value_text, values))}" for key, values in grid.items()) + ".",
         f"- Searches: {SEARCH_MODES[data['search_mode']]}; run: {_run_text(run)}.",
@@ -463,11 +476,12 @@ def sweep_markdown(data: dict[str, Any], png_name: str, params_file: str | None)
     if best is None:
         lines.append("- Best: none (no setting has results from every usable bag).")
     elif params_file is None:
-        lines.append(f"- Best: #{best['index']} ({best['label']}); no parameters file: {best['params_file_error']}.")
+        reason = _cell(best["params_file_error"])
+        lines.append(f"- Best: #{best['index']} ({best['label']}); no parameters file: {reason}.")
     else:
         lines.append(
-            f"- Best: #{best['index']} ({best['label']}), as node parameters in `{params_file}`: "
-            f"`physics-mapper node --ros-args --params-file {params_file}`."
+            f"- Best: #{best['index']} ({best['label']}), as node parameters in {_code(params_file)}: "
+            f"{_code(f'physics-mapper node --ros-args --params-file {params_file}')}."
         )
     if best is not None:
         times = run["time_to_answer"]["settings"][best["index"]]
@@ -520,13 +534,20 @@ def write_sweep(
     run: BatchRun, context: ReportContext, criterion: Criterion, output_dir: Path
 ) -> tuple[ReportFiles, Path | None]:
     """Write ``sweep.json``, ``sweep.md``, ``sweep.png`` and, if a setting is best, its node parameters
-    file ``best_params.yaml`` (returned; None when there is no best or the node would refuse it)."""
+    file ``best_params.yaml`` (returned; None when there is no best or the node would refuse it).
+
+    The parameters file says of how many settings it is the best (those with results from every usable
+    bag, and whether the run was interrupted), and is renamed into place with the report, never before.
+    """
     data = sweep_data(run, context, criterion)
-    best, params_path = data["best"], None
+    best, params_path, params_text = data["best"], None, ""
     if best is not None:
         setting = run.settings[best["index"]]
+        compared = sum(1 for entry in data["settings"] if entry["complete"])
+        among = f"{len(run.settings)}" if compared == len(run.settings) else f"{compared} of {len(run.settings)}"
+        stopped = " (interrupted: the others did not finish)" if run.interrupted else ""
         header = [
-            f"physics-mapper sweep: the best of {len(run.settings)} search settings ({setting.label}),",
+            f"physics-mapper sweep: the best of {among} search settings{stopped} ({setting.label}),",
             f"by {data['criterion']['name']}: {data['criterion']['text']};",
             f"over {_counts(run, best['index'])['evaluated']} bag(s), searches {data['search_mode']}.",
             f"Made by: {context.command}",
@@ -536,16 +557,12 @@ def write_sweep(
         if data["search_mode"] == "exhaustive" and note is not None:
             header.append(f"Note: {note}.")
         try:
-            text = node_parameters_yaml(context.scene_file, setting.params, header)
+            params_text = node_parameters_yaml(context.scene_file, setting.params, header)
         except InputError as error:
             best["params_file_error"] = str(error)
         else:
             params_path = output_dir / PARAMS_FILE
-            try:
-                output_dir.mkdir(parents=True, exist_ok=True)
-                write_atomically(params_path, text)
-            except OSError as error:
-                raise InputError(f"cannot write {params_path}: {error.strerror or error}") from None
             best["params_file"] = PARAMS_FILE
     markdown = sweep_markdown(data, "sweep.png", None if params_path is None else str(params_path))
-    return write_outputs(output_dir, "sweep", sweep_figure(data), data, markdown), params_path
+    extra = [] if params_path is None else [(params_path, params_text)]
+    return write_outputs(output_dir, "sweep", sweep_figure(data), data, markdown, extra), params_path

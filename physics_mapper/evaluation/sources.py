@@ -58,7 +58,13 @@ def _bags_under(path: Path) -> list[Path]:
     if path.is_file():
         return [path.parent] if path.suffix in STORAGE_SUFFIXES or path.name == METADATA else []
     found = []
-    for folder, subfolders, files in os.walk(path):
+    walked: set[str] = set()
+    for folder, subfolders, files in os.walk(path, followlinks=True):  # a bag may be a link to one elsewhere
+        real = os.path.realpath(folder)
+        if real in walked:  # a link back up the tree, or a second link to one folder
+            subfolders.clear()
+            continue
+        walked.add(real)
         subfolders.sort()
         if _is_bag(files):
             found.append(Path(folder))

@@ -5,7 +5,8 @@ wait for it, so a missing ``/clock`` would stop the node without a word. :class:
 from a wall-clock (steady) timer with the node's clock and says when that clock has not advanced
 for :data:`SIM_CLOCK_SILENCE` seconds; the node then publishes a WARN diagnostic by wall clock.
 
-:func:`duplicate_name_warning` words what the node reports when the ROS graph holds another node
+:func:`clock_sources_warning` words what the node reports when ``/clock`` has more than one publisher, and
+:func:`duplicate_name_warning` what it reports when the ROS graph holds another node
 of its own fully qualified name (two nodes publishing one map, answering one parameter service).
 """
 
@@ -37,6 +38,21 @@ class ClockWatch:
             f"use_sim_time is true and {since} for {SIM_CLOCK_SILENCE:g} s or more: ticks and diagnostics wait "
             "for /clock (publish it, or set use_sim_time to false)"
         )
+
+
+def clock_sources_warning(publishers: int, sim_time: bool) -> str | None:
+    """The warning when ``sim_time`` and more than one publisher is on ``/clock``, or None.
+
+    Two sources (two simulators, a bag played with ``--clock`` beside a simulator) make the node's
+    clock jump between their times: its timers fire on every jump and its inputs look hundreds of
+    seconds old, which nothing else names.
+    """
+    if not sim_time or publishers <= 1:
+        return None
+    return (
+        f"use_sim_time is true and {publishers} publishers are on /clock: the node's clock jumps between their "
+        "times, ticks and diagnostics fire on every jump and inputs look stale (keep one /clock source)"
+    )
 
 
 def duplicate_name_warning(full_name: str, count: int) -> str | None:

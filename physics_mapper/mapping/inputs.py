@@ -37,10 +37,10 @@ from __future__ import annotations
 import math
 import threading
 from collections import deque
-from collections.abc import Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, replace
 from enum import IntEnum
-from typing import Literal
+from typing import Generic, Literal, TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -52,9 +52,17 @@ from physics_mapper.model.scene import Workspace
 
 #: Seconds a new PoseArray waits for its weights message before uniform weights are assumed.
 WEIGHTS_GRACE = 0.5
-#: Messages per object remembered for pairing (the newest ones).
+#: Messages per object remembered for pairing (the newest ones), of each kind.
 HISTORY_LENGTH = 16
+#: Bytes of the messages remembered per object, of each kind (a pose takes 56, a weight 8): beyond them
+#: the oldest are forgotten, but the newest message is kept however large. 128 objects remember at most
+#: 1 GiB beside their newest messages; 16 arrays of 100,000 poses and of 1M weights held 208 MiB for one
+#: object without this cap, 13 MiB with it (``BENCHMARKS.md``, "Hostile inputs").
+HISTORY_BYTES = 4 * 1024 * 1024
+#: Backward clock jumps remembered (the newest; all are counted).
+JUMPS_REMEMBERED = 16
 
+Message = TypeVar("Message")
 RawPose = tuple[Sequence[float], Sequence[float]]
 #: Poses as received, one row each: position x, y, z (m), orientation quaternion x, y, z, w; unchecked.
 PoseBlock = NDArray[np.float64]
@@ -290,13 +298,44 @@ def rank(poses: ReceivedPoses, weights: ReceivedWeights | None, max_hypotheses: 
     return InUse(ranked, poses, weights, tuple(notes), tuple(dropped))
 
 
+def _poses_bytes(poses: ReceivedPoses) -> int:
+    return poses.poses.nbytes + (0 if poses.weights is None else poses.weights.values.nbytes)
+
+
+class History(Generic[Message]):
+    """The newest messages of one kind: at most :data:`HISTORY_LENGTH` of them and :data:`HISTORY_BYTES`
+    of their arrays (the newest always), oldest first."""
+
+    def __init__(self, size: Callable[[Message], int]) -> None:
+        self._messages: deque[Message] = deque()
+        self._size = size
+        self._bytes = 0
+
+    def append(self, message: Message) -> None:
+        self._messages.append(message)
+        self._bytes += self._size(message)
+        while len(self._messages) > 1 and (len(self._messages) > HISTORY_LENGTH or self._bytes > HISTORY_BYTES):
+            self._bytes -= self._size(self._messages.popleft())
+
+    @property
+    def bytes(self) -> int:
+        """Bytes of the arrays of the messages remembered."""
+        return self._bytes
+
+    def __iter__(self) -> Iterator[Message]:
+        return iter(self._messages)
+
+    def __len__(self) -> int:
+        return len(self._messages)
+
+
 class ObjectInputs:
     """Messages received for one object and the hypotheses currently in use."""
 
     def __init__(self, name: str) -> None:
         self.name = name
-        self._poses: deque[ReceivedPoses] = deque(maxlen=HISTORY_LENGTH)  # refused ones too: they own weights
-        self._weights: deque[ReceivedWeights] = deque(maxlen=HISTORY_LENGTH)
+        self._poses = History[ReceivedPoses](_poses_bytes)  # refused ones too: they own weights
+        self._weights = History[ReceivedWeights](lambda w: w.values.nbytes)
         self._newest_usable: ReceivedPoses | None = None
         self._in_use: InUse | None = None
         self._tried: tuple[ReceivedPoses, ReceivedWeights | None, int, bool] | None = None
@@ -443,7 +482,9 @@ class InputTracker:
         self._lock = threading.Lock()
         self._latest = -math.inf  # the latest time seen, on the timeline
         self._offset = 0.0  # timeline - node clock: the backward jumps seen so far, seconds
-        self._jumps: list[tuple[float, float]] = []  # (node clock after it, seconds back) of each jump
+        # (node clock after it, seconds back) of the newest jumps; every one counted
+        self._jumps: deque[tuple[float, float]] = deque(maxlen=JUMPS_REMEMBERED)
+        self._jump_count = 0
 
     def _timeline(self, clock: float) -> float:
         """``clock`` (node clock, s) on the tracker's timeline; a backward jump moves the timeline's offset."""
@@ -452,6 +493,7 @@ class InputTracker:
             back = self._latest - time
             self._offset += back
             self._jumps.append((clock, back))
+            self._jump_count += 1
             time = self._latest
         self._latest = max(self._latest, time)
         return time
@@ -475,7 +517,8 @@ class InputTracker:
 
     @property
     def clock_jumps(self) -> tuple[tuple[float, float], ...]:
-        """Each backward jump of the node's clock seen: (the clock just after it, seconds back)."""
+        """The newest backward jumps of the node's clock (:data:`JUMPS_REMEMBERED`): (the clock just after
+        it, seconds back)."""
         with self._lock:
             return tuple(self._jumps)
 
@@ -485,6 +528,6 @@ class InputTracker:
             statuses = tuple(inputs.status(time, settings) for inputs in self.objects.values())
             if self._jumps:
                 clock, back = self._jumps[-1]
-                jump = (("clock jumped back", f"{back:.3f} s, to {clock:.3f} s ({len(self._jumps)} jump(s) so far)"),)
+                jump = (("clock jumped back", f"{back:.3f} s, to {clock:.3f} s ({self._jump_count} jump(s) so far)"),)
                 statuses = tuple(replace(status, details=status.details + jump) for status in statuses)
             return InputSnapshot(statuses)

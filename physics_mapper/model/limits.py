@@ -59,3 +59,10 @@ def clipped(text: str, limit: int) -> str:
         return text
     ending = f"... ({len(text)} characters)"
     return text[: max(0, limit - len(ending))] + ending
+
+
+def printable(text: str) -> str:
+    """``text`` with line breaks, escape sequences and every other unprintable character escaped as in a
+    Python literal (``\\n``, ``\\x1b``): input quoted on a terminal, in a log or a report stays one
+    line and shows what it holds."""
+    return text if text.isprintable() else "".join(c if c.isprintable() else repr(c)[1:-1] for c in text)

@@ -28,6 +28,7 @@ pybullet takes (an inertial frame at c turned by R, and a diagonal inertia m * l
 from __future__ import annotations
 
 import io
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
@@ -62,7 +63,8 @@ MESH_FORMATS = {".obj": "obj", ".stl": "stl"}
 MAX_MESH_VERTICES = 100_000
 #: Most triangles a mesh file may have: a closed surface has about twice as many triangles as vertices.
 #: Counted in the file's text (or binary STL header) before trimesh parses it, since parsing is the cost
-#: (measured, ``BENCHMARKS.md`` "Input caps": 4.2 million faces took 32 s and 1.9 GB).
+#: (measured, ``BENCHMARKS.md`` "Input caps": 4.2 million faces took 32 s and 1.9 GB); an OBJ polygon
+#: counts as the triangles trimesh makes of it.
 MAX_MESH_FACES = 2 * MAX_MESH_VERTICES
 #: Largest mesh file read, bytes (100,000 vertices take about 5 MB as OBJ text).
 MAX_MESH_FILE_BYTES = 64 * 1024 * 1024
@@ -218,6 +220,9 @@ def _read_surface(path: Path) -> trimesh.Trimesh:
     faces_given = _counted_faces(data, kind)
     if faces_given > MAX_MESH_FACES:
         raise MeshError(path, f"too many faces: {faces_given} (at most {MAX_MESH_FACES}; simplify the mesh)")
+    vertices_given = data.count(b"\nv ") + data.count(b"\nv\t") + int(data.startswith((b"v ", b"v\t")))
+    if kind == "obj" and vertices_given > MAX_MESH_VERTICES:
+        raise MeshError(path, f"too many vertices: {vertices_given} (at most {MAX_MESH_VERTICES}; simplify the mesh)")
     try:
         with signals_kept():  # so do its parsers
             loaded: Any = trimesh.load(io.BytesIO(data), file_type=kind, force="mesh", process=False)
@@ -246,10 +251,22 @@ def _read_surface(path: Path) -> trimesh.Trimesh:
     return surface
 
 
+#: OBJ's whitespace within a line as a space, every other byte but a line break as ``x``: a token
+#: starts wherever ``" x"`` stands in the translated text.
+_TOKEN_STARTS = bytes(32 if chr(b) in " \t\r\v\f" else 10 if b == 10 else ord("x") for b in range(256))
+#: Every line of an OBJ file but its faces (``f`` and whitespace), line break included.
+_NOT_FACE_LINES = re.compile(rb"^(?!f[ \t]).*\n?", re.MULTILINE)
+
+
 def _counted_faces(data: bytes, kind: str) -> int:
-    """Faces the file declares, counted without parsing it: OBJ ``f`` lines, STL facets."""
+    """Triangles the file declares, counted without parsing it: an OBJ polygon of n corners is the n - 2
+    triangles trimesh makes of it (so one line listing millions of corners counts as what it costs);
+    STL facets."""
     if kind == "obj":
-        return data.count(b"\nf ") + data.count(b"\nf\t") + int(data.startswith((b"f ", b"f\t")))
+        faces = _NOT_FACE_LINES.sub(b"", data)
+        corners = faces.translate(_TOKEN_STARTS).count(b" x")
+        lines = faces.count(b"\n") + int(bool(faces) and not faces.endswith(b"\n"))
+        return corners - 2 * lines
     if data[:5].lower() == b"solid" and b"facet" in data[:1024]:
         return data.count(b"facet normal")
     declared = int.from_bytes(data[80:84], "little") if len(data) >= 84 else 0  # binary STL's triangle count

@@ -18,8 +18,11 @@ resolved absolute path otherwise (:func:`resource_uri`).
 
 from __future__ import annotations
 
+import errno
 import importlib.util
-from pathlib import Path
+import os
+import stat
+from pathlib import Path, PurePosixPath
 
 from physics_mapper.model.errors import InputError
 from physics_mapper.model.shipped import PACKAGE, ament_share_directory, shipped_path
@@ -32,10 +35,13 @@ class ResourceError(ValueError):
 
 
 def split_package_url(url: str) -> tuple[str, str]:
-    """``package://pkg/a/b`` -> (``pkg``, ``a/b``); ResourceError when no package is named."""
+    """``package://pkg/a/b`` -> (``pkg``, ``a/b``); ResourceError when no package is named, or the path
+    would leave the package's folder (a ``..`` part, or an absolute path)."""
     package, _, relative = url[len(PACKAGE_URL) :].partition("/")
     if not package:
         raise ResourceError(f"{url}: no package name after {PACKAGE_URL}")
+    if relative.startswith("/") or ".." in PurePosixPath(relative).parts:
+        raise ResourceError(f"{url}: the path must stay inside the package's folder (no '..', not absolute)")
     return package, relative
 
 
@@ -64,6 +70,21 @@ def resolve_resource(text: str, base_dir: Path | None) -> Path:
     if not path.is_absolute() and base_dir is not None:
         path = base_dir / path
     return path
+
+
+def file_problem(path: Path) -> str | None:
+    """Why ``path`` is not a regular file to read, in a few words (None if it is one): ``missing file``,
+    ``a symbolic link loop``, ``a part of its path is a file, not a folder``, ``not a file``."""
+    try:
+        mode = os.stat(path).st_mode
+    except OSError as error:
+        reasons = {
+            errno.ENOENT: "missing file",
+            errno.ELOOP: "a symbolic link loop",
+            errno.ENOTDIR: "a part of its path is a file, not a folder",
+        }
+        return reasons.get(error.errno or 0, error.strerror or str(error))
+    return None if stat.S_ISREG(mode) else "not a file"
 
 
 def resource_uri(text: str, resolved: Path) -> str:

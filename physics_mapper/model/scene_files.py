@@ -39,7 +39,7 @@ from physics_mapper.model.limits import (
 )
 from physics_mapper.model.meshes import MeshCollision, MeshError, MeshGeometry, MeshRequest, load_mesh_geometry
 from physics_mapper.model.names import object_name_problem, topic_clash
-from physics_mapper.model.resources import ResourceError, resolve_resource, resource_uri
+from physics_mapper.model.resources import ResourceError, file_problem, resolve_resource, resource_uri
 from physics_mapper.model.scene import (
     OBJECT_MESH_COLLISIONS,
     OBJECT_SHAPES,
@@ -203,8 +203,9 @@ class _MeshLoader:
             path = resolve_resource(text, self.base_dir)
         except ResourceError as error:
             raise self.reader.fail(key, str(error)) from None
-        if not path.is_file():
-            raise self.reader.fail(key, f"{path}: missing file" if not path.exists() else f"{path}: not a file")
+        problem = file_problem(path)
+        if problem is not None:
+            raise self.reader.fail(key, f"{path}: {problem}")
         return text, path.resolve()
 
     def load(self, data: Mapping[str, Any], key: str, collisions: Sequence[MeshCollision], *, movable: bool) -> Mesh:

@@ -23,7 +23,7 @@ from yaml.composer import ComposerError
 from yaml.constructor import ConstructorError
 from yaml.nodes import MappingNode, Node
 
-from physics_mapper.model.limits import MAX_FILE_BYTES, MAX_KEY_TEXT, MAX_YAML_DEPTH, clipped
+from physics_mapper.model.limits import MAX_FILE_BYTES, MAX_KEY_TEXT, MAX_YAML_DEPTH, clipped, printable
 
 #: A YAML 1.2 (core schema) float without the special values: ``.5``, ``1.``, ``1e-4``, ``-2.5E+3``.
 FLOAT_SPELLING = re.compile(r"^[-+]?(?:\.[0-9]+|[0-9]+(?:\.[0-9]*)?)(?:[eE][-+]?[0-9]+)?$")
@@ -38,16 +38,11 @@ class FileError(ValueError):
     """
 
     def __init__(self, source: str, key: str, problem: str) -> None:
-        key, problem = clipped(_printable(key), MAX_KEY_TEXT), _printable(problem)
+        key, problem = clipped(printable(key), MAX_KEY_TEXT), printable(problem)
         super().__init__(f"{source}: {key}: {problem}" if key else f"{source}: {problem}")
         self.source = source
         self.key = key
         self.problem = problem
-
-
-def _printable(text: str) -> str:
-    """``text`` with line breaks and other unprintable characters escaped as in a Python literal."""
-    return text if text.isprintable() else "".join(c if c.isprintable() else repr(c)[1:-1] for c in text)
 
 
 class _BoundedLoader(yaml.SafeLoader):

@@ -51,7 +51,7 @@ from physics_mapper.mapping.topics import (
     TopicQos,
 )
 from physics_mapper.ros.qos import PLAYBACK_DEPTH, playback_qos, qos_profile, recorded_qos
-from physics_mapper.ros.spinning import shutdown_ros
+from physics_mapper.ros.spinning import ros_for_command
 
 #: The node's outputs that are recorded, with their types; a bag's messages on these topics are not
 #: played, nor an old run's markers.
@@ -264,8 +264,7 @@ def play_and_record(
     node's finished search on it (``object_names``: the scene's objects, in order). Returns the
     messages recorded per topic.
     """
-    rclpy.init(args=[])
-    try:
+    with ros_for_command():
         node = rclpy.create_node("physics_mapper_replay", namespace=playback.namespace)
         executor = SingleThreadedExecutor()
         executor.add_node(node)
@@ -286,8 +285,6 @@ def play_and_record(
         _spin_until(executor, time.monotonic() + playback.tail)
         executor.remove_node(node)
         node.destroy_node()  # type: ignore[no-untyped-call]
-    finally:
-        shutdown_ros()
     return recorder.counts
 
 

@@ -15,7 +15,7 @@ from diagnostic_msgs.msg import DiagnosticStatus
 from rclpy.node import Node
 from rclpy.publisher import Publisher
 
-from physics_mapper.mapping.clock import ClockWatch, SilentInputWatch, duplicate_name_warning
+from physics_mapper.mapping.clock import ClockWatch, SilentInputWatch, clock_sources_warning, duplicate_name_warning
 from physics_mapper.mapping.mapper import Mapper, TickReport
 from physics_mapper.mapping.stamps import NANOSECONDS_PER_SECOND
 from physics_mapper.mapping.tick_statistics import TickStatistics
@@ -24,6 +24,8 @@ from physics_mapper.model.limits import MAX_DIAGNOSTIC_TEXT, clipped
 from physics_mapper.msg_adapters.diagnostics import diagnostics_msg
 from physics_mapper.ros.parameters import NodeParameters
 
+#: The topic of the simulated clock (rclpy's time source subscribes to it, from the root namespace).
+CLOCK_TOPIC = "/clock"
 #: Wall-clock seconds between two checks of the simulated clock and of the node's name on the graph.
 WATCH_PERIOD = 1.0
 
@@ -69,7 +71,11 @@ class NodeDiagnostics:
             for name, namespace in node.get_node_names_and_namespaces()
             if name == node.get_name() and namespace == node.get_namespace()
         )
-        found = {"clock": clock, "name": duplicate_name_warning(node.get_fully_qualified_name(), count)}
+        found = {
+            "clock": clock,
+            "clock sources": clock_sources_warning(node.count_publishers(CLOCK_TOPIC), sim_time),
+            "name": duplicate_name_warning(node.get_fully_qualified_name(), count),
+        }
         for name, inputs in self._mapper.inputs.objects.items():
             publishers = node.count_publishers(poses_topic(name))
             silent = self._silent_inputs.observe(

@@ -19,10 +19,14 @@ from physics_mapper.mapping.detections import DETECTIONS_TOPIC
 from physics_mapper.mapping.inputs import MessageKind
 from physics_mapper.mapping.mapper import Mapper
 from physics_mapper.mapping.stamps import NANOSECONDS_PER_SECOND
+from physics_mapper.model.limits import clipped, printable
 from physics_mapper.msg_adapters.hypotheses import received_pose_array, received_weights
 
 #: Distinct input notes (object, text) logged in full before they are throttled.
 MAX_LOGGED_INPUT_NOTES = 1000
+#: Characters of one input note, logged and remembered: the notes remembered take at most about
+#: 1000 x 200 characters, whatever the input they quote.
+MAX_INPUT_NOTE_TEXT = 200
 
 
 class InputNotes:
@@ -35,7 +39,9 @@ class InputNotes:
         self._logged: set[tuple[str, str]] = set()
 
     def log_once(self, name: str, what: str) -> None:
-        """Log ``what`` of object (or topic) ``name``, unless it was logged already."""
+        """Log ``what`` of object (or topic) ``name``, unless it was logged already; ``what`` is escaped and
+        clipped to :data:`MAX_INPUT_NOTE_TEXT` first (it quotes input: a class id may be 100 kB long)."""
+        what = clipped(printable(what), MAX_INPUT_NOTE_TEXT)
         key = (name, what)
         if key in self._logged:
             return

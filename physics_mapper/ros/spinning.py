@@ -26,6 +26,7 @@ from types import FrameType
 
 import rclpy
 from rclpy.node import Node
+from rclpy.signals import SignalHandlerOptions
 from rclpy.utilities import ok
 
 #: The signals that stop the process cleanly.
@@ -38,6 +39,43 @@ def shutdown_ros() -> None:
     """Shut rclpy down unless a signal (SIGINT, SIGTERM) already did."""
     if ok():
         rclpy.shutdown()
+
+
+@contextmanager
+def ros_for_command() -> Iterator[None]:
+    """rclpy for a command that the first SIGINT or SIGTERM stops with KeyboardInterrupt (``publish``, a
+    live replay); later ones are ignored.
+
+    rclpy installs no signal handler: its handler shut the context down from the signal, and one
+    arriving between the ``ok()`` check and the shutdown of :func:`shutdown_ros` made the shutdown
+    raise (``rcl_shutdown already called``), as did a publish after it. Here the first signal
+    raises KeyboardInterrupt and ignores both from then on (a second one during the interpreter's
+    exit, when Python puts the default action back for the handlers it set, killed the process);
+    ROS is shut down once, when the block ends, with the signals held meanwhile.
+    """
+    stopping = False
+
+    def stop(number: int, frame: FrameType | None) -> None:
+        nonlocal stopping
+        for stop_signal in STOP_SIGNALS:
+            signal.signal(stop_signal, signal.SIG_IGN)
+        if not stopping:
+            stopping = True
+            raise KeyboardInterrupt
+
+    previous = {number: signal.signal(number, stop) for number in STOP_SIGNALS}
+    rclpy.init(args=[], signal_handler_options=SignalHandlerOptions.NO)
+    try:
+        yield
+    finally:
+        held = signal.pthread_sigmask(signal.SIG_BLOCK, STOP_SIGNALS)
+        try:
+            shutdown_ros()
+        finally:
+            if not stopping:
+                for number, handler in previous.items():
+                    signal.signal(number, handler)
+            signal.pthread_sigmask(signal.SIG_SETMASK, held)
 
 
 def spin_for(node: Node, seconds: float) -> None:

@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 import yaml
 from mesh_builders import floor_scene_dict, load_inline, mesh_object, trough_mesh, write_mesh
-from ros_helpers import run_cli
+from ros_helpers import last_error_line, one_error_line, run_cli
 
 from physics_mapper.evaluation.outputs import lock_report_folder
 from physics_mapper.mapping import topics
@@ -29,7 +29,7 @@ from physics_mapper.model.decomposition import (
     MAX_CONVEX_PARTS,
     read_cached_parts,
 )
-from physics_mapper.model.errors import EXIT_BAD_INPUT, InputError
+from physics_mapper.model.errors import InputError
 from physics_mapper.model.limits import MAX_MASS, MAX_MASS_RATIO, MAX_OBJECTS
 from physics_mapper.model.meshes import MAX_MESH_FACES
 from physics_mapper.model.names import DERIVED_TOPICS, derived_topics, object_name_problem
@@ -38,24 +38,6 @@ from physics_mapper.model.scene_files import SceneError, load_problem, load_scen
 
 REPO = Path(__file__).resolve().parents[2]
 PYRAMID_PROBLEM = REPO / "config" / "problems" / "pyramid.yaml"
-
-
-def one_error_line(completed: subprocess.CompletedProcess[str], *fragments: str) -> str:
-    """The single stderr line of a refused command (exit 2), holding every fragment."""
-    assert completed.returncode == EXIT_BAD_INPUT, completed.stderr
-    lines = completed.stderr.splitlines()
-    assert len(lines) == 1 and "Traceback" not in completed.stderr, completed.stderr
-    for fragment in fragments:
-        assert fragment in lines[0], lines[0]
-    return lines[0]
-
-
-def last_error_line(completed: subprocess.CompletedProcess[str], *fragments: str) -> str:
-    """The error line ending a refused command's stderr (exit 2, no traceback), after its progress lines."""
-    assert completed.returncode == EXIT_BAD_INPUT and "Traceback" not in completed.stderr, completed.stderr
-    line = completed.stderr.splitlines()[-1]
-    assert ": error: " in line and all(fragment in line for fragment in fragments), line
-    return line
 
 
 def problem_text(objects: list[dict[str, Any]], heights: list[float] | None = None) -> str:
