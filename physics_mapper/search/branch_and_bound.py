@@ -59,7 +59,15 @@ from physics_mapper.physics.collision import Collision
 from physics_mapper.physics.refine import RefinedMap, Refinement, refinement_start
 from physics_mapper.physics.settling import EarlyExit, PartialSettling, Settling, early_exit_rule
 from physics_mapper.physics.world import TIME_STEP
-from physics_mapper.search.results import Candidate, Code, GroupResult, SearchResult, SearchStats, TraceEntry
+from physics_mapper.search.results import (
+    Candidate,
+    Code,
+    GroupResult,
+    RuledOut,
+    SearchResult,
+    SearchStats,
+    TraceEntry,
+)
 
 if TYPE_CHECKING:
     from physics_mapper.physics.collision_table import CollisionTable
@@ -134,6 +142,8 @@ class BranchAndBound:
         #: p(C) of the first valid node found (the reference of ``bound: resolving``).
         self.first_valid_probability: float | None = None
         self._configurations = math.prod(len(h) for h in self.hypotheses)
+        #: Ranks ruled out before the first candidate, with why (a search that rules some out sets them).
+        self.ruled_out: tuple[RuledOut, ...] = ()
         self.push(self._root, None)
 
     def probability(self, code: Code) -> float:
@@ -463,6 +473,7 @@ class BranchAndBound:
             skipped=self.stats.skipped,
             local_settlings=self.stats.local_settlings,
             full_settlings=self.stats.full_settlings,
+            ruled_out=self.ruled_out,
         )
 
     @property

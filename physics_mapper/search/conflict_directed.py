@@ -58,7 +58,7 @@ from physics_mapper.search.conflicts import Blame, Conflict, ConflictStore, coll
 from physics_mapper.search.grouped import GroupedSearch, GroupSearch, SettleMemo, physics_key
 from physics_mapper.search.local_settling import LocalPlan, LocalSettling
 from physics_mapper.search.pending_children import PendingChildren
-from physics_mapper.search.results import Candidate, Code, TraceEntry
+from physics_mapper.search.results import Candidate, Code, RuledOut, TraceEntry
 from physics_mapper.search.ruling_out import RulingOut
 
 #: Candidates skipped between two looks at the clock (a skip costs tens of microseconds).
@@ -93,7 +93,7 @@ class ConflictGroupSearch(GroupSearch):
         self._depths: dict[tuple[int, int], float] = {}  # the last Rule 1 check's overlaps, by body pair
         half_margin = self.params.interaction_margin / 2.0  # the grouping's boxes are grown by it
         grouping = owner.grouping
-        self.stats.conflicts += RulingOut(
+        rulings = RulingOut(
             self.objects,
             [grouping.lows[i] + half_margin for i in self.objects],
             [grouping.highs[i] - half_margin for i in self.objects],
@@ -101,6 +101,13 @@ class ConflictGroupSearch(GroupSearch):
             self.params.penetration_threshold,
             self.conflicts,
         ).run(scene.static)
+        body_name = self.checker.body_name
+        self.ruled_out = tuple(
+            RuledOut(self.names[r.position], r.rank, body_name(r.other), r.depth, r.every_rank, self.trace_group)
+            for r in rulings
+        )
+        self.stats.conflicts += len(rulings)
+        self.stats.ruled_out += len(rulings)
 
     def step(self, stop_at: float | None) -> bool:
         """Skip every candidate at the head of the queue that contains a known conflict (no physics: many
