@@ -275,14 +275,19 @@ class BranchAndBound:
     @property
     def refinement_due(self) -> bool:
         """Whether the root's refined map is to be made now: fallback refine, the root visited (or
-        skipped by a conflict) and not valid, no valid node yet, no node's settling waiting to be continued."""
+        known to hold a conflict) and not valid, no valid node yet, no node's settling waiting to be continued."""
         return (
             self.params.fallback == "refine"
             and self._refined is None
             and self._best is None
-            and self.stats.visited + self.stats.skipped > 0
+            and self.root_rejected
             and self._interrupted is None
         )
+
+    @property
+    def root_rejected(self) -> bool:
+        """Whether the root was checked (and so, with no valid node yet, rejected)."""
+        return self.stats.visited > 0
 
     def _refine(self, stop_at: float | None) -> bool:
         """Make (or go on making) the root's refined map; False if ``stop_at`` came first."""

@@ -151,9 +151,9 @@ def trace_tree(trace: tuple[TraceEntry, ...], groups: tuple[GroupResult, ...] = 
     """The search tree: each node under the node that queued it, in visiting order (one tree per group,
     headed by its objects when ``groups`` and the scene's object ``names`` are given).
 
-    A node queued by one that is not in the trace (a candidate skipped by a conflict, or visited after
-    the trace limit) heads a tree of its own, which names that node. The ranks a group ruled out before
-    its search come first, one line each, with why."""
+    A node without a parent in the trace (the default search's candidate whose parents all hold a known
+    conflict, or a node queued by one visited after the trace limit) heads a tree of its own. The ranks
+    a group ruled out before its search come first, one line each, with why."""
     objects = {group.id: ", ".join(names[i] for i in group.objects) for group in groups} if names else {}
     lines = [
         f"{_group_head(group.id, objects)}ruled out before the search: {ruled_out_text(ruling)}"
@@ -180,7 +180,7 @@ def trace_tree(trace: tuple[TraceEntry, ...], groups: tuple[GroupResult, ...] = 
             walk(group, entry.code, prefix + ("   " if last else "│  "))
 
     for index, entry in tops:
-        queued_by = "" if entry.parent is None else f"  (queued by {code_text(entry.parent)}, skipped)"
+        queued_by = "" if entry.parent is None else f"  (queued by {code_text(entry.parent)}, untraced)"
         lines.append(line(_group_head(entry.group, objects), index, entry) + queued_by)
         walk(entry.group, entry.code, "")
     return "\n".join(lines)

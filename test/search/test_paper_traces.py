@@ -18,15 +18,17 @@ from typing import Any
 
 import pytest
 
+from physics_mapper.model.scene import Strategy
+
 REPO = Path(__file__).resolve().parents[2]
 RECORDINGS = REPO / "test" / "data" / "paper_traces"
 PROBLEMS = ("stack", "pyramid", "peg_in_hole", "sphere_groove")
-STRATEGIES = ("joint", "grouped", "conflict")
+STRATEGIES: tuple[Strategy, ...] = ("joint", "grouped", "conflict")
 #: Numbers of a trace entry, compared within these tolerances (p(C) relative, the others in m and s).
 NUMBERS = {"probability": 1e-9, "depth": 2e-4, "jitter": 5e-4, "settled_time": 0.05}
 
 
-def solved(problem: str, strategy: str) -> dict[str, Any]:
+def solved(problem: str, strategy: Strategy) -> dict[str, Any]:
     """The problem's result under ``strategy`` (the problem's other search keys as shipped), as JSON data."""
     from physics_mapper.model.scene_files import load_problem
     from physics_mapper.physics.checker import PhysicsChecker
@@ -41,13 +43,13 @@ def solved(problem: str, strategy: str) -> dict[str, Any]:
     return {"valid": data["valid"], "code": data["code"], "end": data["stats"]["end"], "trace": data["trace"]}
 
 
-def recording(problem: str, strategy: str) -> Path:
+def recording(problem: str, strategy: Strategy) -> Path:
     return RECORDINGS / f"{problem}_{strategy}.json"
 
 
 @pytest.mark.parametrize("strategy", STRATEGIES)
 @pytest.mark.parametrize("problem", PROBLEMS)
-def test_the_paper_problems_give_the_recorded_traces(problem: str, strategy: str) -> None:
+def test_the_paper_problems_give_the_recorded_traces(problem: str, strategy: Strategy) -> None:
     expected = json.loads(recording(problem, strategy).read_text())
     got = solved(problem, strategy)
     assert (got["valid"], got["code"], got["end"]) == (expected["valid"], expected["code"], expected["end"])
