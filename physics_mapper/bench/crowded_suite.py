@@ -6,7 +6,9 @@ Layouts, N objects each:
 - ``wall``: columns of two cubes, 1 mm apart;
 - ``tower``: columns of three cubes, 1 mm apart;
 - ``shelf``: boxes of mixed sizes in rows, 1 mm apart, on fixed boards at three heights;
-- ``bin``: mixed boxes and upright cylinders dropped on a grid into a walled bin and settled.
+- ``bin``: mixed boxes and upright cylinders dropped on a grid into a walled bin and settled;
+- ``mesh_bin``: pybullet_data's random objects (one convex hull each, 5 to 8 cm across), dropped on a
+  grid into a walled bin and settled, the same way.
 
 The true poses are the scene settled for :data:`TRUTH_SETTLE_TIME` (again, up to
 :data:`TRUTH_SETTLINGS` times, until they pass both rules with half the jitter threshold to spare),
@@ -34,9 +36,12 @@ import numpy as np
 from physics_mapper.bench.problems import SuiteCase, SuiteProblem
 from physics_mapper.model.geometry import Pose, quaternion_about_axis, quaternion_multiply
 from physics_mapper.model.hypotheses import Hypothesis, RankedHypotheses
+from physics_mapper.model.meshes import MeshRequest, load_mesh_geometry
+from physics_mapper.model.resources import resolve_package_url
 from physics_mapper.model.scene import (
     Box,
     Cylinder,
+    Mesh,
     ObjectModel,
     Plane,
     Problem,
@@ -47,8 +52,12 @@ from physics_mapper.model.scene import (
 )
 from physics_mapper.physics.checker import PhysicsChecker
 
-CrowdedLayout = Literal["row", "wall", "tower", "shelf", "bin"]
+CrowdedLayout = Literal["row", "wall", "tower", "shelf", "bin", "mesh_bin"]
 CROWDED_LAYOUTS: tuple[CrowdedLayout, ...] = ("row", "wall", "tower", "shelf", "bin")
+#: pybullet_data's random objects (``random_urdfs/NNN/NNN.obj``): how many, and the size of a mesh bin's
+#: objects (largest extent, m).
+RANDOM_MESHES = 1000
+MESH_EXTENT = (0.05, 0.08)
 #: Edge of the cubes, metres; their mass, kg; the gap between neighbours, metres.
 CUBE_EDGE = 0.1
 MASS = 0.3
@@ -119,8 +128,21 @@ def _shelf(objects: int, rng: np.random.Generator) -> _Layout:
     return _Layout(tuple(models), (StaticBody("floor", Plane()), *boards), tuple(poses), TRUTH_SETTLE_TIME, True)
 
 
-def _bin(objects: int, rng: np.random.Generator) -> _Layout:
-    """Boxes and upright cylinders on a grid, two layers, dropped into a walled bin and settled."""
+def _random_mesh(index: int, rng: np.random.Generator) -> ObjectModel:
+    """One of pybullet_data's random objects, collided as its convex hull, scaled to :data:`MESH_EXTENT`."""
+    number = int(rng.integers(0, RANDOM_MESHES))
+    path = resolve_package_url(f"package://pybullet_data/random_urdfs/{number:03d}/{number:03d}.obj")
+    unit = load_mesh_geometry(MeshRequest(path), lambda _: None)
+    extent = float(np.max(np.subtract(unit.bounds[1], unit.bounds[0])))
+    scale = float(rng.uniform(*MESH_EXTENT)) / extent
+    request = MeshRequest(path, (scale, scale, scale))
+    mesh = Mesh(path, path.as_uri(), request.scale, "convex_hull", load_mesh_geometry(request, lambda _: None))
+    return ObjectModel(f"mesh_{index:02d}", mesh, mass=MASS)
+
+
+def _bin(objects: int, rng: np.random.Generator, meshes: bool = False) -> _Layout:
+    """Boxes and upright cylinders (or random meshes) on a grid, two layers, dropped into a walled bin and
+    settled."""
     side = math.ceil(math.sqrt(math.ceil(objects / 2)))
     inner = side * BIN_CELL
     models, poses = [], []
@@ -129,7 +151,10 @@ def _bin(objects: int, rng: np.random.Generator) -> _Layout:
         x = (cell % side + 0.5) * BIN_CELL - inner / 2.0
         y = (cell // side + 0.5) * BIN_CELL - inner / 2.0
         yaw = quaternion_about_axis((0.0, 0.0, 1.0), float(rng.uniform(0.0, math.pi)))
-        if rng.random() < 0.5:
+        if meshes:
+            models.append(_random_mesh(index, rng))
+            height = MESH_EXTENT[1]
+        elif rng.random() < 0.5:
             size = (float(rng.uniform(0.06, 0.1)), float(rng.uniform(0.06, 0.1)), float(rng.uniform(0.05, 0.09)))
             models.append(ObjectModel(f"box_{index:02d}", Box(size), mass=MASS))
             height = size[2]
@@ -155,7 +180,7 @@ def layout_of(case: CrowdedCase, rng: np.random.Generator) -> _Layout:
         return _columns(case.objects, 3)
     if case.layout == "shelf":
         return _shelf(case.objects, rng)
-    return _bin(case.objects, rng)
+    return _bin(case.objects, rng, meshes=case.layout == "mesh_bin")
 
 
 def settled_truth(scene: Scene, layout: _Layout) -> tuple[Pose, ...]:

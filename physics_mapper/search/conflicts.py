@@ -133,8 +133,6 @@ class ConflictStore:
         self._conflicts: list[Conflict] = []
         self._known: set[tuple[tuple[Assignment, ...], tuple[frozenset[int], ...]]] = set()
         self._excluded: list[list[int]] = [[0] * (count + 1) for count in ranks]
-        # Per position p, the conflicts whose objects are all at positions up to p.
-        self._within: list[int] = [0] * len(ranks)
 
     def __len__(self) -> int:
         return len(self._conflicts)
@@ -159,8 +157,6 @@ class ConflictStore:
             for other in range(1, len(excluded)):
                 if other not in ranks:
                     excluded[other] |= bit
-        for position in range(max(conflict.positions), len(self._within)):
-            self._within[position] |= bit
         if len(conflict.assignments) == 1:
             self._ruled_out[conflict.positions[0]].update(conflict.ranks[0])
         return True
@@ -169,11 +165,9 @@ class ConflictStore:
         """The conflicts (bit k: the k-th learned) that the object at ``position`` at ``rank`` resolves."""
         return self._excluded[position][rank]
 
-    def within(self, position: int) -> int:
-        """The conflicts (bit k: the k-th learned) whose objects are all at ``position`` or before it: an
-        assignment of the positions up to it decides them (it contains those not in the union of its
-        :meth:`excluded` sets)."""
-        return self._within[position]
+    def since(self, count: int) -> list[Conflict]:
+        """The conflicts learned after the first ``count`` (conflict k is bit k of the bit sets)."""
+        return self._conflicts[count:]
 
     def live_ranks(self, position: int) -> list[int]:
         """The ranks of the object at ``position`` that no one-assignment conflict rules out, ascending."""

@@ -93,15 +93,18 @@ def test_under_the_bound_only_configurations_with_a_parent_above_it_are_generate
     assert [code for code, _ in generated(weights, store, bounded)] == expected
 
 
-@given(groups(), st.data())
+@given(groups(), st.data(), st.sampled_from((1, 3, 1_000_000)))
 def test_conflicts_learned_between_candidates_apply_to_every_later_one(
-    group: tuple[list[list[float]], list[Conflict]], data: st.DataObject
+    group: tuple[list[list[float]], list[Conflict]], data: st.DataObject, reorder_nodes: int
 ) -> None:
     """Conflicts learned one at a time while candidates are taken: each candidate is the first, after the
-    last one taken, in the paper's order, of the configurations holding no conflict known by then."""
+    last one taken, in the paper's order, of the configurations holding no conflict known by then,
+    whether the variable order is chosen again (after 1 or 3 prefixes for one candidate) or not."""
     weights, conflicts = group
     store = ConflictStore([len(w) for w in weights])
-    candidates = ConflictFreeCandidates(weights, store, lambda _: False, queue_limit=1_000_000)
+    candidates = ConflictFreeCandidates(
+        weights, store, lambda _: False, queue_limit=1_000_000, reorder_nodes=reorder_nodes
+    )
     order = paper_order(weights)
     place = {code: index for index, code in enumerate(order)}
     last = -1
@@ -110,7 +113,7 @@ def test_conflicts_learned_between_candidates_apply_to_every_later_one(
         if data.draw(st.booleans()) and pending:
             store.learn(pending.pop(0))
         if data.draw(st.booleans()):
-            candidates.head()  # looked at before conflicts are learned, taken after
+            candidates.find()  # found before conflicts are learned, taken after
             if pending:
                 store.learn(pending.pop(0))
         known = list(store)
