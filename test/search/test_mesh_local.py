@@ -6,9 +6,8 @@ from dataclasses import replace
 
 import pytest
 
-from physics_mapper.bench.crowded import full_verdicts
-from physics_mapper.bench.crowded_suite import CrowdedCase, crowded_problem, truth_is_valid
 from physics_mapper.physics.checker import PhysicsChecker
+from physics_mapper.scenarios.crowded_suite import CrowdedCase, crowded_problem, full_verdicts, truth_is_valid
 from physics_mapper.search.strategy import make_search
 
 #: Bins of pybullet_data's random meshes small enough to search to the end in a test.
