@@ -21,7 +21,8 @@ hypotheses: its true pose and M - 1 wrong ones, each against a rule whatever the
   shelves): its lower edge dips at least 1 cm into what is below it (Rule 1).
 
 Every wrong hypothesis also moves up to 5 mm sideways. A share :data:`WRONG_SHARE` of the objects
-rank their true pose 2nd or 3rd, the others 1st; weights are a sorted Dirichlet(2) draw per object.
+rank their true pose 2nd or 3rd, the others 1st; weights are a sorted Dirichlet(2) draw per object (or,
+with ``weights="uniform"``, drawn uniformly from 0.2 to 1.0 and sorted: the same poses, close weights).
 Everything follows from the case's seed.
 """
 
@@ -224,8 +225,11 @@ def crowded_problem(case: CrowdedCase, params: SearchParams | None = None) -> Cr
     scene = replace(scene, ground_truth=truth)
     wrong = set(rng.choice(case.objects, size=round(WRONG_SHARE * case.objects), replace=False).tolist())
     ranked, answer = [], []
+    uniform = np.random.default_rng((case.seed, 1))  # its own stream: the same poses as the drawn weights'
     for index, true_pose in enumerate(truth):
         weights = sorted(rng.dirichlet([2.0] * case.hypotheses), reverse=True)
+        if case.weights == "uniform":
+            weights = sorted(uniform.uniform(0.2, 1.0, case.hypotheses), reverse=True)
         rank = int(rng.integers(2, min(3, case.hypotheses) + 1)) if index in wrong else 1
         poses = [wrong_pose(true_pose, layout.tiltable, rng) for _ in range(case.hypotheses)]
         poses[rank - 1] = true_pose

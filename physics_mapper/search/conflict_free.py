@@ -12,9 +12,9 @@ checking; ranks are in decreasing weight, so the first such rank). f never grows
 children, so complete assignments come off the queue in decreasing p(C): a best-first enumeration. A
 prefix that holds a known conflict, or leaves some object no rank, is dropped with all its completions,
 so no candidate that holds a known conflict is ever made. Conflicts learned while nodes wait apply when
-a node is taken (its prefix checked again, its f recomputed and the node queued again if it fell).
-Each node queues only its first child and, once taken, its next sibling (its last object at the next
-rank left), so a step queues at most two nodes.
+a node is taken (its prefix checked again, its f recomputed and the node queued again if it fell). A
+node taken queues all its children at once (their keys are at most its own, so keys come off the
+queue in order).
 
 The order is the paper's: p(C) rounded to 12 significant digits, then the smaller code (in the
 group's object order) first. A prefix is queued under f(prefix) * (1 + :data:`BOUND_SLACK`) rounded the
@@ -80,7 +80,6 @@ class _Node(NamedTuple):
     neg_key: float
     ranks: Code
     prefix: _Prefix
-    parent: _Prefix
 
 
 class _Candidate(NamedTuple):
@@ -139,7 +138,7 @@ class ConflictFreeCandidates:
         self._indexed = -1
         self._ordered_at = len(self.store)
         self._queue: list[_Node] = []
-        self._push_first_live(_Prefix((), 1.0, 0, 0, 0.0), 1)
+        self._push_children(_Prefix((), 1.0, 0, 0, 0.0))
 
     def __len__(self) -> int:
         """Prefixes waiting, and candidates found and not yet handed out."""
@@ -270,16 +269,12 @@ class ConflictFreeCandidates:
         queued, and then the node returned as a candidate if it is one, else its first child queued."""
         if node.prefix.known != len(self.store):
             checked = self._checked(node)
-            if checked is None:
-                self._push_sibling(node)
-                return None
-            if checked.neg_key > node.neg_key:
-                return None  # queued again: its sibling comes when it is taken
+            if checked is None or checked.neg_key > node.neg_key:
+                return None  # holds a conflict, or queued again under its new key
             node = checked
-        self._push_sibling(node)
         prefix = node.prefix
         if len(prefix.ranks) < len(self._w):
-            self._push_first_live(prefix, 1)
+            self._push_children(prefix)
             return None
         code = self._code(prefix.ranks)
         candidate = _Candidate(node.neg_key, code, _product(self.weights, code))
@@ -320,14 +315,11 @@ class ConflictFreeCandidates:
             outside |= self._excluded(k, rank)
         return prefix._replace(outside=outside, known=len(self.store))
 
-    def _push_sibling(self, node: _Node) -> None:
-        """Queue the node's next sibling: its last object at the next rank left (the root has none)."""
-        if node.ranks:
-            self._push_first_live(self._updated(node.parent), node.ranks[-1] + 1)
-
-    def _push_first_live(self, parent: _Prefix, rank: int) -> None:
-        """Queue the child of ``parent`` whose next object is at the first rank from ``rank`` on that no
-        one-assignment conflict rules out, that holds no known conflict, and that the bound lets through."""
+    def _push_children(self, parent: _Prefix) -> None:
+        """Queue every child of ``parent``: its next object at each rank no one-assignment conflict rules out,
+        holding no known conflict and leaving every later object a rank, that the bound lets through. All at
+        once: a child's key is at most its parent's, but a sibling's may be above another's (forward
+        checking), so children queued one at a time could come after candidates they precede."""
         k = len(parent.ranks)
         if k == len(self._w):
             return
@@ -335,8 +327,6 @@ class ConflictFreeCandidates:
         weights = self._w[k]
         decided = self._within[k]
         for live in self._live[k]:
-            if live < rank:
-                continue
             outside = parent.outside | self._excluded(k, live)
             if decided & ~outside:
                 continue
@@ -348,12 +338,11 @@ class ConflictFreeCandidates:
             if best is None:
                 continue
             if len(ranks) == len(self._w):
-                self._push(_Node(-tie_key(_product(self.weights, self._code(ranks))), ranks, child, parent))
-                return
-            if self._may_have_parent_above_bound(child, best):
-                self._push(_Node(self._neg_key(child, best), ranks, child, parent))
-                return
-            self.cut += 1
+                self._push(_Node(-tie_key(_product(self.weights, self._code(ranks))), ranks, child))
+            elif self._may_have_parent_above_bound(child, best):
+                self._push(_Node(self._neg_key(child, best), ranks, child))
+            else:
+                self.cut += 1
 
     def _push(self, node: _Node) -> None:
         heapq.heappush(self._queue, node)

@@ -25,7 +25,7 @@ def groups(draw: st.DrawFn) -> tuple[list[list[float]], list[Conflict]]:
     count = draw(st.integers(1, 6))
     weights = [sorted(draw(st.lists(WEIGHTS, min_size=1, max_size=4)), reverse=True) for _ in range(count)]
     conflicts = []
-    for _ in range(draw(st.integers(0, 8))):
+    for _ in range(draw(st.integers(0, 16))):
         positions = sorted(draw(st.sets(st.integers(0, count - 1), min_size=1, max_size=min(3, count))))
         ranks = [frozenset(draw(st.sets(st.integers(1, len(weights[p])), min_size=1))) for p in positions]
         own = [draw(st.sampled_from(sorted(r))) for r in ranks]
@@ -123,3 +123,13 @@ def test_conflicts_learned_between_candidates_apply_to_every_later_one(
         if taken is None:
             break
         last = place[taken[0]]
+
+
+def test_a_sibling_freed_by_forward_checking_comes_in_its_place() -> None:
+    """Object 0 at rank 1 or 2 leaves object 1 only its poor rank 2 (one conflict, a rank set), at rank 3
+    its best: C31 (p = 0.27) comes first, before the prefixes of ranks 1 and 2 with their better own weights
+    (children queued one sibling at a time, as each is taken, handed out C12 first and never C31)."""
+    weights = [[0.4, 0.35, 0.3], [0.9, 0.1]]
+    store = ConflictStore([3, 2])
+    store.learn(Conflict(((0, 1), (1, 1)), "collision", ranks=(frozenset({1, 2}), frozenset({1}))))
+    assert [code for code, _ in generated(weights, store)] == [(3, 1), (1, 2), (2, 2), (3, 2)]
