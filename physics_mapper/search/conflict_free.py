@@ -75,11 +75,13 @@ class _Prefix(NamedTuple):
 
 
 class _Node(NamedTuple):
-    """A queued prefix (every object ranked when complete), compared as a tuple by (-key, ranks): unique."""
+    """A queued prefix (every object ranked when complete), compared as a tuple by (-key, ranks): unique.
+    ``exact``: its key is its bound; else a higher one, its parent's (the bound is made when it is taken)."""
 
     neg_key: float
     ranks: Code
     prefix: _Prefix
+    exact: bool = True
 
 
 class _Candidate(NamedTuple):
@@ -138,7 +140,7 @@ class ConflictFreeCandidates:
         self._indexed = -1
         self._ordered_at = len(self.store)
         self._queue: list[_Node] = []
-        self._push_children(_Prefix((), 1.0, 0, 0, 0.0))
+        self._push_children(_Prefix((), 1.0, 0, 0, 0.0), -math.inf)
 
     def __len__(self) -> int:
         """Prefixes waiting, and candidates found and not yet handed out."""
@@ -267,14 +269,14 @@ class ConflictFreeCandidates:
     def _take_up(self, node: _Node) -> _Candidate | None:
         """A node off the queue: checked against conflicts learned since it was queued, its next sibling
         queued, and then the node returned as a candidate if it is one, else its first child queued."""
-        if node.prefix.known != len(self.store):
+        if node.prefix.known != len(self.store) or not node.exact:
             checked = self._checked(node)
             if checked is None or checked.neg_key > node.neg_key:
-                return None  # holds a conflict, or queued again under its new key
+                return None  # holds a conflict or is cut by the bound, or queued again under its own key
             node = checked
         prefix = node.prefix
         if len(prefix.ranks) < len(self._w):
-            self._push_children(prefix)
+            self._push_children(prefix, node.neg_key)
             return None
         code = self._code(prefix.ranks)
         candidate = _Candidate(node.neg_key, code, _product(self.weights, code))
@@ -291,8 +293,9 @@ class ConflictFreeCandidates:
         return tuple(code)
 
     def _checked(self, node: _Node) -> _Node | None:
-        """``node`` under the conflicts known now: None if its prefix holds one; queued again, and returned
-        with its new key, if they lowered its completions' best; else returned up to date."""
+        """``node`` under the conflicts known now, with its own bound: None if its prefix holds one, leaves
+        an object no rank or is cut by the bound; queued again, and returned with its new key, if its bound
+        is below its key; else returned up to date."""
         self._index()
         prefix = self._updated(node.prefix)
         if prefix.ranks and self._within[len(prefix.ranks) - 1] & ~prefix.outside:
@@ -300,8 +303,14 @@ class ConflictFreeCandidates:
         best = self._best_completion(prefix)
         if best is None:
             return None
-        neg_key = node.neg_key if len(prefix.ranks) == len(self._w) else self._neg_key(prefix, best)
-        checked = node._replace(neg_key=neg_key, prefix=prefix)
+        if len(prefix.ranks) == len(self._w):
+            neg_key = node.neg_key
+        elif self._may_have_parent_above_bound(prefix, best):
+            neg_key = max(node.neg_key, self._neg_key(prefix, best))
+        else:
+            self.cut += 1
+            return None
+        checked = _Node(neg_key, node.ranks, prefix)
         if checked.neg_key > node.neg_key:
             self._push(checked)
         return checked
@@ -315,11 +324,13 @@ class ConflictFreeCandidates:
             outside |= self._excluded(k, rank)
         return prefix._replace(outside=outside, known=len(self.store))
 
-    def _push_children(self, parent: _Prefix) -> None:
-        """Queue every child of ``parent``: its next object at each rank no one-assignment conflict rules out,
-        holding no known conflict and leaving every later object a rank, that the bound lets through. All at
-        once: a child's key is at most its parent's, but a sibling's may be above another's (forward
-        checking), so children queued one at a time could come after candidates they precede."""
+    def _push_children(self, parent: _Prefix, parent_key: float) -> None:
+        """Queue every child of ``parent`` (queued under ``parent_key``, negated): its next object at each rank
+        no one-assignment conflict rules out, holding no known conflict. All at once: a child's bound is at
+        most its parent's, but a sibling's may be above another's (forward checking), so children queued one
+        at a time could come after candidates they precede. A complete child is queued under its p(C); a
+        prefix under the lower of its parent's key and its own weight times the best weights after it, its
+        own bound made when it is taken (most children never are)."""
         k = len(parent.ranks)
         if k == len(self._w):
             return
@@ -334,15 +345,11 @@ class ConflictFreeCandidates:
             weight = parent.weight * weights[live - 1]
             gain = max(parent.gain, _ratio(weights, live)) if live > 1 else parent.gain
             child = _Prefix(ranks, weight, outside, len(self.store), gain)
-            best = self._best_completion(child)
-            if best is None:
-                continue
             if len(ranks) == len(self._w):
                 self._push(_Node(-tie_key(_product(self.weights, self._code(ranks))), ranks, child))
-            elif self._may_have_parent_above_bound(child, best):
-                self._push(_Node(self._neg_key(child, best), ranks, child))
             else:
-                self.cut += 1
+                optimistic = max(parent_key, self._neg_key(child, self._suffix[k + 1]))
+                self._push(_Node(optimistic, ranks, child, exact=False))
 
     def _push(self, node: _Node) -> None:
         heapq.heappush(self._queue, node)
