@@ -175,9 +175,9 @@ def previous_time_to_answer(problem: CrowdedProblem, previous: Path, cap: float 
     """:func:`time_to_answer` of last round's default search (the package in ``previous``), in a subprocess."""
     data = pickle.dumps((problem.problem, (problem.answer, True), SLICE, cap))
     environment = {**os.environ, "PYTHONPATH": str(previous)}
-    completed = subprocess.run(
-        [sys.executable, "-c", PREVIOUS_RUN], input=data, capture_output=True, env=environment, check=True
-    )
+    completed = subprocess.run([sys.executable, "-c", PREVIOUS_RUN], input=data, capture_output=True, env=environment)
+    if completed.returncode != 0:
+        raise RuntimeError(f"last round's search failed on {problem.case.label}:\n{completed.stderr.decode()}")
     return SearchRun(*json.loads(completed.stdout.decode().splitlines()[-1]))
 
 

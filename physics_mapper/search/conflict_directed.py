@@ -256,7 +256,8 @@ class ConflictGroupSearch(GroupSearch):
         fallback may report."""
         plan = None if self.settling_completely else self.local.plan(code)
         whole = plan is not None and len(plan.simulated) == len(code)
-        if plan is None or (whole and len(code) < WHOLE_TRIALS_FROM_OBJECTS):
+        # A whole group holding a mesh is tried with Rule 2's solver: the trial would be Rule 2's settling.
+        if plan is None or (whole and (len(code) < WHOLE_TRIALS_FROM_OBJECTS or self.local.holds_meshes)):
             return super().settle_node(code, poses, stop_at)
         memoised = self.memoised(code)
         if memoised is not None:
