@@ -1,29 +1,43 @@
-"""The crowded benchmark: the conflict-directed, the grouped and the joint search on the crowded suite.
+"""The crowded benchmark: the conflict-directed search (now and last round's), the grouped and the joint search.
 
 Every problem of :mod:`physics_mapper.scenarios.crowded_suite` has one valid configuration, known by
-construction (checked valid with the suite's parameters first): *the answer*. Each search runs
-afresh in slices of :data:`SLICE` seconds of wall-clock time, as the node's ticks would, until its
-result is the answer or :data:`ANSWER_CAP` seconds have passed; the *time to the answer* counts
-building the search and searching, not assembling results between slices. The conflict-directed
-search's run also gives its counters (conflicts learned, candidates skipped, local and full
-settlings), and each configuration it found unstable or valid is settled once more in full (the
-whole ``settle_time``, no early exit), in a fresh world: the *agreement* of its verdicts with full
+construction (checked valid with the suite's parameters first): *the answer*. The suite: rows, walls,
+towers, shelves and bins (N 10-50, M 5 and 10), the same layouts with weights drawn uniformly from 0.2
+to 1.0 and ranked (close weights), and bins of pybullet_data's random meshes (N 10, 20, 30). Each
+search runs afresh in slices of :data:`SLICE` seconds of wall-clock time, as the node's ticks would,
+until its result is the answer or :data:`ANSWER_CAP` seconds have passed; the *time to the answer*
+counts building the search and searching, not assembling results between slices. The
+conflict-directed search's run also gives its counters (conflicts learned, candidates skipped, local
+and full settlings), and each configuration it found unstable or valid is settled once more in full
+(the whole ``settle_time``, no early exit), in a fresh world: the *agreement* of its verdicts with full
 settling. Where the paper's search (per group) finishes within :data:`EXHAUSTIVE_CAP` seconds, its
 answer is compared with the conflict-directed one's run to the end, on the suite and on the reduced
 suite (:data:`~physics_mapper.scenarios.crowded_suite.REDUCED`), where it always finishes.
-Seconds are wall-clock seconds on this machine.
 
-Run: ``physics-mapper bench crowded [--seeds N] [--quick] [-o DIR]``. Prints the table and the
-targets BENCHMARKS.md records ("Crowded scenes"), and the scale suite checked with the default
-search; with ``-o DIR`` it also writes ``crowded.png`` (time to the answer against N) and
-``crowded_search.png`` (one search, candidate by candidate: ``crowded_picture.py``) into ``DIR``,
-and without it writes no file. Progress goes to stderr.
+Targets that travel. Seconds are wall-clock seconds on this machine, so the run first measures a
+*reference settling*: Rule 2 of the shipped ``stack`` problem's ground truth in the persistent world,
+the median of 50 (``physics_costs.py``'s method). Times are reported as measured and against the
+node's 0.2 s deadline scaled to this machine, 0.2 s x reference / 6.3 ms (:data:`REFERENCE_SETTLING`).
+
+Last round's default. With ``--previous DIR`` (a copy of last round's ``physics_mapper`` package,
+e.g. ``git archive d7d60c9 physics_mapper | tar -x -C DIR``), each problem is also searched by that
+code's default search, in a subprocess given the same problem (pickled), in the same run.
+
+Run: ``physics-mapper bench crowded [--seeds N] [--quick] [--previous DIR] [-o DIR]``. Prints the
+table and the targets BENCHMARKS.md records ("Crowded scenes"), and the scale suite checked with the
+default search; with ``-o DIR`` it also writes ``crowded.png`` (time to the answer against N) and
+``crowded_search.png`` (one search, candidate by candidate: ``crowded_picture.py``) into ``DIR``, and
+without it writes no file. Progress goes to stderr.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
+import os
+import pickle
 import statistics
+import subprocess
 import sys
 import time
 from collections.abc import Callable, Iterable, Sequence
@@ -34,7 +48,6 @@ from typing import Literal
 import numpy as np
 
 from physics_mapper.model.errors import InputError
-from physics_mapper.model.hypotheses import RankedHypotheses
 from physics_mapper.model.scene import SearchParams
 from physics_mapper.physics.checker import PhysicsChecker
 from physics_mapper.scenarios.crowded_suite import (
@@ -43,6 +56,7 @@ from physics_mapper.scenarios.crowded_suite import (
     CrowdedCase,
     CrowdedProblem,
     crowded_problem,
+    full_verdicts,
     same_answer,
     truth_is_valid,
 )
@@ -53,7 +67,13 @@ from physics_mapper.search.strategy import make_search
 
 Strategy = Literal["conflict", "grouped", "joint"]
 STRATEGIES: tuple[Strategy, ...] = ("conflict", "grouped", "joint")
+#: The searches compared: this code's three, and last round's default (``previous``, with ``--previous``).
+Runner = Literal["conflict", "previous", "grouped", "joint"]
 SIZES = (10, 20, 30, 50)
+MESH_SIZES = (10, 20, 30)
+#: The reference settling the node's 0.2 s deadline was set against (s), and that deadline (s).
+REFERENCE_SETTLING = 0.0063
+NODE_DEADLINE = 0.2
 HYPOTHESES = (5, 10)
 SEEDS = 2
 #: Seconds of search between two looks at the result; seconds a search gets to reach the answer.
@@ -82,7 +102,7 @@ class ProblemRun:
 
     case: CrowdedCase
     truth_valid: bool
-    runs: dict[Strategy, SearchRun]
+    runs: dict[Runner, SearchRun]
     unstable_checked: int  # configurations the conflict search found unstable, settled again in full
     unstable_agreed: int
     valid_checked: int  # configurations it found valid, settled again in full
@@ -109,36 +129,6 @@ def time_to_answer(
     return run, result
 
 
-#: A Rule 2 verdict of a search's trace that a full settling can confirm.
-Verdict = Literal["unstable", "valid"]
-
-
-def settled_verdicts(
-    checker: PhysicsChecker, hypotheses: Sequence[RankedHypotheses], params: SearchParams, result: SearchResult
-) -> dict[Verdict, tuple[int, int]]:
-    """Per verdict, unstable or valid: (configurations of ``result``'s trace with it, those a full settling
-    of their group in ``checker`` agrees with: unstable, or stable). A full settling runs the whole
-    ``settle_time``, no early exit."""
-    objects = {group.id: group.objects for group in result.groups}
-    counts: dict[Verdict, tuple[int, int]] = {"unstable": (0, 0), "valid": (0, 0)}
-    for entry in result.trace:
-        if entry.outcome not in counts:
-            continue
-        group = objects[entry.group]
-        poses = [hypotheses[i].pose(rank) for i, rank in zip(group, entry.code, strict=True)]
-        settling = checker.settle(poses, params.settle_time, params.angular_weight, objects=group)
-        stable = settling.is_stable(params.jitter_threshold)
-        checked, agreed = counts[entry.outcome]
-        counts[entry.outcome] = checked + 1, agreed + (stable == (entry.outcome == "valid"))
-    return counts
-
-
-def full_verdicts(problem: CrowdedProblem, result: SearchResult) -> dict[Verdict, tuple[int, int]]:
-    """:func:`settled_verdicts` of ``result`` on ``problem``, in a fresh world."""
-    with PhysicsChecker(problem.problem.scene) as checker:
-        return settled_verdicts(checker, problem.problem.hypotheses, problem.problem.scene.search, result)
-
-
 def exhaustive_agreement(
     problem: CrowdedProblem | ScaleProblem, cap: float = EXHAUSTIVE_CAP
 ) -> tuple[bool, bool | None]:
@@ -155,11 +145,50 @@ def exhaustive_agreement(
     return True, same_answer(found, expected)
 
 
-def run_problem(case: CrowdedCase, exhaustive_cap: float = EXHAUSTIVE_CAP) -> ProblemRun:
+#: Last round's default search on one pickled (problem, answer, slice, cap), run with that code: its time to
+#: the answer, seconds in all and counters, as JSON.
+PREVIOUS_RUN = """
+import json, pickle, sys, time
+from dataclasses import replace
+from physics_mapper.physics.checker import PhysicsChecker
+from physics_mapper.search.strategy import make_search
+problem, answer, slice_seconds, cap = pickle.load(sys.stdin.buffer)
+params = replace(problem.scene.search, strategy="conflict", trace_limit=0)
+with PhysicsChecker(problem.scene) as checker:
+    started = time.perf_counter()
+    search = make_search(checker, problem.hypotheses, params)
+    elapsed = time.perf_counter() - started
+    build = elapsed
+    while True:
+        result = search.run(slice_seconds)
+        elapsed = build + result.stats.search_time
+        found = (result.code, result.valid) == answer
+        if found or search.done or elapsed >= cap:
+            break
+s = result.stats
+print(json.dumps([elapsed if found else None, elapsed, s.visited + s.skipped, s.conflicts, s.skipped,
+                  s.local_settlings, s.full_settlings]))
+"""
+
+
+def previous_time_to_answer(problem: CrowdedProblem, previous: Path, cap: float = ANSWER_CAP) -> SearchRun:
+    """:func:`time_to_answer` of last round's default search (the package in ``previous``), in a subprocess."""
+    data = pickle.dumps((problem.problem, (problem.answer, True), SLICE, cap))
+    environment = {**os.environ, "PYTHONPATH": str(previous)}
+    completed = subprocess.run([sys.executable, "-c", PREVIOUS_RUN], input=data, capture_output=True, env=environment)
+    if completed.returncode != 0:
+        raise RuntimeError(f"last round's search failed on {problem.case.label}:\n{completed.stderr.decode()}")
+    return SearchRun(*json.loads(completed.stdout.decode().splitlines()[-1]))
+
+
+def run_problem(case: CrowdedCase, exhaustive_cap: float = EXHAUSTIVE_CAP, previous: Path | None = None) -> ProblemRun:
     problem = crowded_problem(case)
-    runs, results = {}, {}
+    runs: dict[Runner, SearchRun] = {}
+    results = {}
     for strategy in STRATEGIES:
         runs[strategy], results[strategy] = time_to_answer(problem, strategy)
+    if previous is not None:
+        runs["previous"] = previous_time_to_answer(problem, previous)
     verdicts = full_verdicts(problem, results["conflict"])
     finished, agrees = exhaustive_agreement(problem, exhaustive_cap)
     return ProblemRun(case, truth_is_valid(problem), runs, *verdicts["unstable"], *verdicts["valid"], finished, agrees)
@@ -170,20 +199,27 @@ def suite_cases(
     sizes: Iterable[int] = SIZES,
     hypotheses: Iterable[int] = HYPOTHESES,
     seeds: int = SEEDS,
+    mesh_sizes: Iterable[int] = MESH_SIZES,
 ) -> list[CrowdedCase]:
-    """Every (layout, N, M) with ``seeds`` seeds each; seeds differ across the whole suite (from 100: the
-    reduced suite has the first ones)."""
+    """Every (layout, N, M) with ``seeds`` seeds each, then the same problems with uniform weights, then
+    ``seeds`` bins of meshes per N of ``mesh_sizes`` (M 5); seeds differ across the whole suite (from 100:
+    the reduced suite has the first ones)."""
     cells = [(layout, objects, count) for layout in layouts for objects in sizes for count in hypotheses]
     cells = [cell for cell in cells for _ in range(seeds)]
-    return [CrowdedCase(layout, n, m, 100 + seed) for seed, (layout, n, m) in enumerate(cells)]  # type: ignore[arg-type]
+    cells += [("mesh_bin", objects, 5) for objects in mesh_sizes for _ in range(seeds)]
+    cases = [CrowdedCase(layout, n, m, 100 + seed) for seed, (layout, n, m) in enumerate(cells)]  # type: ignore[arg-type]
+    uniform = [replace(case, weights="uniform") for case in cases if case.layout != "mesh_bin"]
+    return [*cases, *uniform]
 
 
 def run_suite(
-    cases: Sequence[CrowdedCase], progress: Callable[[int, int, ProblemRun], None] | None = None
+    cases: Sequence[CrowdedCase],
+    progress: Callable[[int, int, ProblemRun], None] | None = None,
+    previous: Path | None = None,
 ) -> list[ProblemRun]:
     runs = []
     for index, case in enumerate(cases):
-        runs.append(run_problem(case, EXHAUSTIVE_CAP if case.objects <= 10 else 0.0))
+        runs.append(run_problem(case, EXHAUSTIVE_CAP if case.objects <= 10 else 0.0, previous))
         if progress is not None:
             progress(index + 1, len(cases), runs[-1])
     return runs
@@ -191,8 +227,8 @@ def run_suite(
 
 @dataclass(frozen=True)
 class ScaleCheck:
-    """The conflict-directed search on the scale suite: answered within 0.2 s, and agreement where the
-    paper's search per group finishes."""
+    """The conflict-directed search on the scale suite: answered within the scaled deadline, and agreement
+    where the paper's search per group finishes."""
 
     problems: int
     answered: int
@@ -200,12 +236,14 @@ class ScaleCheck:
     agreed: int
 
 
-def scale_check(cases: Sequence[ScaleCase], progress: Callable[[int, int], None] | None = None) -> ScaleCheck:
+def scale_check(
+    cases: Sequence[ScaleCase], deadline: float, progress: Callable[[int, int], None] | None = None
+) -> ScaleCheck:
     answered = finished = agreed = 0
     for index, case in enumerate(cases):
         problem = scale_problem(case)
         run, _ = time_to_answer(problem, "conflict")
-        answered += run.solved_within(BUDGETS[0])
+        answered += run.solved_within(deadline)
         done, same = exhaustive_agreement(problem)
         finished += done
         agreed += bool(same)
@@ -214,16 +252,39 @@ def scale_check(cases: Sequence[ScaleCase], progress: Callable[[int, int], None]
     return ScaleCheck(len(cases), answered, finished, agreed)
 
 
-def scale_text(check: ScaleCheck) -> str:
+def scale_text(check: ScaleCheck, deadline: float) -> str:
     share = check.answered / check.problems if check.problems else 0.0
     return (
-        f"- scale suite, conflict-directed search: the answer within 0.2 s in {check.answered} of {check.problems} "
-        f"({share:.1%}); the same answer as the paper's search per group in {check.agreed} of {check.finished} "
-        f"where it finished (target 100 %: {'met' if check.agreed == check.finished else 'missed'})"
+        f"- scale suite, conflict-directed search: the answer within the scaled deadline ({deadline * 1000:.0f} ms) "
+        f"in {check.answered} of {check.problems} ({share:.1%}; target 100 %: {'met' if share == 1.0 else 'missed'}); "
+        f"the same answer as the paper's search per group in {check.agreed} of {check.finished} where it finished "
+        f"(target 100 %: {'met' if check.agreed == check.finished else 'missed'})"
     )
 
 
 # --- figures --------------------------------------------------------------------------------------
+
+
+def reference_settling() -> float:
+    """This machine's reference settling (s): Rule 2 of the ``stack`` problem's ground truth in the persistent
+    world, the median of 50 (``physics_costs.py``'s measure)."""
+    import physics_costs
+
+    from physics_mapper.commands.files import load_problem_file
+    from physics_mapper.model.shipped import shipped_path
+
+    return physics_costs.measure(load_problem_file(shipped_path("config/problems/stack.yaml"), "bench")).settle
+
+
+def scaled_deadline(reference: float) -> float:
+    """The node's 0.2 s deadline scaled to a machine whose reference settling takes ``reference`` seconds."""
+    return NODE_DEADLINE * reference / REFERENCE_SETTLING
+
+
+def runners(problems: Sequence[ProblemRun]) -> tuple[Runner, ...]:
+    """The searches the problems were run with, in the tables' order."""
+    order: tuple[Runner, ...] = ("conflict", "previous", "grouped", "joint")
+    return tuple(r for r in order if problems and r in problems[0].runs)
 
 
 def _median_time(runs: Sequence[SearchRun]) -> float | None:
@@ -235,40 +296,44 @@ def _seconds(value: float | None) -> str:
     return "-" if value is None else (f"{value * 1000:.0f} ms" if value < 1.0 else f"{value:.2f} s")
 
 
-def figures_table(problems: Sequence[ProblemRun]) -> str:
-    """The per-(layout, N, M) table, markdown: conflict / grouped / joint where three numbers are given."""
-    lines = [
-        "| layout | N | M | answered ≤ 0.2 s | answered ≤ 1 s | median time to answer | configurations decided/s "
-        "| conflicts | skipped | local / full settlings | unstable verdicts as full |",
-        "| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |",
-    ]
-    cells: dict[tuple[str, int, int], list[ProblemRun]] = {}
+def _cells(problems: Sequence[ProblemRun]) -> dict[tuple[str, str, int, int], list[ProblemRun]]:
+    cells: dict[tuple[str, str, int, int], list[ProblemRun]] = {}
     for p in problems:
-        cells.setdefault((p.case.layout, p.case.objects, p.case.hypotheses), []).append(p)
-    for (layout, objects, count), runs in cells.items():
-        by = {s: [p.runs[s] for p in runs] for s in STRATEGIES}
+        cells.setdefault((p.case.layout, p.case.weights, p.case.objects, p.case.hypotheses), []).append(p)
+    return cells
+
+
+def figures_table(problems: Sequence[ProblemRun], deadline: float) -> str:
+    """The per-(layout, weights, N, M) table, markdown: one number per search, in :func:`runners`' order."""
+    names = runners(problems)
+    lines = [
+        f"| layout | weights | N | M | answered ≤ 0.2 s (as measured) | answered ≤ {deadline * 1000:.0f} ms (scaled) "
+        "| answered ≤ 1 s | median time to answer | conflicts | skipped | local / full settlings "
+        "| unstable verdicts as full |",
+        "| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |",
+    ]
+    for (layout, weights, objects, count), runs in _cells(problems).items():
+        by = {s: [p.runs[s] for p in runs] for s in names}
         shares = [
-            " / ".join(f"{sum(r.solved_within(b) for r in by[s]) / len(runs):.0%}" for s in STRATEGIES) for b in BUDGETS
+            " / ".join(f"{sum(r.solved_within(b) for r in by[s]) / len(runs):.0%}" for s in names)
+            for b in (NODE_DEADLINE, deadline, ANSWER_CAP)
         ]
-        times = " / ".join(_seconds(_median_time(by[s])) for s in STRATEGIES)
-        rates = " / ".join(
-            f"{sum(r.decided for r in by[s]) / max(1e-9, sum(r.search_time for r in by[s])):.0f}" for s in STRATEGIES
-        )
+        times = " / ".join(_seconds(_median_time(by[s])) for s in names)
         c = by["conflict"]
         conflicts = statistics.median(r.conflicts for r in c)
-        skipped = statistics.median(r.skipped for r in c)
+        skipped = sum(r.skipped for r in c)
         settlings = (
             f"{statistics.median(r.local_settlings for r in c):g} / {statistics.median(r.full_settlings for r in c):g}"
         )
         verdicts = f"{sum(p.unstable_agreed for p in runs)}/{sum(p.unstable_checked for p in runs)}"
         lines.append(
-            f"| {layout} | {objects} | {count} | {shares[0]} | {shares[1]} | {times} | {rates} | {conflicts:g} "
-            f"| {skipped:g} | {settlings} | {verdicts} |"
+            f"| {layout} | {weights} | {objects} | {count} | {shares[0]} | {shares[1]} | {shares[2]} | {times} "
+            f"| {conflicts:g} | {skipped} | {settlings} | {verdicts} |"
         )
     return "\n".join(lines)
 
 
-def linear_fit(problems: Sequence[ProblemRun], strategy: Strategy = "conflict") -> tuple[float, float]:
+def linear_fit(problems: Sequence[ProblemRun], strategy: Runner = "conflict") -> tuple[float, float]:
     """Least-squares t = a + b N over the answered problems (seconds; a, b)."""
     points = [(p.case.objects, p.runs[strategy].answer_time) for p in problems if p.runs[strategy].answer_time]
     if len(points) < 2:
@@ -278,23 +343,37 @@ def linear_fit(problems: Sequence[ProblemRun], strategy: Strategy = "conflict") 
     return float(intercept), float(slope)
 
 
-def targets_text(problems: Sequence[ProblemRun], reduced: Sequence[ProblemRun]) -> str:
-    answered = sum(p.runs["conflict"].solved_within(BUDGETS[0]) for p in problems)
-    others = {s: sum(p.runs[s].solved_within(BUDGETS[0]) for p in problems) for s in ("grouped", "joint")}
+def targets_text(problems: Sequence[ProblemRun], reduced: Sequence[ProblemRun], deadline: float) -> str:
+    """The targets: per layout (and weights) the share answered within the scaled ``deadline``, and the rest."""
+    names = runners(problems)
+    layouts: dict[str, list[ProblemRun]] = {}
+    for p in problems:
+        layouts.setdefault(f"{p.case.layout} ({p.case.weights} weights)", []).append(p)
+    shares = {
+        layout: {s: sum(p.runs[s].solved_within(deadline) for p in runs) / len(runs) for s in names}
+        for layout, runs in layouts.items()
+    }
+    worst = min((share["conflict"] for share in shares.values()), default=0.0)
+    per_layout = "; ".join(
+        f"{layout} " + " / ".join(f"{share[s]:.0%}" for s in names) for layout, share in shares.items()
+    )
     finished = [p for p in (*problems, *reduced) if p.exhaustive_finished]
     agreed = sum(bool(p.exhaustive_agrees) for p in finished)
+    skipped = sum(p.runs["conflict"].skipped for p in problems)
     checked = sum(p.unstable_checked for p in problems)
     same = sum(p.unstable_agreed for p in problems)
     valid_checked = sum(p.valid_checked for p in problems)
     valid_same = sum(p.valid_agreed for p in problems)
     truth = sum(p.truth_valid for p in problems)
     intercept, slope = linear_fit(problems)
-    share = answered / len(problems) if problems else 0.0
     return "\n".join(
         [
-            f"- conflict-directed search, N <= 50, M <= 10: answered within 0.2 s in {answered} of {len(problems)} "
-            f"problems ({share:.1%}; target >= 95 %: {'met' if share >= 0.95 else 'missed'}); grouped "
-            f"{others['grouped']}, joint {others['joint']}",
+            f"- answered within the scaled deadline ({deadline * 1000:.0f} ms), per layout, "
+            f"{' / '.join(names)}: {per_layout}",
+            f"- the conflict-directed search's worst layout: {worst:.0%} (target >= 95 % in every layout: "
+            f"{'met' if worst >= 0.95 else 'missed'})",
+            f"- candidates generated holding a known conflict (skipped): {skipped} (target 0: "
+            f"{'met' if skipped == 0 else 'missed'})",
             f"- where the paper's search finishes: the same answer in {agreed} of {len(finished)} "
             f"(target 100 %: {'met' if agreed == len(finished) else 'missed'})",
             f"- time to answer, least-squares line: {intercept * 1000:.1f} ms + {slope * 1000:.2f} ms x N",
@@ -307,9 +386,9 @@ def targets_text(problems: Sequence[ProblemRun], reduced: Sequence[ProblemRun]) 
     )
 
 
-def plot_time_to_answer(problems: Sequence[ProblemRun], path: Path) -> None:
+def plot_time_to_answer(problems: Sequence[ProblemRun], path: Path, deadline: float) -> None:
     """PNG: every problem's time to the answer against N, per search (unanswered at the cap), with the
-    conflict search's linear fit."""
+    conflict search's linear fit and the scaled deadline."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
@@ -317,8 +396,9 @@ def plot_time_to_answer(problems: Sequence[ProblemRun], path: Path) -> None:
     FigureCanvasAgg(figure)
     axes = figure.add_subplot()
     sizes = sorted({p.case.objects for p in problems})
-    for index, strategy in enumerate(STRATEGIES):
-        xs = [p.case.objects + (index - 1) * 0.6 for p in problems]
+    names = runners(problems)
+    for index, strategy in enumerate(names):
+        xs = [p.case.objects + (index - 1.5) * 0.6 for p in problems]
         ys = [p.runs[strategy].answer_time or ANSWER_CAP * 1.05 for p in problems]
         axes.scatter(xs, ys, s=8, color=f"C{index}", alpha=0.6, label=strategy)
         medians = [
@@ -333,13 +413,14 @@ def plot_time_to_answer(problems: Sequence[ProblemRun], path: Path) -> None:
         linewidth=0.8,
         label=f"conflict fit: {intercept * 1000:.0f} ms + {slope * 1000:.1f} ms x N",
     )
-    axes.axhline(BUDGETS[0], color="grey", linewidth=0.8)
-    axes.text(sizes[0], BUDGETS[0] * 1.03, "node deadline 0.2 s", color="grey", fontsize=8)
+    axes.axhline(deadline, color="grey", linewidth=0.8)
+    scaled = f"0.2 s scaled to this machine: {deadline * 1000:.0f} ms"
+    axes.text(sizes[0], deadline * 1.03, scaled, color="grey", fontsize=8)
     axes.axhline(ANSWER_CAP, color="grey", linewidth=0.8, linestyle=":")
     axes.text(sizes[0], ANSWER_CAP * 1.07, f"not answered within {ANSWER_CAP:g} s", color="grey", fontsize=8)
     axes.set(xlabel="objects N", ylabel="time to the answer [s]", ylim=(0.0, ANSWER_CAP * 1.15))
     axes.set_xticks(sizes, [str(n) for n in sizes])
-    axes.set_title("Crowded suite: conflict-directed vs grouped vs joint search (lines: medians)", fontsize=10)
+    axes.set_title("Crowded suite: time to the answer per search (lines: medians)", fontsize=10)
     axes.legend(fontsize=7)
     figure.savefig(path, dpi=120)
 
@@ -352,36 +433,50 @@ def main(argv: Sequence[str] | None = None) -> None:
     parser = argparse.ArgumentParser(prog="physics-mapper bench crowded", description=__doc__)
     parser.add_argument("--seeds", type=int, default=3, help="problems per (layout, N, M) (default: 3)")
     parser.add_argument("--quick", action="store_true", help="a small suite (N 10, 20; M 5; 1 seed), to try it out")
+    parser.add_argument("--previous", type=Path, help="folder holding last round's physics_mapper package")
     parser.add_argument(
         "-o", "--output", type=Path, help="folder for crowded.png and crowded_search.png (default: none)"
     )
     args = parser.parse_args(argv)
     if args.seeds < 1:
         raise InputError(f"--seeds must be at least 1, got {args.seeds}")
-    cases = suite_cases(sizes=(10, 20), hypotheses=(5,), seeds=1) if args.quick else suite_cases(seeds=args.seeds)
+    if args.previous is not None and not (args.previous / "physics_mapper" / "__init__.py").is_file():
+        raise InputError(f"--previous {args.previous}: no physics_mapper package there")
+    reference = reference_settling()
+    deadline = scaled_deadline(reference)
+    cases = (
+        suite_cases(sizes=(10, 20), hypotheses=(5,), seeds=1, mesh_sizes=(10,))
+        if args.quick
+        else suite_cases(seeds=args.seeds)
+    )
     started = time.monotonic()
 
     def progress(done: int, total: int, run: ProblemRun) -> None:
-        times = " ".join(f"{s} {_seconds(run.runs[s].answer_time)}" for s in STRATEGIES)
+        times = " ".join(f"{s} {_seconds(run.runs[s].answer_time)}" for s in run.runs)
         print(f"[{done}/{total} {time.monotonic() - started:.0f} s] {run.case.label}: {times}", file=sys.stderr)
 
-    problems = run_suite(cases, progress)
+    problems = run_suite(cases, progress, args.previous)
     reduced = run_suite(REDUCED, progress)
     scale_cases = scale.suite_cases(sizes=(3, 6, 10), hypotheses=(5,), seeds=1) if args.quick else scale.suite_cases()
 
     def scale_progress(done: int, total: int) -> None:
         print(f"[scale suite {done}/{total} {time.monotonic() - started:.0f} s]", file=sys.stderr)
 
-    checked = scale_check(scale_cases, scale_progress)
+    checked = scale_check(scale_cases, deadline, scale_progress)
     print(f"{len(problems)} problems, {1 if args.quick else args.seeds} per (layout, N, M); {scale.load_text()}")
-    print("Three numbers: conflict / grouped / joint.")
-    print(figures_table(problems))
+    print(
+        f"reference settling (stack, Rule 2, median of 50): {reference * 1000:.2f} ms; the 0.2 s deadline scaled "
+        f"to this machine: 0.2 s x {reference * 1000:.2f} / {REFERENCE_SETTLING * 1000:.1f} ms "
+        f"= {deadline * 1000:.0f} ms"
+    )
+    print(f"Numbers per search: {' / '.join(runners(problems))}.")
+    print(figures_table(problems, deadline))
     print()
-    print(targets_text(problems, reduced))
-    print(scale_text(checked))
+    print(targets_text(problems, reduced, deadline))
+    print(scale_text(checked, deadline))
     if args.output is not None:
         args.output.mkdir(parents=True, exist_ok=True)
-        plot_time_to_answer(problems, args.output / "crowded.png")
+        plot_time_to_answer(problems, args.output / "crowded.png", deadline)
         plot_search(args.output / "crowded_search.png")
         print(f"\nplots: {args.output / 'crowded.png'}, {args.output / 'crowded_search.png'}")
 

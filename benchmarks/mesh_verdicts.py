@@ -15,13 +15,12 @@ import argparse
 from dataclasses import replace
 from pathlib import Path
 
-from crowded import Verdict, settled_verdicts
-
 from physics_mapper.experiments.clutter import DEFAULT_RUNS, SCENE_FILES, SIGMA_POSITION, SIGMA_ROTATION, timed_search
 from physics_mapper.experiments.common import ExperimentOptions, load_experiment_scene
 from physics_mapper.experiments.tracking import tracker_settings
 from physics_mapper.perception.particle_filter import TrackerSettings, run_generators, settle_ground_truth, track
 from physics_mapper.physics.checker import PhysicsChecker
+from physics_mapper.scenarios.crowded_suite import Verdict, settled_verdicts
 
 
 def scene_verdicts(

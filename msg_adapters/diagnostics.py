@@ -135,6 +135,7 @@ def search_values(report: TickReport) -> list[tuple[str, str]]:
         ("conflicts learned", str(stats.conflicts)),
         ("conflicts kept", str(stats.conflicts_kept)),
         ("candidates skipped by conflicts", str(stats.skipped)),
+        ("ranks ruled out before the search", str(stats.ruled_out)),
         ("local settlings", str(stats.local_settlings)),
         ("full settlings", str(stats.full_settlings)),
         ("search time [s]", f"{report.search_time:.6f}"),

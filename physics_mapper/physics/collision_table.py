@@ -138,10 +138,19 @@ class CollisionTable:
     def static_depth(self, i: int, a: int) -> float:
         """Object ``i`` at rank ``a``: its deepest overlap (m, -inf: no contact) with any static body,
         filled by a collision pass of that object alone if unknown."""
+        return self.deepest_static(i, a)[1]
+
+    def deepest_static(self, i: int, a: int) -> tuple[int | None, float]:
+        """Object ``i`` at rank ``a``: the static body it overlaps deepest (its body index, objects first;
+        the first in body order of equally deep ones; None: no static body) and that depth (m, -inf: no
+        contact), filled by a collision pass of that object alone if unknown."""
+        if not self._static_count:
+            return None, NO_CONTACT
         row = self._static_rows(i)[a - 1]
         if math.isnan(row[-1]):
             self._fill((i,), (a,), [])
-        return float(np.max(row[:-1])) if self._static_count else NO_CONTACT
+        k = int(np.argmax(row[:-1]))
+        return len(self._radii) + k, float(row[k])
 
     def pair_depths(self, i: int, a: int, j: int) -> NDArray[np.float64]:
         """Object ``i`` at rank ``a`` against object ``j`` at each of its ranks: the deepest overlaps (m,

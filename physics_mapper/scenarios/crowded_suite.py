@@ -6,7 +6,9 @@ Layouts, N objects each:
 - ``wall``: columns of two cubes, 1 mm apart;
 - ``tower``: columns of three cubes, 1 mm apart;
 - ``shelf``: boxes of mixed sizes in rows, 1 mm apart, on fixed boards at three heights;
-- ``bin``: mixed boxes and upright cylinders dropped on a grid into a walled bin and settled.
+- ``bin``: mixed boxes and upright cylinders dropped on a grid into a walled bin and settled;
+- ``mesh_bin``: pybullet_data's random objects (one convex hull each, 5 to 8 cm across), dropped on a
+  grid into a walled bin and settled, the same way.
 
 The true poses are the scene settled for :data:`TRUTH_SETTLE_TIME` (again, up to
 :data:`TRUTH_SETTLINGS` times, until they pass both rules with half the jitter threshold to spare),
@@ -19,13 +21,15 @@ hypotheses: its true pose and M - 1 wrong ones, each against a rule whatever the
   shelves): its lower edge dips at least 1 cm into what is below it (Rule 1).
 
 Every wrong hypothesis also moves up to 5 mm sideways. A share :data:`WRONG_SHARE` of the objects
-rank their true pose 2nd or 3rd, the others 1st; weights are a sorted Dirichlet(2) draw per object.
+rank their true pose 2nd or 3rd, the others 1st; weights are a sorted Dirichlet(2) draw per object (or,
+with ``weights="uniform"``, drawn uniformly from 0.2 to 1.0 and sorted: the same poses, close weights).
 Everything follows from the case's seed.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from typing import Literal
 
@@ -33,9 +37,12 @@ import numpy as np
 
 from physics_mapper.model.geometry import Pose, quaternion_about_axis, quaternion_multiply
 from physics_mapper.model.hypotheses import Hypothesis, RankedHypotheses
+from physics_mapper.model.meshes import MeshRequest, load_mesh_geometry
+from physics_mapper.model.resources import resolve_package_url
 from physics_mapper.model.scene import (
     Box,
     Cylinder,
+    Mesh,
     ObjectModel,
     Plane,
     Problem,
@@ -49,8 +56,12 @@ from physics_mapper.physics.settling import REST_SHARE
 from physics_mapper.scenarios.problems import SuiteCase, SuiteProblem
 from physics_mapper.search.results import SearchResult
 
-CrowdedLayout = Literal["row", "wall", "tower", "shelf", "bin"]
+CrowdedLayout = Literal["row", "wall", "tower", "shelf", "bin", "mesh_bin"]
 CROWDED_LAYOUTS: tuple[CrowdedLayout, ...] = ("row", "wall", "tower", "shelf", "bin")
+#: pybullet_data's random objects (``random_urdfs/NNN/NNN.obj``): how many, and the size of a mesh bin's
+#: objects (largest extent, m).
+RANDOM_MESHES = 1000
+MESH_EXTENT = (0.05, 0.08)
 #: Edge of the cubes, metres; their mass, kg; the gap between neighbours, metres.
 CUBE_EDGE = 0.1
 MASS = 0.3
@@ -121,8 +132,21 @@ def _shelf(objects: int, rng: np.random.Generator) -> _Layout:
     return _Layout(tuple(models), (StaticBody("floor", Plane()), *boards), tuple(poses), TRUTH_SETTLE_TIME, True)
 
 
-def _bin(objects: int, rng: np.random.Generator) -> _Layout:
-    """Boxes and upright cylinders on a grid, two layers, dropped into a walled bin and settled."""
+def _random_mesh(index: int, rng: np.random.Generator) -> ObjectModel:
+    """One of pybullet_data's random objects, collided as its convex hull, scaled to :data:`MESH_EXTENT`."""
+    number = int(rng.integers(0, RANDOM_MESHES))
+    path = resolve_package_url(f"package://pybullet_data/random_urdfs/{number:03d}/{number:03d}.obj")
+    unit = load_mesh_geometry(MeshRequest(path), lambda _: None)
+    extent = float(np.max(np.subtract(unit.bounds[1], unit.bounds[0])))
+    scale = float(rng.uniform(*MESH_EXTENT)) / extent
+    request = MeshRequest(path, (scale, scale, scale))
+    mesh = Mesh(path, path.as_uri(), request.scale, "convex_hull", load_mesh_geometry(request, lambda _: None))
+    return ObjectModel(f"mesh_{index:02d}", mesh, mass=MASS)
+
+
+def _bin(objects: int, rng: np.random.Generator, meshes: bool = False) -> _Layout:
+    """Boxes and upright cylinders (or random meshes) on a grid, two layers, dropped into a walled bin and
+    settled."""
     side = math.ceil(math.sqrt(math.ceil(objects / 2)))
     inner = side * BIN_CELL
     models, poses = [], []
@@ -131,7 +155,10 @@ def _bin(objects: int, rng: np.random.Generator) -> _Layout:
         x = (cell % side + 0.5) * BIN_CELL - inner / 2.0
         y = (cell // side + 0.5) * BIN_CELL - inner / 2.0
         yaw = quaternion_about_axis((0.0, 0.0, 1.0), float(rng.uniform(0.0, math.pi)))
-        if rng.random() < 0.5:
+        if meshes:
+            models.append(_random_mesh(index, rng))
+            height = MESH_EXTENT[1]
+        elif rng.random() < 0.5:
             size = (float(rng.uniform(0.06, 0.1)), float(rng.uniform(0.06, 0.1)), float(rng.uniform(0.05, 0.09)))
             models.append(ObjectModel(f"box_{index:02d}", Box(size), mass=MASS))
             height = size[2]
@@ -157,7 +184,7 @@ def layout_of(case: CrowdedCase, rng: np.random.Generator) -> _Layout:
         return _columns(case.objects, 3)
     if case.layout == "shelf":
         return _shelf(case.objects, rng)
-    return _bin(case.objects, rng)
+    return _bin(case.objects, rng, meshes=case.layout == "mesh_bin")
 
 
 def settled_truth(scene: Scene, layout: _Layout) -> tuple[Pose, ...]:
@@ -198,8 +225,11 @@ def crowded_problem(case: CrowdedCase, params: SearchParams | None = None) -> Cr
     scene = replace(scene, ground_truth=truth)
     wrong = set(rng.choice(case.objects, size=round(WRONG_SHARE * case.objects), replace=False).tolist())
     ranked, answer = [], []
+    uniform = np.random.default_rng((case.seed, 1))  # its own stream: the same poses as the drawn weights'
     for index, true_pose in enumerate(truth):
         weights = sorted(rng.dirichlet([2.0] * case.hypotheses), reverse=True)
+        if case.weights == "uniform":
+            weights = sorted(uniform.uniform(0.2, 1.0, case.hypotheses), reverse=True)
         rank = int(rng.integers(2, min(3, case.hypotheses) + 1)) if index in wrong else 1
         poses = [wrong_pose(true_pose, layout.tiltable, rng) for _ in range(case.hypotheses)]
         poses[rank - 1] = true_pose
@@ -275,3 +305,33 @@ def same_answer(found: SearchResult, expected: SearchResult) -> bool:
         pairs = zip(found.object_jitters, expected.object_jitters, strict=True)
         same = all(abs(a - b) <= JITTER_TOLERANCE for a, b in pairs)
     return same
+
+
+#: A Rule 2 verdict of a search's trace that a full settling can confirm.
+Verdict = Literal["unstable", "valid"]
+
+
+def settled_verdicts(
+    checker: PhysicsChecker, hypotheses: Sequence[RankedHypotheses], params: SearchParams, result: SearchResult
+) -> dict[Verdict, tuple[int, int]]:
+    """Per verdict, unstable or valid: (configurations of ``result``'s trace with it, those a full settling
+    of their group in ``checker`` agrees with: unstable, or stable). A full settling runs the whole
+    ``settle_time``, no early exit."""
+    objects = {group.id: group.objects for group in result.groups}
+    counts: dict[Verdict, tuple[int, int]] = {"unstable": (0, 0), "valid": (0, 0)}
+    for entry in result.trace:
+        if entry.outcome not in counts:
+            continue
+        group = objects[entry.group]
+        poses = [hypotheses[i].pose(rank) for i, rank in zip(group, entry.code, strict=True)]
+        settling = checker.settle(poses, params.settle_time, params.angular_weight, objects=group)
+        stable = settling.is_stable(params.jitter_threshold)
+        checked, agreed = counts[entry.outcome]
+        counts[entry.outcome] = checked + 1, agreed + (stable == (entry.outcome == "valid"))
+    return counts
+
+
+def full_verdicts(problem: CrowdedProblem, result: SearchResult) -> dict[Verdict, tuple[int, int]]:
+    """:func:`settled_verdicts` of ``result`` on ``problem``, in a fresh world."""
+    with PhysicsChecker(problem.problem.scene) as checker:
+        return settled_verdicts(checker, problem.problem.hypotheses, problem.problem.scene.search, result)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
-from typing import Generic, TypeVar
+from typing import Generic, Literal, TypeVar
 
 from physics_mapper.model.geometry import Pose
 from physics_mapper.model.hypotheses import Hypothesis, RankedHypotheses
@@ -17,18 +17,25 @@ from physics_mapper.search.strategy import make_search
 LayoutT = TypeVar("LayoutT", bound=str)
 
 
+#: How a suite draws each object's hypothesis weights: its own way (``drawn``), or uniformly from 0.2 to
+#: 1.0, then ranked (``uniform``: close weights, not steeply ranked).
+Weights = Literal["drawn", "uniform"]
+
+
 @dataclass(frozen=True)
 class SuiteCase(Generic[LayoutT]):
-    """One problem of a seeded suite: its layout, N objects, M hypotheses per object and seed."""
+    """One problem of a seeded suite: its layout, N objects, M hypotheses per object, seed and weights."""
 
     layout: LayoutT
     objects: int
     hypotheses: int
     seed: int
+    weights: Weights = "drawn"
 
     @property
     def label(self) -> str:
-        return f"{self.layout} N={self.objects} M={self.hypotheses} seed={self.seed}"
+        weights = "" if self.weights == "drawn" else f" weights={self.weights}"
+        return f"{self.layout} N={self.objects} M={self.hypotheses} seed={self.seed}{weights}"
 
 
 @dataclass(frozen=True)

@@ -62,7 +62,15 @@ from physics_mapper.physics.collision import Collision
 from physics_mapper.physics.refine import RefinedMap, Refinement, refinement_start
 from physics_mapper.physics.settling import EarlyExit, PartialSettling, Settling, early_exit_rule
 from physics_mapper.physics.world import TIME_STEP
-from physics_mapper.search.results import Candidate, Code, GroupResult, SearchResult, SearchStats, TraceEntry
+from physics_mapper.search.results import (
+    Candidate,
+    Code,
+    GroupResult,
+    RuledOut,
+    SearchResult,
+    SearchStats,
+    TraceEntry,
+)
 
 if TYPE_CHECKING:
     from physics_mapper.physics.collision_table import CollisionTable
@@ -138,6 +146,8 @@ class BranchAndBound:
         self.first_valid_probability: float | None = None
         self._configurations = math.prod(len(h) for h in self.hypotheses)
         self._absent_weights = tuple(ranked.absent_weight() for ranked in self.hypotheses)
+        #: Ranks ruled out before the first candidate, with why (a search that rules some out sets them).
+        self.ruled_out: tuple[RuledOut, ...] = ()
         self.push(self._root, None)
 
     def probability(self, code: Code) -> float:
@@ -269,14 +279,19 @@ class BranchAndBound:
     @property
     def refinement_due(self) -> bool:
         """Whether the root's refined map is to be made now: fallback refine, the root visited (or
-        skipped by a conflict) and not valid, no valid node yet, no node's settling waiting to be continued."""
+        known to hold a conflict) and not valid, no valid node yet, no node's settling waiting to be continued."""
         return (
             self.params.fallback == "refine"
             and self._refined is None
             and self._best is None
-            and self.stats.visited + self.stats.skipped > 0
+            and self.root_rejected
             and self._interrupted is None
         )
+
+    @property
+    def root_rejected(self) -> bool:
+        """Whether the root was checked (and so, with no valid node yet, rejected)."""
+        return self.stats.visited > 0
 
     def _refine(self, stop_at: float | None) -> bool:
         """Make (or go on making) the root's refined map; False if ``stop_at`` came first."""
@@ -482,6 +497,7 @@ class BranchAndBound:
             skipped=self.stats.skipped,
             local_settlings=self.stats.local_settlings,
             full_settlings=self.stats.full_settlings,
+            ruled_out=self.ruled_out,
         )
 
     @property

@@ -2,47 +2,35 @@
 
 The idea of conflict-directed A* (Williams & Ragno 2007) on the paper's Algorithm 1. Every rejection
 teaches a *conflict* K, a few (object, rank) assignments no valid configuration holds together
-(:mod:`physics_mapper.search.conflicts`). Candidates are still visited in the paper's order, decreasing
-p(C) with its tie rule, from one max-priority queue with the same dedup set, but:
-
-- a candidate that contains a known conflict is *skipped*: never checked, it is invalid;
-- a candidate rejected or skipped because of conflict K is expanded by advancing only the objects of
-  K (a collision: two objects, not N), since every other child still contains K; a valid candidate
-  is expanded by every object, as in the paper;
-- a child advances its object to the next rank no one-assignment conflict rules out (those learned
-  before the first candidate, :mod:`physics_mapper.search.ruling_out`, and since) and, expanding by
-  K, outside K's ranks of that object: a child at a rank jumped over would still contain a conflict,
-  and a valid configuration beyond it has the object at a rank at least the one advanced to;
-- a child is queued only if one of its parents, the configurations one rank lower on one object, is
-  above the bound: exactly the nodes the paper's search queues, since there a node is queued iff some
-  parent is visited and not bounded, and a parent's p(C) is at least its child's. A node below the
-  bound is therefore still expanded here (its children are kept only if another parent is above it);
-- an expansion's children wait until they could come next (:mod:`~physics_mapper.search.pending_children`):
-  the queue's head is what a queue holding them all would give.
+(:mod:`physics_mapper.search.conflicts`); ranks Rule 1 rules out alone are learned before the first
+candidate (:mod:`physics_mapper.search.ruling_out`). The next candidate is the most probable
+configuration that holds no known conflict, generated directly
+(:mod:`physics_mapper.search.conflict_free`): candidates come in the paper's order, decreasing p(C)
+with its tie rule, and none that holds a known conflict is ever made (the paper's queue, skipping
+such candidates one by one, made a number of them that grew combinatorially with the objects). A
+candidate is checked only if one of its *parents* (one rank lower on one object) is above the bound,
+or it has none: in the paper's search a node is queued iff some parent is visited and not bounded, and
+a parent's p(C) is at least its child's. A candidate's parent in the trace is the first of its parents
+visited above the bound (none when every one holds a conflict).
 
 Rule 2 of a candidate is first *tried*, locally where the stable contexts allow
 (:mod:`~physics_mapper.search.local_settling`), with Bullet's solver at :data:`TRIAL_SOLVER_ITERATIONS`; a
 trial's instability is believed, and a candidate is valid only once Rule 2's own settling of its
 whole group (50 iterations) confirms it.
 
-Why the answer is the paper's. Take a valid configuration D that the paper's search visits (some
-parent of D, or D itself, is above the bound). Every X <= D (rank by rank) other than D is then
-above the bound too: it is at least as probable as a parent of D. Follow queued nodes X <= D from
-the root towards D: if X is valid, every child is queued; if X contains a conflict K, D does not (D
-is valid), so D has some object of K at a rank outside K's ranks of it, beyond X's, and the child
-of X that advances that object to its first such rank is queued, and is at most D. So every valid
-configuration the paper's search visits is visited here, in the same order, and no other (nothing below the bound is
-queued); the least J among them, the first of equal ones, is the same answer. The same argument
-with collision conflicts only gives the ``settled`` fallback's configuration, the first collision-free
-one: before it, every rejection was a collision. The search ends ``exhausted`` when the bound kept no
-child from the queue (every configuration was visited or contains a conflict), else ``bounded``.
+Why the answer is the paper's. No valid configuration holds a conflict (conflicts are sound), so a
+valid configuration is generated, in the paper's order, exactly when it has a parent above the bound
+or none: exactly when the paper's search checks it (the bound's reference, the first valid p(C), is
+then the same too). Both searches so check the same valid configurations in the same order; the least
+J among them, the first of equal ones, is the same answer. The same argument with collision conflicts
+only gives the ``settled`` fallback's configuration, the first collision-free one. The search ends
+``exhausted`` when the bound kept no configuration out (every one was visited or holds a conflict),
+else ``bounded``.
 """
 
 from __future__ import annotations
 
-import itertools
 import math
-import time
 from collections.abc import Sequence
 from dataclasses import replace
 from operator import getitem
@@ -53,16 +41,14 @@ from physics_mapper.model.scene import SearchParams
 from physics_mapper.physics.checker import PhysicsChecker
 from physics_mapper.physics.collision import Collision, deepest_collision
 from physics_mapper.physics.settling import EarlyExit, PartialSettling, Settling, early_exit_rule
-from physics_mapper.search.branch_and_bound import BranchAndBound, QueueItem
+from physics_mapper.search.branch_and_bound import BranchAndBound, QueueItem, tie_key
+from physics_mapper.search.conflict_free import ConflictFreeCandidates
 from physics_mapper.search.conflicts import Blame, Conflict, ConflictStore, collision_conflicts
 from physics_mapper.search.grouped import GroupedSearch, GroupSearch, SettleMemo, physics_key
 from physics_mapper.search.local_settling import LocalPlan, LocalSettling
-from physics_mapper.search.pending_children import PendingChildren
-from physics_mapper.search.results import Candidate, Code, TraceEntry
+from physics_mapper.search.results import Candidate, Code, RuledOut, TraceEntry
 from physics_mapper.search.ruling_out import RulingOut
 
-#: Candidates skipped between two looks at the clock (a skip costs tens of microseconds).
-SKIPS_PER_CLOCK_CHECK = 64
 #: Bullet solver iterations of a trial settling (Rule 2's are 50, ``world.SOLVER_ITERATIONS``): its
 #: instability is believed, its stability confirmed by a settling with Rule 2's solver. Walls, towers
 #: and bins of 50 step 1.9 to 2.6 times faster; the 866 configurations the crowded suite's searches
@@ -80,20 +66,18 @@ class ConflictGroupSearch(GroupSearch):
     def __init__(self, owner: GroupedSearch, group_id: int, objects: tuple[int, ...], memo: SettleMemo) -> None:
         # Per object, its weights by rank (index 0 unused): p(C) is queried for every child and parent.
         self._weights = tuple((0.0, *(h.weight for h in owner.hypotheses[i].hypotheses)) for i in objects)
-        self._pending = PendingChildren()  # children made, queued once they could come next
         super().__init__(owner, group_id, objects, memo)
         scene = self.checker.scene
         self.names = tuple(scene.objects[i].name for i in self.objects)
         self._object_positions = {index: position for position, index in enumerate(self.objects)}
         self.conflicts = ConflictStore([len(h) for h in self.hypotheses])
         self.blame = Blame([scene.objects[i].shape for i in self.objects], self.hypotheses, self.params)
-        self._cut = 0  # children no parent above the bound would queue
         self.local = LocalSettling(self.blame)
         self._trial: tuple[Code, LocalPlan] | None = None  # the trial settling under way
         self._depths: dict[tuple[int, int], float] = {}  # the last Rule 1 check's overlaps, by body pair
         half_margin = self.params.interaction_margin / 2.0  # the grouping's boxes are grown by it
         grouping = owner.grouping
-        self.stats.conflicts += RulingOut(
+        rulings = RulingOut(
             self.objects,
             [grouping.lows[i] + half_margin for i in self.objects],
             [grouping.highs[i] - half_margin for i in self.objects],
@@ -101,65 +85,88 @@ class ConflictGroupSearch(GroupSearch):
             self.params.penetration_threshold,
             self.conflicts,
         ).run(scene.static)
+        body_name = self.checker.body_name
+        self.ruled_out = tuple(
+            RuledOut(self.names[r.position], r.rank, body_name(r.other), r.depth, r.every_rank, self.trace_group)
+            for r in rulings
+        )
+        self.stats.conflicts += len(rulings)
+        self.stats.ruled_out += len(rulings)
+        self.drop_head()  # the paper's queue holds the root: the generator makes the candidates here
+        self.candidates = ConflictFreeCandidates(
+            [weights[1:] for weights in self._weights], self.conflicts, self.is_bounded, self.queue_limit
+        )
+        self._waiting: QueueItem | None = None  # the candidate whose settling the deadline interrupted
+        self._expanded_codes: set[Code] = set()  # visited nodes above the bound (parents in the trace)
 
     def step(self, stop_at: float | None) -> bool:
-        """Skip every candidate at the head of the queue that contains a known conflict (no physics: many
-        per step, the clock read every :data:`SKIPS_PER_CLOCK_CHECK`), then check the next one as
-        :meth:`BranchAndBound.step` does; False if the deadline ``stop_at`` came first."""
-        skipped = 0
-        self._release_pending()
-        while super().queued and self.settling_in_progress is None and not self.refinement_due and self._skip_head():
-            skipped += 1
-            self._release_pending()
-            if skipped % SKIPS_PER_CLOCK_CHECK == 0 and stop_at is not None and time.monotonic() >= stop_at:
-                break
-        if skipped or (not super().queued and not self.refinement_due):
-            self.update_end()
-            return True
-        return super().step(stop_at)
+        """Make the due refined map, or else check the next candidate (the one the deadline interrupted
+        first); False if the deadline ``stop_at`` came first (finding the candidate, or settling it)."""
+        if self.refinement_due:
+            return self._refine(stop_at)
+        self.candidates.queue_limit = self.queue_limit  # the grouped search shares it out after making groups
+        if self._waiting is None and not self.candidates.find(stop_at):
+            return False
+        item = self._waiting or self._take()
+        self._waiting = None
+        if item is not None and self.visit(item, stop_at) is None:
+            self._waiting = item
+            return False
+        self.update_end()
+        return True
 
-    def _release_pending(self) -> None:
-        """Queue every waiting child that could come before the head of the queue, or tie with it
-        (:mod:`~physics_mapper.search.pending_children`): the head is then the next node in the paper's order."""
-        pending = self._pending
-        while (neg_bound := pending.neg_bound) is not None and (
-            not super().queued or neg_bound <= self.head().neg_probability
-        ):
-            self.push(*pending.release())
+    def _take(self) -> QueueItem | None:
+        """The next candidate off the generator, with the first of its parents visited above the bound."""
+        found = self.candidates.take()
+        if found is None:
+            return None
+        code, probability = found
+        parent = next(
+            (
+                parent
+                for position, rank in enumerate(code)
+                if rank > 1 and (parent := (*code[:position], rank - 1, *code[position + 1 :])) in self._expanded_codes
+            ),
+            None,
+        )
+        return QueueItem(-tie_key(probability), code, probability, parent)
 
     @property
     def queued(self) -> int:
-        """Nodes in the queue, and children waiting to be queued."""
-        return super().queued + len(self._pending)
+        """Prefixes the generator holds, and a candidate whose settling the deadline interrupted."""
+        return len(self.candidates) + (self._waiting is not None)
 
     @property
     def done(self) -> bool:
-        """True once the queue is empty and no child waits (and a due refined map is made)."""
-        return super().done and not self._pending
+        """True once no candidate is left (and a due refined map is made); how the search ended is then said
+        (a group whose every configuration holds a conflict from the start is done before any step)."""
+        if self._waiting is not None or not self.candidates.exhausted or self.refinement_due:
+            return False
+        self.update_end()
+        return True
 
     @property
     def next_probability(self) -> float | None:
-        """p(C) of the next node, or the highest bound of a waiting child if that is more."""
-        bounds = [p for p in (super().next_probability, self._pending.highest_bound) if p is not None]
-        return max(bounds, default=None)
+        """p(C) of the candidate checked next, or an upper bound while it is not found (None: none is left)."""
+        if self._waiting is not None:
+            return self._waiting.probability
+        return self.candidates.next_probability
+
+    @property
+    def root_rejected(self) -> bool:
+        """Whether the root was checked and rejected, or holds a known conflict (the generator never makes it)."""
+        return self.stats.visited > 0 or self.conflicts.contained(self._root) is not None
 
     def update_end(self) -> None:
-        """As :meth:`BranchAndBound.update_end`; not ended while a child waits."""
-        if self._pending:
+        """Say how the search ended once no candidate is left: ``truncated`` when the queue limit dropped
+        prefixes, ``bounded`` when the bound kept configurations out, else ``exhausted``."""
+        self.stats.dropped = self.candidates.dropped
+        if self._waiting is not None or not self.candidates.exhausted:
             self.stats.end = None
+        elif self.candidates.dropped:
+            self.stats.end = "truncated"
         else:
-            super().update_end()
-
-    def _skip_head(self) -> bool:
-        """Skip the head of the queue if it contains a known conflict (expanding it by that conflict)."""
-        item = self.head()
-        known = self.conflicts.contained(item.code)
-        if known is None:
-            return False
-        self.drop_head()
-        self.stats.skipped += 1
-        self._expand(item, self.is_bounded(item.probability), known)
-        return True
+            self.stats.end = "bounded" if self.candidates.cut else "exhausted"
 
     def visit(self, item: QueueItem, stop_at: float | None) -> TraceEntry | None:
         """Check a candidate that resolves every known conflict (:meth:`step` skipped the others), learn
@@ -184,7 +191,7 @@ class ConflictGroupSearch(GroupSearch):
         named = None if conflict is None else self.named(conflict)
         entry = replace(entry, parent=item.parent, group=self.trace_group, conflict=named)
         self.record(entry)
-        self._expand(item, bounded, conflict)
+        self._expanded(code, bounded)
         return entry
 
     def rule1(self, code: Code, poses: tuple[Pose, ...]) -> Collision | None:
@@ -244,12 +251,13 @@ class ConflictGroupSearch(GroupSearch):
     def settle_node(self, code: Code, poses: tuple[Pose, ...], stop_at: float | None) -> Settling | PartialSettling:
         """Rule 2 of one node, tried first (:data:`TRIAL_SOLVER_ITERATIONS`) locally where the contexts
         allow (:mod:`~physics_mapper.search.local_settling`), else of the whole group (from
-        :data:`WHOLE_TRIALS_FROM_OBJECTS` objects); with Rule 2's own settling at once otherwise, for a
-        node every context presumes valid, for a group holding a mesh and for the node a fallback may
-        report."""
+        :data:`WHOLE_TRIALS_FROM_OBJECTS` objects; a group holding a mesh with Rule 2's solver); with Rule
+        2's own settling at once otherwise, for a node every context presumes valid and for the node a
+        fallback may report."""
         plan = None if self.settling_completely else self.local.plan(code)
         whole = plan is not None and len(plan.simulated) == len(code)
-        if plan is None or (whole and len(code) < WHOLE_TRIALS_FROM_OBJECTS):
+        # A whole group holding a mesh is tried with Rule 2's solver: the trial would be Rule 2's settling.
+        if plan is None or (whole and (len(code) < WHOLE_TRIALS_FROM_OBJECTS or self.local.holds_meshes)):
             return super().settle_node(code, poses, stop_at)
         memoised = self.memoised(code)
         if memoised is not None:
@@ -265,7 +273,8 @@ class ConflictGroupSearch(GroupSearch):
             fixed=[(self.objects[p], poses[p]) for p in plan.fixed],
             early_exit=self.early_exit(),
             track_reach=True,
-            solver_iterations=TRIAL_SOLVER_ITERATIONS,
+            # Meshes change verdicts at fewer iterations (7 of 377 at 15 on the shipped mesh scenes).
+            solver_iterations=None if self.local.holds_meshes else TRIAL_SOLVER_ITERATIONS,
         )
         if isinstance(outcome, Settling):
             self.on_settled(code, outcome)
@@ -316,62 +325,15 @@ class ConflictGroupSearch(GroupSearch):
         """A conflict's assignments as (object name, rank)."""
         return tuple((self.names[position], rank) for position, rank in conflict.assignments)
 
-    def _expand(self, item: QueueItem, bounded: bool, conflict: Conflict | None) -> None:
-        """Hold back, to be queued in order, the children of ``item`` that advance an object of
-        ``conflict`` (None: every object) and have a parent above the bound.
-
-        A child advances its object to the next rank no one-assignment conflict rules out and outside
-        ``conflict``'s ranks of it: a child at a rank jumped over would still contain a conflict (its
-        parent on that object, the last rank jumped over, decides the bound as the paper's search
-        would)."""
-        code = item.code
-        moves = (
-            zip(range(len(code)), itertools.repeat(frozenset()))
-            if conflict is None
-            else zip(conflict.positions, conflict.ranks, strict=True)
-        )
-        children = []
-        for position, holding in moves:
-            rank = self.conflicts.next_rank(position, code[position], holding)
-            if rank is None:
-                continue
-            child = (*code[:position], rank, *code[position + 1 :])
-            if self._queues(child, code, bounded, position):
-                weights = self._weights[position]
-                old = weights[code[position]]
-                children.append((weights[rank] / old if old > 0.0 else 0.0, child))
-            else:
-                self._cut += 1
-        self._pending.add(code, item.probability, children)
-        if super().queued + len(self._pending) > self.queue_limit:
-            while self._pending:  # all queued: the queue's limit drops the least probable, as it would have
-                self.push(*self._pending.release())
-        if not bounded:
-            self.stats.expanded += 1
-
-    def _queues(self, child: Code, code: Code, bounded: bool, position: int) -> bool:
-        """Whether ``child`` of ``code`` (advanced at ``position``) has a parent above the bound: ``code``
-        itself or the last rank jumped over, cheaply, if they are; else any parent."""
-        if not bounded:
-            if child[position] == code[position] + 1 or not self.bounds_any:
-                return True
-            jumped = (*child[:position], child[position] - 1, *child[position + 1 :])
-            if not self.is_bounded(self.probability(jumped)):
-                return True
-        return self._has_parent_above_bound(child)
-
-    def _has_parent_above_bound(self, code: Code) -> bool:
-        """Whether some configuration one rank lower on one object is not bounded."""
-        for position, rank in enumerate(code):
-            if rank > 1:
-                parent = (*code[:position], rank - 1, *code[position + 1 :])
-                if not self.is_bounded(self.probability(parent)):
-                    return True
-        return False
-
-    def bound_cut_some(self) -> bool:
-        """Whether the bound kept a child from the queue (skipped candidates were not checked but are decided)."""
-        return self._cut > 0
+    def _expanded(self, code: Code, bounded: bool) -> None:
+        """Count a visited node above the bound as expanded, and keep it as a parent for the trace (as many
+        as the trace keeps entries)."""
+        if bounded:
+            return
+        self.stats.expanded += 1
+        limit = self.params.trace_limit
+        if limit is None or len(self._expanded_codes) < limit:
+            self._expanded_codes.add(code)
 
 
 class ConflictSearch(GroupedSearch):

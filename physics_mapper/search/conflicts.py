@@ -161,6 +161,14 @@ class ConflictStore:
             self._ruled_out[conflict.positions[0]].update(conflict.ranks[0])
         return True
 
+    def excluded(self, position: int, rank: int) -> int:
+        """The conflicts (bit k: the k-th learned) that the object at ``position`` at ``rank`` resolves."""
+        return self._excluded[position][rank]
+
+    def since(self, count: int) -> list[Conflict]:
+        """The conflicts learned after the first ``count`` (conflict k is bit k of the bit sets)."""
+        return self._conflicts[count:]
+
     def live_ranks(self, position: int) -> list[int]:
         """The ranks of the object at ``position`` that no one-assignment conflict rules out, ascending."""
         ruled_out = self._ruled_out[position]

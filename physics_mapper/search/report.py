@@ -8,7 +8,7 @@ from typing import Any
 from physics_mapper.model.geometry import Pose
 from physics_mapper.model.scene import Fallback
 from physics_mapper.physics.refine import OVERLAP_TOLERANCE, RefinedMap
-from physics_mapper.search.results import Code, GroupResult, SearchResult, SearchStats, TraceEntry
+from physics_mapper.search.results import Code, GroupResult, RuledOut, SearchResult, SearchStats, TraceEntry
 
 
 def code_text(code: Code | None) -> str:
@@ -39,6 +39,16 @@ def trace_entry_dict(entry: TraceEntry) -> dict[str, Any]:
     if entry.pair is not None:
         data["pair"] = list(entry.pair)
     return data
+
+
+def ruled_out_text(ruling: RuledOut) -> str:
+    """Why a rank was ruled out before the search, e.g. ``mug #1: collision with floor, 21 mm``."""
+    depth = f"{ruling.depth * 1000:.0f} mm"
+    if ruling.every_rank:
+        return (
+            f"{ruling.object} #{ruling.rank}: {ruling.reason} with {ruling.other} at each of its ranks, {depth} or more"
+        )
+    return f"{ruling.object} #{ruling.rank}: {ruling.reason} with {ruling.other}, {depth}"
 
 
 def refinement_dict(refined: RefinedMap, names: tuple[str, ...]) -> dict[str, Any]:
@@ -94,6 +104,7 @@ def result_dict(result: SearchResult, names: tuple[str, ...]) -> dict[str, Any]:
         else dict(zip(names, result.object_jitters, strict=True)),
         "stats": stats_dict(result.stats),
         "groups": [group_dict(group, names) for group in result.groups],
+        "ruled_out": [asdict(ruling) for ruling in result.ruled_out],
         "trace": [trace_entry_dict(entry) for entry in result.trace],
     }
 
@@ -140,9 +151,15 @@ def trace_tree(trace: tuple[TraceEntry, ...], groups: tuple[GroupResult, ...] = 
     """The search tree: each node under the node that queued it, in visiting order (one tree per group,
     headed by its objects when ``groups`` and the scene's object ``names`` are given).
 
-    A node queued by one that is not in the trace (a candidate skipped by a conflict, or visited after
-    the trace limit) heads a tree of its own, which names that node."""
+    A node without a parent in the trace (the default search's candidate whose parents all hold a known
+    conflict, or a node queued by one visited after the trace limit) heads a tree of its own. The ranks
+    a group ruled out before its search come first, one line each, with why."""
     objects = {group.id: ", ".join(names[i] for i in group.objects) for group in groups} if names else {}
+    lines = [
+        f"{_group_head(group.id, objects)}ruled out before the search: {ruled_out_text(ruling)}"
+        for group in groups
+        for ruling in group.ruled_out
+    ]
     traced = {(entry.group, entry.code) for entry in trace}
     children: dict[tuple[int | None, Code | None], list[tuple[int, TraceEntry]]] = {}
     tops: list[tuple[int, TraceEntry]] = []
@@ -151,7 +168,6 @@ def trace_tree(trace: tuple[TraceEntry, ...], groups: tuple[GroupResult, ...] = 
             tops.append((index, entry))
         else:
             children.setdefault((entry.group, entry.parent), []).append((index, entry))
-    lines: list[str] = []
 
     def line(prefix: str, index: int, entry: TraceEntry) -> str:
         return f"{prefix}{code_text(entry.code)}  #{index}  p={entry.probability:.4g}  {describe_entry(entry)}"
@@ -164,12 +180,15 @@ def trace_tree(trace: tuple[TraceEntry, ...], groups: tuple[GroupResult, ...] = 
             walk(group, entry.code, prefix + ("   " if last else "│  "))
 
     for index, entry in tops:
-        group = entry.group
-        head = "" if group is None else f"group {group}{f' ({objects[group]})' if group in objects else ''}: "
-        queued_by = "" if entry.parent is None else f"  (queued by {code_text(entry.parent)}, skipped)"
-        lines.append(line(head, index, entry) + queued_by)
-        walk(group, entry.code, "")
+        queued_by = "" if entry.parent is None else f"  (queued by {code_text(entry.parent)}, untraced)"
+        lines.append(line(_group_head(entry.group, objects), index, entry) + queued_by)
+        walk(entry.group, entry.code, "")
     return "\n".join(lines)
+
+
+def _group_head(group: int | None, objects: dict[int | None, str]) -> str:
+    """``group 3 (cube_a, cube_b): `` before a line of group 3 (empty for a search of every object)."""
+    return "" if group is None else f"group {group}{f' ({objects[group]})' if group in objects else ''}: "
 
 
 def refinement_text(refined: RefinedMap) -> str:
@@ -205,6 +224,9 @@ def result_summary(result: SearchResult, fallback: Fallback) -> str:
         if stats.conflicts or stats.conflicts_kept
         else ""
     )
+    if result.ruled_out:
+        conflicts += f"ruled out before the search: {'; '.join(ruled_out_text(r) for r in result.ruled_out[:5])}"
+        conflicts += f" (and {len(result.ruled_out) - 5} more)\n" if len(result.ruled_out) > 5 else "\n"
     return (
         f"{head}\n"
         f"{groups}visited {stats.visited} (expanded {stats.expanded}, bounded {stats.bounded}); "

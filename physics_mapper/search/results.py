@@ -52,6 +52,23 @@ class TraceEntry:
     conflict: tuple[tuple[str, int], ...] | None = None
 
 
+@dataclass(frozen=True, slots=True)
+class RuledOut:
+    """A rank ruled out before the search: no valid configuration holds ``object`` at ``rank``, because
+    its body there overlaps ``other`` (a static body, or with ``every_rank`` an object at each of its
+    ranks still possible) ``depth`` metres deep, beyond the penetration threshold (with ``every_rank``
+    the shallowest of those overlaps). Its ``reason`` is Rule 1's: ``collision``. ``group`` is the
+    interaction group's id, as in the trace."""
+
+    object: str
+    rank: int
+    other: str
+    depth: float
+    every_rank: bool = False
+    group: int | None = None
+    reason: Literal["collision"] = "collision"
+
+
 @dataclass
 class SearchStats:
     """Counters and timing of a search, accumulated over resumed runs.
@@ -63,7 +80,8 @@ class SearchStats:
     conflict-directed search also counts ``conflicts`` learned (and ``conflicts_kept``, carried over
     from the previous search for objects whose hypotheses did not change), candidates ``skipped`` because
     they contain a known conflict (never checked), and its settlings: ``local_settlings`` (only what
-    changed and its neighbours simulated) and ``full_settlings`` (every object of the group).
+    changed and its neighbours simulated) and ``full_settlings`` (every object of the group), and the
+    ranks ``ruled_out`` before its first candidate (:class:`RuledOut`; learned conflicts among them).
     """
 
     visited: int = 0
@@ -87,6 +105,7 @@ class SearchStats:
     skipped: int = 0
     local_settlings: int = 0
     full_settlings: int = 0
+    ruled_out: int = 0
 
     @property
     def exhausted(self) -> bool:
@@ -129,7 +148,8 @@ class GroupResult:
     group's ranks (its objects' order), ``valid`` whether that sub-configuration passed both rules.
     ``kept`` says the group's search was carried over unchanged from the previous search. A
     conflict-directed group's counters (:class:`SearchStats`) come with it: ``conflicts``,
-    ``conflicts_kept``, ``skipped``, ``local_settlings`` and ``full_settlings``.
+    ``conflicts_kept``, ``skipped``, ``local_settlings`` and ``full_settlings``, and why each rank it
+    ruled out before its search was (``ruled_out``).
     """
 
     id: int | None
@@ -146,6 +166,7 @@ class GroupResult:
     skipped: int = 0
     local_settlings: int = 0
     full_settlings: int = 0
+    ruled_out: tuple[RuledOut, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -175,3 +196,8 @@ class SearchResult:
     fallback: Fallback | None = None
     refinement: RefinedMap | None = None
     groups: tuple[GroupResult, ...] = ()
+
+    @property
+    def ruled_out(self) -> tuple[RuledOut, ...]:
+        """Every group's ranks ruled out before its search, with why (in group order)."""
+        return tuple(ruling for group in self.groups for ruling in group.ruled_out)

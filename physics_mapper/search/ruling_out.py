@@ -22,6 +22,7 @@ without the engine. The conflicts themselves come from the table's depths, the o
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -43,6 +44,19 @@ PAIRS_FROM_OBJECTS = 7
 BOX_PAIR_LIMIT = 1 << 20
 
 
+@dataclass(frozen=True, slots=True)
+class Ruling:
+    """Why one rank was ruled out alone: the object at ``position`` (in its group) at ``rank`` overlaps
+    body ``other`` (a body index: the scene's objects, then its static bodies) ``depth`` metres deep;
+    with ``every_rank``, at each rank of that object not ruled out already, ``depth`` the shallowest."""
+
+    position: int
+    rank: int
+    other: int
+    depth: float
+    every_rank: bool = False
+
+
 @dataclass(frozen=True)
 class RulingOut:
     """The pass over one group (module docstring): its objects' scene indices by position, the corners
@@ -56,36 +70,41 @@ class RulingOut:
     threshold: float
     store: ConflictStore
 
-    def run(self, statics: Sequence[StaticBody]) -> int:
-        """Learn every rank Rule 1 rules out alone, against ``statics`` and pairwise; how many."""
-        learned = self._on_statics(statics)
+    def run(self, statics: Sequence[StaticBody]) -> list[Ruling]:
+        """Learn every rank Rule 1 rules out alone, against ``statics`` and pairwise; why each, in
+        learning order."""
+        rulings = self._on_statics(statics)
         overlaps = (
             _box_overlaps(self.lows, self.highs, self.threshold) if len(self.objects) >= PAIRS_FROM_OBJECTS else None
         )
         if overlaps is None:
-            return learned
+            return rulings
         pending = list(overlaps)
         while pending:  # a rank ruled out may rule out others: the pairs whose q lost ranks, again
             lost = self._on_pairs({pair: overlaps[pair] for pair in pending})
-            learned += len(lost)
-            pending = [(p, q) for p, q in overlaps if q in lost]
-        return learned
+            rulings += lost
+            losers = {ruling.position for ruling in lost}
+            pending = [(p, q) for p, q in overlaps if q in losers]
+        return rulings
 
-    def _on_statics(self, statics: Sequence[StaticBody]) -> int:
-        """Learn the ranks that overlap a static body deeper than the threshold; how many."""
-        learned = 0
+    def _on_statics(self, statics: Sequence[StaticBody]) -> list[Ruling]:
+        """Learn the ranks that overlap a static body deeper than the threshold; why each."""
+        rulings = []
         for position, index in enumerate(self.objects):
             reach = np.zeros(len(self.lows[position]), dtype=bool)
             for body in statics:
                 reach |= may_overlap_static(body, self.lows[position], self.highs[position], self.threshold)
             for rank in (int(k) + 1 for k in np.nonzero(reach)[0]):
-                if self.table.static_depth(index, rank) > self.threshold:
-                    learned += self.store.learn(Conflict(((position, rank),), "collision"))
-        return learned
+                other, depth = self.table.deepest_static(index, rank)
+                if other is None or depth <= self.threshold:
+                    continue
+                if self.store.learn(Conflict(((position, rank),), "collision")):
+                    rulings.append(Ruling(position, rank, other, depth))
+        return rulings
 
-    def _on_pairs(self, overlaps: dict[tuple[int, int], FloatArray]) -> list[int]:
+    def _on_pairs(self, overlaps: dict[tuple[int, int], FloatArray]) -> list[Ruling]:
         """One pass over the pairs: learn each rank of p that overlaps q deeper than the threshold at
-        every rank of q not ruled out; the positions p of the ranks learned, once per rank."""
+        every rank of q not ruled out; why each, once per rank."""
         lost = []
         for (p, q), overlap in overlaps.items():
             live = self.store.live_ranks(q)
@@ -100,9 +119,14 @@ class RulingOut:
                 # The ranks least deep by their boxes first: the first shallow one decides.
                 ranks = [live[int(k)] for k in np.argsort(rows[rank - 1], kind="stable")]
                 first, second = self.objects[p], self.objects[q]
-                if all(self.table.pair_depth(first, rank, second, b) > self.threshold for b in ranks):
+                shallowest = math.inf
+                for b in ranks:
+                    shallowest = min(shallowest, self.table.pair_depth(first, rank, second, b))
+                    if shallowest <= self.threshold:
+                        break
+                else:
                     self.store.learn(Conflict(((p, rank),), "collision"))
-                    lost.append(p)
+                    lost.append(Ruling(p, rank, second, shallowest, every_rank=True))
         return lost
 
 

@@ -26,6 +26,7 @@ RESULT_KEYS = {
     "object_jitters",
     "stats",
     "groups",
+    "ruled_out",
     "trace",
 }
 

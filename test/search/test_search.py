@@ -7,10 +7,8 @@ order, bounding, ties, anytime stops, resuming, fallback and the least-jitter ch
 
 from __future__ import annotations
 
-import heapq
 import itertools
 import math
-import random
 from dataclasses import replace
 
 from conftest import PROBLEMS
@@ -27,16 +25,13 @@ from core_builders import (
     run_search,
     unrotated,
 )
-from hypothesis import given, settings
-from hypothesis import strategies as st
 
 from physics_mapper.model.scene import SearchParams
 from physics_mapper.model.scene_files import load_problem
 from physics_mapper.physics.checker import PhysicsChecker
 from physics_mapper.physics.settling import CLOCK_CHECK_STEPS
 from physics_mapper.physics.world import TIME_STEP
-from physics_mapper.search.branch_and_bound import BranchAndBound, tie_key
-from physics_mapper.search.pending_children import PendingChildren
+from physics_mapper.search.branch_and_bound import BranchAndBound
 from physics_mapper.search.results import Code, SearchResult, TraceEntry
 
 #: A 4 x 3 x 3 problem with distinct, unequal weights (normalised by the ranking).
@@ -229,61 +224,3 @@ def test_least_jitter_valid_configuration_wins_over_more_likely_ones() -> None:
     assert jitters[0] > jitters[1] > jitters[2]
     assert result.valid and result.code == (3,) and result.jitter == jitters[2]
     assert not result.fallback_used
-
-
-@settings(max_examples=60, deadline=None)
-@given(
-    weights=st.lists(
-        st.lists(st.sampled_from([0.5, 0.25, 0.2, 0.125, 0.1, 0.05]), min_size=2, max_size=5), min_size=2, max_size=6
-    ),
-    seed=st.integers(0, 1_000),
-)
-def test_children_held_back_are_taken_in_the_order_of_a_queue_that_holds_them_all(
-    weights: list[list[float]], seed: int
-) -> None:
-    """PendingChildren: nodes come off the queue in the order (tie key, code) of a queue every child
-    went into at once, however the expansions pick their objects (weights repeat: ties abound)."""
-    ranked = [(0.0, *sorted(w, reverse=True)) for w in weights]
-
-    def probability(code: tuple[int, ...]) -> float:
-        return math.prod(w[rank] for w, rank in zip(ranked, code, strict=True))
-
-    def children(code: tuple[int, ...]) -> list[tuple[int, tuple[int, ...]]]:
-        """(position advanced, child) for the positions this expansion picks."""
-        chooser = random.Random(f"{seed} {code}")
-        positions = [p for p in range(len(code)) if code[p] + 1 < len(ranked[p]) and chooser.random() < 0.6]
-        return [(p, (*code[:p], code[p] + 1, *code[p + 1 :])) for p in positions]
-
-    def key(code: tuple[int, ...]) -> tuple[float, tuple[int, ...]]:
-        return (-tie_key(probability(code)), code)
-
-    root = tuple(1 for _ in ranked)
-    eager, eager_order, queued = [key(root)], [], {root}
-    while eager:
-        _, code = heapq.heappop(eager)
-        eager_order.append(code)
-        for _, child in children(code):
-            if child not in queued:
-                queued.add(child)
-                heapq.heappush(eager, key(child))
-
-    # As the search's queue: its dedup set holds the queued codes only, so a child released after it
-    # was visited would be visited again.
-    lazy, lazy_order, in_queue, pending = [key(root)], [], {root}, PendingChildren()
-    while lazy or len(pending):
-        while (bound := pending.neg_bound) is not None and (not lazy or bound <= lazy[0][0]):
-            child, _ = pending.release()
-            if child not in in_queue:
-                in_queue.add(child)
-                heapq.heappush(lazy, key(child))
-        if not lazy:
-            break
-        _, code = heapq.heappop(lazy)
-        in_queue.discard(code)
-        lazy_order.append(code)
-        pending.add(
-            code,
-            probability(code),
-            [(ranked[p][child[p]] / ranked[p][code[p]], child) for p, child in children(code)],
-        )
-    assert lazy_order == eager_order
