@@ -222,12 +222,13 @@ def _live(
 
 
 def _write_json(path: Path, mode: str, results: Sequence[SnapshotResult], object_names: Sequence[str]) -> None:
-    from physics_mapper.evaluation.snapshot_results import mean_errors, snapshot_result_dict
+    from physics_mapper.evaluation.snapshot_results import mean_errors, result_identity, snapshot_result_dict
 
     data = {
         "mode": mode,
         "objects": list(object_names),
         "mean_errors": mean_errors(results),
-        "snapshots": [snapshot_result_dict(o) for o in results],
+        "identity": result_identity(results, object_names),
+        "snapshots": [snapshot_result_dict(o, object_names) for o in results],
     }
     write_output(path, json.dumps(data, indent=1) + "\n")

@@ -25,6 +25,7 @@ from physics_mapper.bags.storage import (
     pose_array_cdr,
     pose_array_from_cdr,
 )
+from physics_mapper.evaluation.identity import identity_metrics, identity_text, record_frames
 from physics_mapper.evaluation.scoring import position_errors, rank_one_poses
 from physics_mapper.evaluation.snapshots import BagSnapshot
 from physics_mapper.mapping.topics import MAP_TOPIC_QOS, RECORDED_CONFIGURATION_TOPIC, RECORDED_SETTLED_TOPIC
@@ -218,15 +219,32 @@ def evaluation_summary(results: Sequence[SnapshotResult], object_names: Sequence
     for index, name in enumerate(object_names):
         lines.append(f"{name:<{width}}" + "".join(f"{e[index] * 100:10.2f}" for e in errors.values()))
     lines.append(f"{'total':<{width}}" + "".join(f"{sum(e) * 100:10.2f}" for e in errors.values()))
+    lines.append(identity_text(result_identity(results, object_names)))
     return "\n".join(lines)
 
 
-def snapshot_result_dict(result: SnapshotResult) -> dict[str, Any]:
+def result_identity(results: Sequence[SnapshotResult], object_names: Sequence[str]) -> dict[str, Any] | None:
+    """The identity metrics (:func:`~physics_mapper.evaluation.identity.identity_metrics`) of the results."""
+    return identity_metrics(record_frames(snapshot_result_dict(r, object_names) for r in results))
+
+
+def map_positions(result: SnapshotResult, names: Sequence[str]) -> dict[str, list[float]] | None:
+    """The chosen configuration's centre positions (m) by object name (None without one), what identity
+    metrics match to the ground truth (:mod:`~physics_mapper.evaluation.identity`)."""
+    if result.chosen is None:
+        return None
+    return {name: list(pose.position) for name, pose in zip(names, result.chosen, strict=True)}
+
+
+def snapshot_result_dict(result: SnapshotResult, names: Sequence[str]) -> dict[str, Any]:
     """One snapshot's result as plain data: times, code, per-object position errors (m) of each estimate
-    (:func:`estimate_errors`) and, for an offline search, ``valid``, ``fallback_used``, ``visited`` (configurations
-    checked) and ``stopped_at_deadline`` (None for a live node's choice). Wall-clock times are left out, so that the
-    same search gives the same data on any machine."""
+    (:func:`estimate_errors`), the map's and the truth's positions (``positions``: ``map`` by object name,
+    :func:`map_positions`; ``truth`` in scene order, None without a ground truth) and, for an offline search,
+    ``valid``, ``fallback_used``, ``visited`` (configurations checked) and ``stopped_at_deadline`` (None for a
+    live node's choice). Wall-clock times are left out, so that the same search gives the same data on any
+    machine."""
     snapshot, search = result.snapshot, result.search
+    truth = snapshot.ground_truth
     return {
         "time_ns": snapshot.time_ns,
         "stamp_ns": snapshot.stamp_ns,
@@ -237,4 +255,8 @@ def snapshot_result_dict(result: SnapshotResult) -> dict[str, Any]:
         "visited": None if search is None else search.stats.visited,
         "stopped_at_deadline": None if search is None else search.stats.stopped_at_deadline,
         "errors": estimate_errors(result),
+        "positions": {
+            "map": map_positions(result, names),
+            "truth": None if truth is None else [list(pose.position) for pose in truth],
+        },
     }

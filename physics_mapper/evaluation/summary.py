@@ -15,6 +15,9 @@ Errors are position errors in metres against ``/ground_truth`` of the three esti
 * ``map_error_m``: the mean total error over *every* snapshot with a ground truth, a snapshot without
   a map counting with C11..1's error (the hypotheses a user has without the mapper), so that settings
   which leave different snapshots without a map compare fairly (``chosen_or_top``, ``settled_or_top``).
+* ``identity``: whether each map name stays on one true object (identity switches, IDF1, MOTA, MOTP, the
+  position error by identity: :mod:`physics_mapper.evaluation.identity`); overall, every bag's frames
+  together, each bag a sequence of its own.
 
 Everything here is computed from records alone, so it is the same whatever ran the searches;
 search times (wall clock) are summarised apart, by :func:`time_summary`.
@@ -29,6 +32,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from physics_mapper.evaluation.identity import identity_metrics, overall_identity_metrics, record_frames
 from physics_mapper.evaluation.snapshot_results import ESTIMATES, is_scored, mean_scored_errors
 from physics_mapper.evaluation.statistics import paired_wilcoxon
 
@@ -107,6 +111,7 @@ def bag_summary(records: Sequence[Record], names: Sequence[str]) -> dict[str, An
     summary["mean_m"] = None if means is None else _errors_by_object(means, names)
     summary["tests"] = None if means is None else _tests(_scored_arrays(records), "snapshot", names)
     summary["map_error_m"] = _map_errors(records)
+    summary["identity"] = identity_metrics(record_frames(records))
     return summary
 
 
@@ -125,6 +130,7 @@ def overall_summary(bags: Sequence[Sequence[Record]], names: Sequence[str]) -> d
     else:
         summary["tests"] = None if means is None else _tests(_scored_arrays(records), "snapshot", names)
     summary["map_error_m"] = _map_errors(records)
+    summary["identity"] = overall_identity_metrics([record_frames(bag) for bag in bags])
     return summary
 
 

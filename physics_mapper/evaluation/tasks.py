@@ -67,7 +67,7 @@ def evaluate_bag(
 
     results = search_offline(snapshots, scene, budget, searched)
     return TaskOutput(
-        records=tuple(snapshot_result_dict(result) for result in results),
+        records=tuple(snapshot_result_dict(result, scene.object_names) for result in results),
         search_times=tuple(map(_search_time, results)),
         busy_time=time.monotonic() - started,
         worker=worker,

@@ -1,0 +1,92 @@
+"""Identity metrics over a bag (identity switches, IDF1, MOTA/MOTP, position error by identity) on cases
+whose answer is known by hand, and as replay and evaluate report them."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+from conftest import REPO, SCENES
+
+from physics_mapper.cli import main
+from physics_mapper.evaluation.identity import IdentityFrame, identity_metrics, overall_identity_metrics
+
+TRUTH = [(0.0, 0.0, 0.05), (0.2, 0.0, 0.05)]
+
+
+def frame(**names: tuple[float, float, float]) -> IdentityFrame:
+    return IdentityFrame(TRUTH, names)
+
+
+def test_a_perfect_track_has_idf1_one_and_no_switch() -> None:
+    frames = [frame(a=(0.01, 0.0, 0.05), b=(0.2, 0.02, 0.05)) for _ in range(10)]
+    figures = identity_metrics(frames)
+    assert figures is not None
+    assert figures["idf1"] == 1.0 and figures["mota"] == 1.0 and figures["switches"] == 0
+    assert figures["motp_m"] == pytest.approx(0.015)
+    assert [(i["truth"], i["name"]) for i in figures["identities"]] == [(0, "a"), (1, "b")]
+    assert [i["mean_error_m"] for i in figures["identities"]] == pytest.approx([0.01, 0.02])
+    assert figures["identity_error_m"] == pytest.approx(0.015)
+
+
+def test_an_identity_switch_is_counted_once() -> None:
+    """Object 0 is named a for four frames, then c for six: one switch; IDF1 = 2 * 16 / 40."""
+    frames = [frame(a=TRUTH[0], b=TRUTH[1])] * 4 + [frame(c=TRUTH[0], b=TRUTH[1])] * 6
+    figures = identity_metrics(frames)
+    assert figures is not None
+    assert figures["switches"] == 1
+    assert figures["idf1"] == pytest.approx(2 * 16 / 40)
+    assert figures["mota"] == pytest.approx(1 - 1 / 20)
+    assert [i["name"] for i in figures["identities"]] == ["c", "b"]
+
+
+def test_a_swap_of_two_names_is_a_switch_of_each() -> None:
+    frames = [frame(a=TRUTH[0], b=TRUTH[1])] * 5 + [frame(a=TRUTH[1], b=TRUTH[0])] * 5
+    figures = identity_metrics(frames)
+    assert figures is not None and figures["switches"] == 2 and figures["idf1"] == pytest.approx(0.5)
+
+
+def test_misses_false_positives_and_frames_without_a_map() -> None:
+    """A second name on object 1 (a double detection kept), a name nowhere near an object (a false
+    positive in the air), a frame without a map: misses and false positives, matched within the gate."""
+    frames = [
+        frame(a=TRUTH[0], b=TRUTH[1], b2=(0.206, 0.0, 0.05)),
+        frame(a=TRUTH[0], b=TRUTH[1], air=(0.1, 0.0, 0.4)),
+        IdentityFrame(TRUTH, None),
+        frame(a=(0.0, 0.0, 0.11), b=TRUTH[1]),  # 6 cm off: beyond the 5 cm gate
+    ]
+    figures = identity_metrics(frames)
+    assert figures is not None
+    assert figures["false_positives"] == 3 and figures["misses"] == 3 and figures["switches"] == 0
+    assert figures["true_objects"] == 8 and figures["matches"] == 5
+    assert figures["mota"] == pytest.approx(1 - 6 / 8)
+    # By identity a stays object 0's name, and its error counts the frame outside the gate too.
+    assert figures["identities"][0]["mean_error_m"] == pytest.approx(0.06 / 3)
+
+
+def test_bags_together_sum_their_counts_and_keep_their_own_names() -> None:
+    perfect = [frame(a=TRUTH[0], b=TRUTH[1])] * 4
+    switching = [frame(a=TRUTH[0], b=TRUTH[1])] * 2 + [frame(c=TRUTH[0], b=TRUTH[1])] * 2
+    overall = overall_identity_metrics([perfect, switching])
+    assert overall is not None
+    assert overall["switches"] == 1 and overall["switches_max"] == 1 and overall["frames"] == 8
+    assert overall["idf1"] == pytest.approx((16 + 12) / 32)
+    assert identity_metrics([]) is None and overall_identity_metrics([]) is None
+
+
+def test_replay_and_evaluate_report_identity(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """The pyramid's named cubes keep their names: no switch; replay's JSON and evaluate's report agree."""
+    scene = str(SCENES / "pyramid.yaml")
+    bag = str(REPO / "test" / "data" / "pyramid")
+    replayed = tmp_path / "replay.json"
+    assert main(["replay", bag, "--scene", scene, "--offline", "--exhaustive", "--json", str(replayed)]) == 0
+    assert "0 identity switches" in capsys.readouterr().out
+    identity = json.loads(replayed.read_text())["identity"]
+    assert identity["switches"] == 0 and identity["false_positives"] == 0
+    assert [i["name"] for i in identity["identities"]] == ["cube_left", "cube_right", "cube_top"]
+    assert main(["evaluate", bag, "--scene", scene, "--exhaustive", "--workers", "0", "-o", str(tmp_path / "e")]) == 0
+    report = json.loads((tmp_path / "e" / "report.json").read_text())
+    assert report["bags"][0]["summary"]["identity"]["idf1"] == pytest.approx(identity["idf1"])
+    assert report["overall"]["identity"]["switches"] == 0
+    assert "identity switches" in (tmp_path / "e" / "report.md").read_text()
