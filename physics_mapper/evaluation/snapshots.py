@@ -22,6 +22,7 @@ from physics_mapper.bags.storage import (
     pose_array_from_cdr,
     weights_from_cdr,
 )
+from physics_mapper.mapping.association import AssociationSettings, InstanceTracks
 from physics_mapper.mapping.detections import RECORDED_DETECTIONS_TOPIC, detection_inputs
 from physics_mapper.mapping.inputs import InputSettings, InputTracker, check_poses, check_weights
 from physics_mapper.mapping.stamps import NANOSECONDS_PER_SECOND
@@ -88,15 +89,20 @@ def no_snapshot_reason(scene: Scene) -> str:
     )
 
 
-def bag_snapshots(bag: Bag, scene: Scene, settings: InputSettings | None = None) -> list[BagSnapshot]:
+def bag_snapshots(
+    bag: Bag, scene: Scene, settings: InputSettings | None = None, association: AssociationSettings | None = None
+) -> list[BagSnapshot]:
     """Feed the bag's hypotheses through the node's input rules; one snapshot per new set of hypotheses.
 
     Only the messages on :func:`input_topics` count, also for the bursts: other topics of the bag
-    (a recording's camera or TF) neither decide nor cut a burst. Raises BagError, naming the bag,
-    topic and time, for a message that cannot be decoded or a malformed ground truth.
+    (a recording's camera or TF) neither decide nor cut a burst. Detections of identical instances are
+    associated across the bag's arrays as the node does (:mod:`~physics_mapper.mapping.association`,
+    with ``association``'s settings). Raises BagError, naming the bag, topic and time, for a message
+    that cannot be decoded or a malformed ground truth.
     """
     settings = settings or InputSettings()
     tracker = InputTracker(scene.object_names)
+    instances = InstanceTracks(scene, association)
     poses_of = {recorded_poses_topic(name): name for name in scene.object_names}
     weights_of = {recorded_weights_topic(name): name for name in scene.object_names}
     wanted = set(input_topics(scene))
@@ -123,7 +129,7 @@ def bag_snapshots(bag: Bag, scene: Scene, settings: InputSettings | None = None)
                     )
                 elif message.topic == RECORDED_DETECTIONS_TOPIC:
                     detected = detection_inputs(
-                        detections_from_cdr(message.raw, bag.definitions), scene, received=received
+                        detections_from_cdr(message.raw, bag.definitions), scene, received=received, tracks=instances
                     )
                     for name, poses in detected.objects.items():
                         tracker.add_poses(name, poses)
