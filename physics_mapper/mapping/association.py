@@ -145,7 +145,7 @@ class FrameAssociation:
 def default_gate(shape: ObjectShape) -> float:
     """Half the smallest extent (m) of ``shape``'s axis-aligned box, unrotated."""
     low, high = body_box(shape, ORIGIN)
-    return 0.5 * min(h - lo for lo, h in zip(low, high, strict=True))
+    return 0.5 * float(np.min(high - low))
 
 
 class InstanceTracks:
@@ -221,14 +221,14 @@ class InstanceTracks:
                 assigned[observation.index] = name
                 matched.add(name)
             for observation in (o for o in of_class if o.index not in assigned):
-                name = self._free(names, observation, self.gate(class_id))
-                if name is None:
+                free = self._free(names, observation, self.gate(class_id))
+                if free is None:
                     outside[class_id] = outside.get(class_id, 0) + 1
                     continue
-                self._birth(name, observation, now)
-                assigned[observation.index] = name
-                matched.add(name)
-                born.append(name)
+                self._birth(free, observation, now)
+                assigned[observation.index] = free
+                matched.add(free)
+                born.append(free)
         for name in [n for n in self.tracks if n not in matched and self.tentative(n)]:
             self._end(name, now)  # a tentative track ends at its first miss
             ended.append(name)
