@@ -154,11 +154,12 @@ def _estimates(result: SnapshotResult) -> tuple[tuple[Pose, ...] | None, ...]:
     return rank_one_poses(result.snapshot.hypotheses), result.chosen, result.settled
 
 
-EstimateErrors = Mapping[str, Sequence[float] | None]
+EstimateErrors = Mapping[str, Sequence[float | None] | None]
 
 
-def estimate_errors(result: SnapshotResult) -> dict[str, tuple[float, ...] | None] | None:
-    """Each estimate's per-object position errors in metres, keyed by :data:`ESTIMATES`.
+def estimate_errors(result: SnapshotResult) -> dict[str, tuple[float | None, ...] | None] | None:
+    """Each estimate's per-object position errors in metres, keyed by :data:`ESTIMATES`; None for an object
+    the estimate leaves out of the map (its *absent* hypothesis).
 
     ``chosen`` and ``settled`` are None where nothing was chosen (``top``, C11..1, always exists);
     the whole is None without a ground truth.
@@ -167,14 +168,35 @@ def estimate_errors(result: SnapshotResult) -> dict[str, tuple[float, ...] | Non
     if truth is None:
         return None
     return {
-        name: None if poses is None else position_errors(poses, truth)
-        for name, poses in zip(ESTIMATES, _estimates(result), strict=True)
+        name: None if poses is None else _present_errors(position_errors(poses, truth), ranks, result)
+        for name, poses, ranks in zip(ESTIMATES, _estimates(result), _estimate_codes(result), strict=True)
     }
 
 
+def _estimate_codes(result: SnapshotResult) -> tuple[Code | None, ...]:
+    """The ranks of each of :data:`ESTIMATES` (``top``: every object's first; settled: the chosen ones)."""
+    return tuple(1 for _ in result.snapshot.hypotheses), result.code, result.code
+
+
+def _present_errors(errors: tuple[float, ...], code: Code | None, result: SnapshotResult) -> tuple[float | None, ...]:
+    """``errors`` with None for each object whose hypothesis of ``code`` is *absent* (not in the map)."""
+    if code is None:
+        return errors
+    hypotheses = result.snapshot.hypotheses
+    return tuple(
+        None if ranked.is_absent(rank) else error for error, ranked, rank in zip(errors, hypotheses, code, strict=True)
+    )
+
+
+def is_complete(errors: Sequence[float | None] | None) -> bool:
+    """Whether an estimate has an error for every object (it was made, and left no object out)."""
+    return errors is not None and all(error is not None for error in errors)
+
+
 def is_scored(errors: EstimateErrors | None) -> bool:
-    """Whether a snapshot's :func:`estimate_errors` count in the means: a ground truth and a chosen configuration."""
-    return errors is not None and all(errors[name] is not None for name in ESTIMATES)
+    """Whether a snapshot's :func:`estimate_errors` count in the means: a ground truth and a chosen configuration
+    holding every object (errors by name; a map leaving some instance out is scored by identity alone)."""
+    return errors is not None and all(is_complete(errors[name]) for name in ESTIMATES)
 
 
 def mean_scored_errors(errors: Iterable[EstimateErrors | None]) -> dict[str, tuple[float, ...]] | None:
@@ -229,11 +251,13 @@ def result_identity(results: Sequence[SnapshotResult], object_names: Sequence[st
 
 
 def map_positions(result: SnapshotResult, names: Sequence[str]) -> dict[str, list[float]] | None:
-    """The chosen configuration's centre positions (m) by object name (None without one), what identity
-    metrics match to the ground truth (:mod:`~physics_mapper.evaluation.identity`)."""
-    if result.chosen is None:
+    """The chosen configuration's centre positions (m) by object name, objects left out (*absent*) not
+    listed (None without a configuration): what identity metrics match to the ground truth
+    (:mod:`~physics_mapper.evaluation.identity`)."""
+    if result.chosen is None or result.code is None:
         return None
-    return {name: list(pose.position) for name, pose in zip(names, result.chosen, strict=True)}
+    placed = zip(names, result.chosen, result.snapshot.hypotheses, result.code, strict=True)
+    return {name: list(pose.position) for name, pose, ranked, rank in placed if not ranked.is_absent(rank)}
 
 
 def snapshot_result_dict(result: SnapshotResult, names: Sequence[str]) -> dict[str, Any]:

@@ -24,6 +24,7 @@ from physics_mapper.bags.storage import (
 )
 from physics_mapper.mapping.association import AssociationSettings, InstanceTracks
 from physics_mapper.mapping.detections import RECORDED_DETECTIONS_TOPIC, detection_inputs
+from physics_mapper.mapping.existence import with_absent
 from physics_mapper.mapping.inputs import InputSettings, InputTracker, check_poses, check_weights
 from physics_mapper.mapping.stamps import NANOSECONDS_PER_SECOND
 from physics_mapper.mapping.topics import GROUND_TRUTH_TOPIC, recorded_poses_topic, recorded_weights_topic
@@ -89,16 +90,33 @@ def no_snapshot_reason(scene: Scene) -> str:
     )
 
 
+def _with_absent(
+    hypotheses: tuple[RankedHypotheses, ...] | None, scene: Scene, instances: InstanceTracks
+) -> tuple[RankedHypotheses, ...] | None:
+    """Each instance that may not be there (a tentative track, a ``count: {max}`` one) with its *absent*
+    hypothesis, weighted as the node weighs it (:mod:`~physics_mapper.mapping.existence`)."""
+    if hypotheses is None:
+        return None
+    weights = (instances.absent_weight(name) for name in scene.object_names)
+    return tuple(
+        ranked if weight is None else with_absent(ranked, index, weight)
+        for index, (ranked, weight) in enumerate(zip(hypotheses, weights, strict=True))
+    )
+
+
 def bag_snapshots(
     bag: Bag, scene: Scene, settings: InputSettings | None = None, association: AssociationSettings | None = None
 ) -> list[BagSnapshot]:
     """Feed the bag's hypotheses through the node's input rules; one snapshot per new set of hypotheses.
 
     Only the messages on :func:`input_topics` count, also for the bursts: other topics of the bag
-    (a recording's camera or TF) neither decide nor cut a burst. Detections of identical instances are
-    associated across the bag's arrays as the node does (:mod:`~physics_mapper.mapping.association`,
-    with ``association``'s settings). Raises BagError, naming the bag, topic and time, for a message
-    that cannot be decoded or a malformed ground truth.
+    (a recording's camera or TF) neither decide nor cut a burst. Detections of identical instances
+    are associated across the bag's arrays as the node does (:mod:`~physics_mapper.mapping.association`,
+    with ``association``'s settings; tracks unmatched for ``max_age`` end and their instances forget
+    their hypotheses), and an instance that may not be there gets its *absent* hypothesis. A snapshot
+    needs hypotheses of every object, as before objects could be absent: an offline replay of a
+    ``count: {max: K}`` entry starts once each of its K instances has been seen. Raises BagError,
+    naming the bag, topic and time, for a message that cannot be decoded or a malformed ground truth.
     """
     settings = settings or InputSettings()
     tracker = InputTracker(scene.object_names)
@@ -135,8 +153,11 @@ def bag_snapshots(
                         tracker.add_poses(name, poses)
                 else:
                     truth = _ground_truth(message, scene)
-        snapshot = tracker.snapshot(burst[-1].time_ns / NANOSECONDS_PER_SECOND, settings)
-        hypotheses, stamp_ns = snapshot.hypotheses, snapshot.stamp_ns
+        now = burst[-1].time_ns / NANOSECONDS_PER_SECOND
+        for name in instances.expire(now):
+            tracker.forget(name)
+        snapshot = tracker.snapshot(now, settings)
+        hypotheses, stamp_ns = _with_absent(snapshot.hypotheses, scene, instances), snapshot.stamp_ns
         new = not snapshots or hypotheses != snapshots[-1].hypotheses
         if hypotheses is not None and stamp_ns is not None and new:
             stamps = tuple(o.stamp_ns for o in snapshot.objects if o.stamp_ns is not None)
