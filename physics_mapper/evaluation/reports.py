@@ -438,6 +438,7 @@ def sweep_data(run: BatchRun, context: ReportContext, criterion: Criterion) -> d
                 "label": setting.label,
                 "varied": dict(setting.varied),
                 "search": asdict(setting.params),
+                "association": asdict(setting.association),
                 "counts": _counts(run, index),
                 "complete": all((index, b) in run.outputs for b in readable),
                 "overall": overall_summary(evaluated, run.scene.object_names) if evaluated else None,

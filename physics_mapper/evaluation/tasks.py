@@ -19,6 +19,7 @@ from typing import Any
 from physics_mapper.bags.storage import Bag, BagError, BagMismatch
 from physics_mapper.evaluation.snapshot_results import SnapshotResult, search_offline, snapshot_result_dict
 from physics_mapper.evaluation.sources import UnreadableBag, load_snapshots
+from physics_mapper.mapping.association import AssociationSettings
 from physics_mapper.model.scene import Scene
 from physics_mapper.search.results import SearchResult
 
@@ -48,15 +49,17 @@ def evaluate_bag(
     scene: Scene,
     source: Path | Bag | UnreadableBag,
     budget: float | None,
+    association: AssociationSettings | None = None,
     progress: Callable[[], None] | None = None,
 ) -> TaskOutput:
     """Search every snapshot of a bag (its path, or its input topics read elsewhere) with ``scene.search``,
-    ``budget`` seconds each (None: exhaustively), and score it. ``progress()`` is called after each snapshot.
+    ``budget`` seconds each (None: exhaustively), detections associated to instances with ``association``
+    (None: the defaults), and score it. ``progress()`` is called after each snapshot.
     """
     started = time.monotonic()
     worker = f"{socket.gethostname()}:{os.getpid()}"
     try:
-        snapshots = load_snapshots(source, scene)
+        snapshots = load_snapshots(source, scene, association)
     except BagError as error:
         unusable = isinstance(error, BagMismatch)
         return TaskOutput((), (), time.monotonic() - started, worker, str(error), unusable)
