@@ -142,6 +142,18 @@ class FrameAssociation:
     outside: dict[str, int] = field(default_factory=dict)  # class id -> detections matched to nothing
 
 
+@dataclass(frozen=True)
+class Tracking:
+    """What the association did over a while (a tick): instances whose tracks began (``births``) and
+    ended (``ends``); each tracked class's instances with a track; detections matched to no instance
+    since the start (``outside``)."""
+
+    births: tuple[str, ...] = ()
+    ends: tuple[str, ...] = ()
+    instances: tuple[tuple[str, int], ...] = ()
+    outside: int = 0
+
+
 def default_gate(shape: ObjectShape) -> float:
     """Half the smallest extent (m) of ``shape``'s axis-aligned box, unrotated."""
     low, high = body_box(shape, ORIGIN)

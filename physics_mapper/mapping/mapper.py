@@ -15,7 +15,7 @@ import time
 from dataclasses import dataclass, field, replace
 from typing import Any
 
-from physics_mapper.mapping.association import AssociationSettings, InstanceTracks
+from physics_mapper.mapping.association import AssociationSettings, InstanceTracks, Tracking
 from physics_mapper.mapping.detections import DetectionInputs, detection_inputs
 from physics_mapper.mapping.existence import MapMemory, absent_objects, searched_hypotheses
 from physics_mapper.mapping.inputs import InputSettings, InputSnapshot, InputTracker
@@ -76,8 +76,8 @@ class TickReport:
 
     ``result`` is None while no object has ever had usable hypotheses. ``hypotheses`` are those
     searched, in object order (with *absent* where an object may be left out); ``absent`` names the
-    objects the map leaves out (every object without a result). ``births`` and ``ends`` name the
-    instances whose tracks began and ended since the previous tick. ``search_time`` is the
+    objects the map leaves out (every object without a result). ``tracking`` says what the
+    association of instances did since the previous tick. ``search_time`` is the
     wall-clock seconds this tick spent in the search (at most ``deadline`` plus a small slack).
     ``resumed`` says the tick continued the previous search (same inputs and settings); with the
     grouped strategy, ``result.groups`` say which groups were kept when some were restarted.
@@ -97,8 +97,12 @@ class TickReport:
     settling_group: int | None = None
     hypotheses: tuple[RankedHypotheses, ...] = ()
     absent: tuple[str, ...] = ()
-    births: tuple[str, ...] = ()
-    ends: tuple[str, ...] = ()
+    tracking: Tracking = field(default_factory=Tracking)
+
+    @property
+    def present(self) -> tuple[int, ...]:
+        """Scene indices of the objects the map holds, in scene order."""
+        return tuple(i for i, name in enumerate(self.snapshot.names) if name not in self.absent)
 
 
 class Mapper:
@@ -160,6 +164,8 @@ class Mapper:
             self._ended(self.tracks.expire(now))
             births, ends = tuple(self._births), tuple(self._ends)
             self._births, self._ends = [], []
+            instances = tuple(self.tracks.instances_per_class().items())
+            tracking = Tracking(births, ends, instances, self.tracks.outside)
             snapshot = self.inputs.snapshot(now, settings.inputs)
             hypotheses = searched_hypotheses(
                 snapshot, self.memory, self.tracks.absent_weight, now, settings.inputs.max_age
@@ -167,7 +173,7 @@ class Mapper:
         names = self.scene.object_names
         waiting = len(snapshot.missing) == len(names) and not self.memory.poses
         if waiting:
-            return TickReport(snapshot, None, 0.0, False, settings, absent=names, births=births, ends=ends)
+            return TickReport(snapshot, None, 0.0, False, settings, absent=names, tracking=tracking)
         try:
             report = self._search_tick(snapshot, hypotheses, settings)
         except PhysicsEngineError as error:
@@ -177,7 +183,7 @@ class Mapper:
         if report.result is not None:
             self.memory.remember(names, hypotheses, report.result)
         absent = absent_objects(names, hypotheses, report.result)
-        return replace(report, hypotheses=hypotheses, absent=absent, births=births, ends=ends)
+        return replace(report, hypotheses=hypotheses, absent=absent, tracking=tracking)
 
     def _search_tick(
         self, snapshot: InputSnapshot, hypotheses: tuple[RankedHypotheses, ...], settings: MapperSettings

@@ -48,7 +48,7 @@ def test_a_floating_false_positive_is_absent_and_the_rest_valid() -> None:
     assert report.result is not None and report.result.valid
     assert report.absent == ("box_1",)  # the first detection's instance: left out, not invalidating the map
     assert sorted(present(report).values()) == sorted(FLOOR_BOXES)
-    assert report.births == ("box_1", "box_2", "box_3", "box_4")
+    assert report.tracking.births == ("box_1", "box_2", "box_3", "box_4")
     absent_rank = report.result.code[0] if report.result.code is not None else None
     assert absent_rank is not None and report.hypotheses[0].is_absent(absent_rank)
 
@@ -69,7 +69,7 @@ def test_a_double_detection_of_a_present_box_is_one_instance() -> None:
     mapper.tick(0.6, SETTINGS)
     feed(mapper, [(0.006, 0.0, 0.05), *two], 1.0)  # box 1 detected twice, 6 mm apart, the copy first
     report = mapper.tick(1.1, SETTINGS)
-    assert report.births == ("box_3",)  # the copy matched no instance (box 1's is nearer): a tentative one
+    assert report.tracking.births == ("box_3",)  # the copy matched no instance (box 1's is nearer): a tentative one
     assert report.result is not None and report.result.valid
     assert report.absent == ("box_3",) and present(report) == {"box_1": two[0], "box_2": two[1]}
 
@@ -122,7 +122,7 @@ def test_an_instance_ends_after_max_age_and_leaves_the_map() -> None:
     for time in (1.0, 1.5, 2.0):
         feed(mapper, FLOOR_BOXES[:1], time)  # box 2 picked away
         report = mapper.tick(time + 0.1, SETTINGS)
-        ends += report.ends
+        ends += report.tracking.ends
     assert ends == ["box_2"] and report.absent == ("box_2",)
     assert report.result is not None and report.result.valid and present(report) == {"box_1": FLOOR_BOXES[0]}
 
