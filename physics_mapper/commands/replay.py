@@ -82,6 +82,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="live: play every topic of the bag, but /rosout, /parameter_events and /clock unless named in --topics",
     )
     parser.add_argument("--json", type=Path, metavar="FILE", help="write each snapshot's code and errors as JSON")
+    parser.add_argument(
+        "--identity-plot",
+        type=Path,
+        metavar="PNG",
+        help="draw frames against instances, each cell coloured by the true object the instance is on",
+    )
 
 
 def _progress(text: str) -> None:
@@ -103,8 +109,9 @@ def run(args: argparse.Namespace) -> int:
         raise InputError("--deadline is for --offline; a live node has its own deadline parameter")
     if args.offline and (args.topics or args.all_topics):
         raise InputError("--topics and --all-topics are for a live replay; --offline reads only the scene's topics")
-    if args.json is not None:
-        check_output_folder(args.json)
+    for path in (args.json, args.identity_plot):
+        if path is not None:
+            check_output_folder(path)
     scene = load_stoppably(args.scene, load_scene)
     try:
         # Only the scene's topics are read into memory; a live replay streams what it plays.
@@ -122,6 +129,8 @@ def run(args: argparse.Namespace) -> int:
     print(evaluation_summary(results, scene.object_names))
     if args.json is not None:
         _write_json(args.json, "offline" if args.offline else "live", results, scene.object_names)
+    if args.identity_plot is not None:
+        _write_identity_plot(args.identity_plot, args.bag, results, scene.object_names)
     return 0
 
 
@@ -219,6 +228,19 @@ def _live(
     _progress(f"recorded into {output}: " + ", ".join(f"{n} on {t}" for t, n in counts.items()))
     output_bag = read_bag(output, (RECORDED_CONFIGURATION_TOPIC, RECORDED_SETTLED_TOPIC))
     return recorded_results(snapshots, output_bag, scene)
+
+
+def _write_identity_plot(path: Path, bag: Path, results: Sequence[SnapshotResult], names: Sequence[str]) -> None:
+    import io
+
+    from physics_mapper.evaluation.plots import identity_timeline
+    from physics_mapper.evaluation.snapshot_results import snapshot_result_dict
+    from physics_mapper.model.atomic_files import write_atomically
+
+    records = [snapshot_result_dict(result, names) for result in results]
+    buffer = io.BytesIO()
+    identity_timeline(records, names, bag.name).savefig(buffer, format="png", dpi=120)
+    write_atomically(path, buffer.getvalue())
 
 
 def _write_json(path: Path, mode: str, results: Sequence[SnapshotResult], object_names: Sequence[str]) -> None:

@@ -67,7 +67,7 @@ def _distances(truth: np.ndarray, estimate: np.ndarray, gate: float) -> np.ndarr
     """[true object, map object] centre distances in metres, NaN beyond ``gate`` (never matched)."""
     if len(truth) == 0 or len(estimate) == 0:
         return np.empty((len(truth), len(estimate)))
-    distances = np.linalg.norm(truth[:, None, :] - estimate[None, :, :], axis=2)
+    distances: np.ndarray = np.linalg.norm(truth[:, None, :] - estimate[None, :, :], axis=2)
     distances[distances > gate] = np.nan
     return distances
 

@@ -187,3 +187,51 @@ def sweep_figure(data: dict[str, Any]) -> Figure:
         title = "snapshots with a valid map (%)" + (f"; {suffix}" if suffix else "")
         _heat_map(valid_axes, valid, axis_rows, axis_columns, title, framed, low_is_good=False, unit=" %", decimals=0)
     return figure
+
+
+def identity_timeline(records: Sequence[dict[str, Any]], names: Sequence[str], title: str) -> Figure:
+    """Frames on one axis, instances on the other: each cell coloured by the true object the instance's map
+    pose lies on (nearest within :data:`~physics_mapper.evaluation.identity.IDENTITY_GATE`), white where the
+    map leaves it out (or there is no map), black where it lies on no true object. A row of one colour is an
+    identity kept; a change of colour within a row is an identity switch."""
+    from matplotlib.colors import ListedColormap
+
+    from physics_mapper.evaluation.identity import IDENTITY_GATE
+
+    scored = [r for r in records if r["positions"]["truth"] is not None]
+    truth_count = max((len(r["positions"]["truth"]) for r in scored), default=0)
+    palette = [(1.0, 1.0, 1.0), (0.0, 0.0, 0.0)] + [
+        tuple(float(c) for c in colour[:3]) for colour in _qualitative(truth_count)
+    ]
+    cells = np.zeros((len(names), len(scored)), dtype=int)  # 0 not in the map, 1 on nothing, 2 + k on object k
+    for column, record in enumerate(scored):
+        truth = np.asarray(record["positions"]["truth"], dtype=float)
+        for row, name in enumerate(names):
+            position = (record["positions"]["map"] or {}).get(name)
+            if position is None:
+                continue
+            distances = np.linalg.norm(truth - np.asarray(position, dtype=float), axis=1)
+            nearest = int(np.argmin(distances))
+            cells[row, column] = 2 + nearest if distances[nearest] <= IDENTITY_GATE else 1
+    figure = new_figure(max(4.0, 0.25 * len(scored) + 2.0), max(2.5, 0.3 * len(names) + 1.2))
+    axes = figure.add_subplot()
+    axes.imshow(cells, aspect="auto", interpolation="nearest", cmap=ListedColormap(palette), vmin=0,
+                vmax=len(palette) - 1)  # fmt: skip
+    for row in range(len(names)):
+        for column in range(len(scored)):
+            if cells[row, column] >= 2:
+                axes.text(column, row, str(cells[row, column] - 1), ha="center", va="center", fontsize=6)
+    axes.set_yticks(range(len(names)), list(names))
+    axes.set_xticks(range(len(scored)), [str(i + 1) for i in range(len(scored))])
+    axes.set_xlabel("frame (snapshot)")
+    axes.set_ylabel("instance")
+    axes.set_title(f"{title}: true object under each instance (white: left out)", fontsize=8)
+    return figure
+
+
+def _qualitative(count: int) -> list[Any]:
+    """``count`` distinguishable colours (matplotlib's tab20, repeated beyond 20)."""
+    from matplotlib import colormaps
+
+    table = colormaps["tab20"]
+    return [table(i % 20) for i in range(count)]

@@ -106,8 +106,8 @@ def grid_settings(base: SearchParams, grid: Sequence[str], fixed: Sequence[str] 
         searched = {key: value for key, value in varied if not key.startswith(ASSOCIATION_PREFIX)}
         params = search_with_overrides(base, searched, f"--grid {label}")
         association = _association(dict(varied), f"--grid {label}")
-        values = tuple((key, getattr(params, key) if key in searched else value) for key, value in varied)
-        settings.append(Setting(values, params, association))
+        given = tuple((key, getattr(params, key) if key in searched else value) for key, value in varied)
+        settings.append(Setting(given, params, association))
     if len({(setting.params, setting.association) for setting in settings}) < len(settings):
         raise InputError("--grid: a value is repeated (two combinations give the same search parameters)")
     return settings
