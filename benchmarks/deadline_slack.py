@@ -13,12 +13,12 @@ import argparse
 import statistics
 from pathlib import Path
 
-from physics_mapper.bench.problems import COLUMN_SPACING
 from physics_mapper.mapping.inputs import InputSettings, check_poses, check_weights
 from physics_mapper.mapping.mapper import DEADLINE_SLACK, Mapper, MapperSettings
 from physics_mapper.model.geometry import Pose
 from physics_mapper.model.scene import SearchParams
 from physics_mapper.model.scene_files import load_scene
+from physics_mapper.scenarios.problems import COLUMN_SPACING
 
 REPO = Path(__file__).resolve().parent.parent
 DEADLINES = (0.02, 0.05, 0.1, 0.2)  # seconds

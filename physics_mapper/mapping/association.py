@@ -32,8 +32,10 @@ saw, and keeps no order across frames. The rules that give each detection of a *
   outside every gate and not used (``count: {max: K}`` stops at K).
 - **Misses and ends.** An instance no detection matched keeps its own state and hypotheses; it
   never takes another's. A tentative track (matched fewer than ``confirm_hits`` times) ends at
-  its first miss; a confirmed one ends when unmatched for more than ``max_age`` seconds. An
-  ended track frees its instance, and the instance's hypotheses are forgotten.
+  its first miss, and when the map leaves its instance out (:meth:`InstanceTracks.reject`: a
+  detection physics finds no place for is never confirmed by repeating itself); a confirmed one
+  ends when unmatched for more than ``max_age`` seconds. An ended track frees its instance, and
+  the instance's hypotheses are forgotten.
 - **Existence.** An instance that may not be there, a tentative track or an instance of a
   ``count: {max: K}`` entry, has a weight for *absent*:
   w_absent = prod_k (1 - c_k) over its track's (newest 20) matched detections, c_k the detection's best
@@ -206,6 +208,15 @@ class InstanceTracks:
     def expire(self, now: float) -> tuple[str, ...]:
         """End the tracks unmatched for more than ``max_age`` seconds at ``now``."""
         ended = tuple(name for name, when in self._matched.items() if now - when > self.settings.max_age)
+        for name in ended:
+            self._end(name, now)
+        return ended
+
+    def reject(self, names: Sequence[str], now: float) -> tuple[str, ...]:
+        """End the tentative tracks of ``names``, instances the map left out at ``now``: physics found no
+        place for them, so they are not confirmed by being detected again there (a persistent false
+        positive stays tentative, with its *absent*). Returns the names whose tracks ended."""
+        ended = tuple(name for name in names if self.tentative(name))
         for name in ended:
             self._end(name, now)
         return ended

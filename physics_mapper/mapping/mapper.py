@@ -180,9 +180,11 @@ class Mapper:
             self._discard_world()
             fault = f"physics engine failed: {error}; the world is rebuilt and the search starts again at the next tick"
             report = TickReport(snapshot, None, 0.0, False, settings, engine_fault=fault)
-        if report.result is not None:
-            self.memory.remember(names, hypotheses, report.result)
         absent = absent_objects(names, hypotheses, report.result)
+        if report.result is not None and report.result.code is not None:
+            self.memory.remember(names, hypotheses, report.result)
+            with self._tracks_lock:
+                self._ended(self.tracks.reject(absent, now))
         return replace(report, hypotheses=hypotheses, absent=absent, tracking=tracking)
 
     def _search_tick(

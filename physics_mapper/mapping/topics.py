@@ -47,6 +47,8 @@ def input_topic_qos(reliability: InputReliability = "best_effort") -> TopicQos:
 CONFIGURATION_TOPIC = "~/configuration"
 SETTLED_TOPIC = "~/settled_configuration"
 MARKERS_TOPIC = "~/markers"
+#: The map as ``vision_msgs/Detection3DArray``: one Detection3D per object present, its id the object's name.
+OBJECTS_TOPIC = "~/objects"
 DIAGNOSTICS_TOPIC = "/diagnostics"
 #: True poses of every object, in scene object order (written by ``generate``, read by ``replay``).
 GROUND_TRUTH_TOPIC = "/ground_truth"

@@ -9,6 +9,7 @@ from typing import Any
 import numpy as np
 from detection_builders import array, detection, result
 
+from physics_mapper.mapping.existence import silent_absent_weight
 from physics_mapper.mapping.inputs import InputSettings, check_poses, check_weights
 from physics_mapper.mapping.mapper import Mapper, MapperSettings, TickReport
 from physics_mapper.model.scene import Scene, SearchParams
@@ -144,3 +145,20 @@ def test_no_configuration_only_swaps_identical_instances() -> None:
         for entry in trace
     }
     assert len(placements) == len(trace)  # no configuration is another's with instances swapped
+
+
+def test_a_persistent_impossible_detection_is_never_confirmed() -> None:
+    """A reflection detected in the air in every frame: physics leaves it out each time, so its track stays
+    tentative and a count: K scene keeps a valid map (a confirmed instance of count: K would have no absent)."""
+    mapper = Mapper(make_scene({"name": "box", "count": 4, **BOX}))
+    for step in range(5):
+        feed(mapper, [*FLOOR_BOXES, (0.3, 0.3, 0.4)], 0.5 * step)
+        report = mapper.tick(0.5 * step + 0.1, SETTINGS)
+        assert report.result is not None and report.result.valid
+        assert report.absent == ("box_4",)
+    assert mapper.tracks.tentative("box_4") is False and "box_4" not in mapper.tracks.tracks  # ended by the map
+
+
+def test_a_silent_object_s_absent_weight_starts_at_one_half_and_grows() -> None:
+    weights = [silent_absent_weight(silence, max_age=2.0) for silence in (0.0, 1.0, 2.0, 10.0)]
+    assert weights[0] == 0.5 and weights == sorted(weights) and weights[-1] > 0.99

@@ -1,0 +1,454 @@
+"""The conflict-directed search (``strategy: conflict``) against the paper's search on crowded scenes.
+
+Real pybullet throughout. The reduced suite is the crowded benchmark's generator
+(``physics_mapper.scenarios.crowded_suite``) at sizes where the paper's search, per group, finishes:
+packed scenes whose only valid configuration is known by construction.
+"""
+
+from __future__ import annotations
+
+import itertools
+import json
+import random
+from dataclasses import replace
+from pathlib import Path
+from typing import Any
+
+import pytest
+import yaml
+from core_builders import cli, cube, floor_scene, solve_json, unrotated
+from mesh_builders import box_mesh, floor_scene_dict, load_inline, mesh_object, write_mesh
+
+from physics_mapper.model.geometry import Pose
+from physics_mapper.model.hypotheses import Hypothesis, RankedHypotheses
+from physics_mapper.model.scene import Bound, Box, SearchParams
+from physics_mapper.physics.checker import PhysicsChecker
+from physics_mapper.physics.settling import (
+    CLOCK_CHECK_STEPS,
+    MOVING_BEYOND_LOOKS,
+    REST_CHECKS,
+    EarlyExit,
+    Settling,
+    early_exit_rule,
+)
+from physics_mapper.scenarios.crowded_suite import (
+    JITTER_TOLERANCE,
+    REDUCED,
+    CrowdedCase,
+    CrowdedProblem,
+    crowded_problem,
+    problem_document,
+    same_answer,
+    truth_is_valid,
+)
+from physics_mapper.search.conflict_directed import TRIAL_SOLVER_ITERATIONS, ConflictGroupSearch, ConflictSearch
+from physics_mapper.search.conflicts import Conflict, ConflictStore
+from physics_mapper.search.results import Code, SearchResult
+from physics_mapper.search.strategy import make_search
+
+Outcomes = dict[tuple[tuple[int, ...], Code], str]
+#: A problem, the paper's search of it per group, the conflict-directed one, and its groups.
+CaseRuns = tuple[CrowdedProblem, SearchResult, SearchResult, list[ConflictGroupSearch]]
+
+
+def searched(problem: CrowdedProblem, **changes: object) -> tuple[SearchResult, list[ConflictGroupSearch]]:
+    """``problem`` searched to the end with the defaults changed by ``changes``, and its conflict groups."""
+    params = replace(problem.problem.scene.search, trace_limit=None, **changes)  # type: ignore[arg-type]
+    with PhysicsChecker(problem.problem.scene) as checker:
+        search = make_search(checker, problem.problem.hypotheses, params)
+        result = search.run(None)
+    groups = search.groups() if isinstance(search, ConflictSearch) else []
+    return result, [g for g in groups if isinstance(g, ConflictGroupSearch)]
+
+
+def outcomes(result: SearchResult) -> Outcomes:
+    """Every checked configuration's outcome, by (its group's objects, its code)."""
+    objects = {group.id: group.objects for group in result.groups}
+    return {(objects[entry.group], entry.code): entry.outcome for entry in result.trace}
+
+
+@pytest.fixture(scope="module", params=REDUCED, ids=lambda case: case.label)
+def case_runs(request: pytest.FixtureRequest) -> CaseRuns:
+    problem = crowded_problem(request.param)
+    paper, _ = searched(problem, strategy="grouped")
+    conflict, groups = searched(problem)
+    return problem, paper, conflict, groups
+
+
+def test_the_suite_s_configuration_is_valid_by_construction() -> None:
+    for case in REDUCED:
+        assert truth_is_valid(crowded_problem(case)), case.label
+
+
+def test_the_answer_is_the_exhaustive_paper_search_s(case_runs: CaseRuns) -> None:
+    problem, paper, conflict, _ = case_runs
+    assert paper.stats.finished and conflict.stats.finished
+    assert (conflict.code, conflict.valid) == (paper.code, paper.valid) == (problem.answer, True)
+    assert same_answer(conflict, paper)  # and every J_i within the early exit's tolerance
+    assert conflict.stats.visited < paper.stats.visited  # the point of it
+
+
+def test_conflicts_are_sound(case_runs: CaseRuns) -> None:
+    """No configuration that contains a learned conflict (any combination of its rank sets) is valid when
+    the paper's search checks it in full."""
+    _, paper, _, groups = case_runs
+    checked = outcomes(paper)
+    contained = 0
+    for group in groups:
+        conflicts: list[Conflict] = list(group.conflicts)
+        assert conflicts
+        for (objects, code), outcome in checked.items():
+            if objects == group.objects and any(conflict.holds_in(code) for conflict in conflicts):
+                contained += 1
+                assert outcome != "valid", code
+    assert contained > 0
+
+
+def test_conflicts_hold_for_more_ranks_than_the_rejected_candidate_s() -> None:
+    """Both kinds of conflict carry rank sets wider than the rejected candidate's ranks, and the conflicts
+    of the reduced suite and a small wall contain more of the configurations the paper's search
+    rejected with them than without them."""
+    wider = {"collision": 0, "unstable": 0}
+    with_sets = without_sets = 0
+    for case in (*REDUCED, CrowdedCase("wall", 6, 3, 1)):
+        problem = crowded_problem(case)
+        paper, _ = searched(problem, strategy="grouped")
+        _, groups = searched(problem)
+        rejected = [(objects, code) for (objects, code), outcome in outcomes(paper).items() if outcome != "valid"]
+        for group in groups:
+            conflicts = list(group.conflicts)
+            for conflict in conflicts:
+                wider[conflict.kind] += any(len(ranks) > 1 for ranks in conflict.ranks)
+            exact = [Conflict(c.assignments, c.kind) for c in conflicts]
+            codes = [code for objects, code in rejected if objects == group.objects]
+            with_sets += sum(any(c.holds_in(code) for c in conflicts) for code in codes)
+            without_sets += sum(any(c.holds_in(code) for c in exact) for code in codes)
+    assert wider["collision"] > 0 and wider["unstable"] > 0
+    assert with_sets > without_sets
+
+
+def test_a_collision_conflict_s_rank_sets_collide_in_every_combination() -> None:
+    """Every combination of a collision conflict's rank sets is in collision, checked in full with every
+    object placed (the others at random ranks), or holds a rank ruled out alone."""
+    rng = random.Random(1)
+    problem = crowded_problem(CrowdedCase("tower", 6, 5, 3))
+    scene, hypotheses, params = problem.problem.scene, problem.problem.hypotheses, problem.problem.scene.search
+    _, groups = searched(problem)
+    checked = wide = 0
+    with PhysicsChecker(scene) as checker:
+        for group in groups:
+            ranks = [range(1, len(h) + 1) for h in group.hypotheses]
+            for conflict in group.conflicts:
+                if conflict.kind != "collision" or len(conflict.assignments) != 2:
+                    continue
+                wide += any(len(rank_set) > 1 for rank_set in conflict.ranks)
+                for chosen in itertools.product(*conflict.ranks):
+                    code = [rng.choice(r) for r in ranks]
+                    for position, rank in zip(conflict.positions, chosen, strict=True):
+                        code[position] = rank
+                    if any(group.conflicts.rules_out(p, r) for p, r in zip(conflict.positions, chosen, strict=True)):
+                        continue
+                    poses = [hypotheses[i].pose(r) for i, r in zip(group.objects, code, strict=True)]
+                    assert checker.find_collision(poses, params.penetration_threshold) is not None, code
+                    checked += chosen != tuple(rank for _, rank in conflict.assignments)
+    assert wide > 0 and checked > 0  # combinations beyond the rejected candidate's own ranks
+
+
+def test_every_checked_configuration_has_the_paper_s_outcome(case_runs: CaseRuns) -> None:
+    """Local settlings (and early exits) decide as the paper's full settlings do, wherever both check."""
+    _, paper, conflict, _ = case_runs
+    expected = outcomes(paper)
+    found = outcomes(conflict)
+    assert all(expected[key] == outcome for key, outcome in found.items())
+
+
+def test_local_settlings_decide_as_full_ones() -> None:
+    problem = crowded_problem(CrowdedCase("row", 8, 2, 8))
+    paper, _ = searched(problem, strategy="grouped")
+    conflict, _ = searched(problem)
+    assert conflict.stats.local_settlings > 0
+    expected = outcomes(paper)
+    assert all(expected[key] == outcome for key, outcome in outcomes(conflict).items())
+    assert (conflict.code, conflict.valid) == (paper.code, paper.valid) == (problem.answer, True)
+
+
+def test_trials_run_fewer_solver_iterations_and_valid_verdicts_rule_2_s() -> None:
+    """Trial settlings (local ones, and the whole group's before any context is known) run
+    ``TRIAL_SOLVER_ITERATIONS``; the configuration found valid was settled with Rule 2's solver."""
+    problem = crowded_problem(CrowdedCase("row", 8, 2, 8))
+    params = replace(problem.problem.scene.search, trace_limit=None)
+    with PhysicsChecker(problem.problem.scene) as checker:
+        iterations: list[int | None] = []
+        settle = checker.settle
+
+        def counted(*args: Any, **options: Any) -> Any:  # the checker's own settling, its solver noted
+            iterations.append(options.get("solver_iterations"))
+            return settle(*args, **options)
+
+        checker.settle = counted
+        search = make_search(checker, problem.problem.hypotheses, params)
+        result = search.run(None)
+    assert isinstance(search, ConflictSearch) and (result.code, result.valid) == (problem.answer, True)
+    assert result.stats.local_settlings > 0
+    assert iterations.count(TRIAL_SOLVER_ITERATIONS) >= result.stats.local_settlings
+    assert None in iterations  # the confirmations: Rule 2's solver
+    best = [group.best_valid for group in search.groups()]
+    assert all(candidate is not None and candidate.settling.solver_iterations is None for candidate in best)
+
+
+def test_groups_with_meshes_are_settled_in_full(tmp_path: Path) -> None:
+    """The same row with its cubes as meshes: no local settling (its verdicts are measured on primitives
+    only), and the same answer."""
+    problem = crowded_problem(CrowdedCase("row", 8, 2, 8))
+    scene = problem.problem.scene
+    cube = scene.objects[0].shape
+    assert isinstance(cube, Box) and all(model.shape == cube for model in scene.objects)
+    write_mesh(box_mesh(cube.size), tmp_path / "cube.obj")
+    objects = [mesh_object(model.name, "cube.obj", mass=model.mass) for model in scene.objects]
+    meshes = replace(load_inline(floor_scene_dict(*objects), tmp_path), search=scene.search)
+    with_meshes = replace(problem, problem=replace(problem.problem, scene=meshes))
+    result, _ = searched(with_meshes)
+    assert result.stats.local_settlings == 0 and result.stats.full_settlings > 0
+    assert (result.code, result.valid) == (problem.answer, True)
+
+
+def test_rejections_name_their_conflict(case_runs: CaseRuns) -> None:
+    problem, _, conflict, _ = case_runs
+    names = problem.problem.scene.object_names
+    for entry in conflict.trace:
+        assert (entry.conflict is None) == (entry.outcome == "valid")
+        for name, rank in entry.conflict or ():
+            group = next(g for g in conflict.groups if g.id == entry.group)
+            position = [names[i] for i in group.objects].index(name)
+            assert entry.code[position] == rank
+
+
+@pytest.mark.parametrize("bound", ["relative", "absolute"])
+def test_the_same_answer_under_the_older_bounds(bound: Bound) -> None:
+    problem = crowded_problem(CrowdedCase("wall", 6, 3, 6))
+    threshold = 0.02 if bound == "relative" else 1e-4
+    paper, _ = searched(problem, strategy="grouped", bound=bound, probability_threshold=threshold)
+    conflict, _ = searched(problem, bound=bound, probability_threshold=threshold)
+    assert (conflict.code, conflict.valid) == (paper.code, paper.valid)
+    valid = {key for key, outcome in outcomes(paper).items() if outcome == "valid"}
+    assert valid == {key for key, outcome in outcomes(conflict).items() if outcome == "valid"}
+
+
+def test_the_resolving_bound_keeps_a_valid_configuration_the_relative_one_cuts_off() -> None:
+    """Invalid first hypotheses put p(valid) / p(root) below T; relative to the first valid one it is 1."""
+    problem = crowded_problem(CrowdedCase("row", 8, 3, 7))
+    paper = problem.problem
+    p_answer = 1.0
+    p_root = 1.0
+    for ranked, rank in zip(paper.hypotheses, problem.answer, strict=True):
+        p_answer *= ranked.weight(rank)
+        p_root *= ranked.weight(1)
+    threshold = 2.0 * p_answer / p_root
+    relative, _ = searched(problem, bound="relative", probability_threshold=threshold)
+    resolving, _ = searched(problem, probability_threshold=threshold)
+    assert not relative.valid and relative.stats.end == "bounded"
+    assert (resolving.code, resolving.valid) == (problem.answer, True)
+
+
+def test_the_default_is_the_conflict_search_with_the_resolving_bound() -> None:
+    assert (SearchParams().strategy, SearchParams().bound) == ("conflict", "resolving")
+
+
+def nudged(hypotheses: RankedHypotheses, metres: float) -> RankedHypotheses:
+    """The same hypotheses moved ``metres`` along y: new input, the same outcomes."""
+    moved = [
+        Hypothesis(
+            Pose((h.pose.position[0], h.pose.position[1] + metres, h.pose.position[2]), h.pose.orientation), h.weight
+        )
+        for h in hypotheses.hypotheses
+    ]
+    return RankedHypotheses.from_weighted(moved)
+
+
+def test_new_hypotheses_for_one_object_keep_the_conflicts_of_the_others() -> None:
+    problem = crowded_problem(CrowdedCase("row", 10, 5, 9))
+    scene, hypotheses = problem.problem.scene, problem.problem.hypotheses
+    changed = tuple(nudged(h, 0.0005) if i == 9 else h for i, h in enumerate(hypotheses))
+    with PhysicsChecker(scene) as checker:
+        first = make_search(checker, hypotheses, scene.search)
+        before = first.run(None)
+        second = make_search(checker, changed, scene.search, first)
+        after = second.run(None)
+        assert isinstance(first, ConflictSearch) and isinstance(second, ConflictSearch)
+        old, new = first.groups()[0], second.groups()[0]
+        assert isinstance(old, ConflictGroupSearch) and isinstance(new, ConflictGroupSearch)
+        kept = [c for c in old.conflicts if 9 not in c.positions]
+        assert 0 < new.stats.conflicts_kept <= len(kept) < len(old.conflicts)
+    assert (after.code, after.valid) == (before.code, before.valid) == (problem.answer, True)
+    assert after.stats.visited < before.stats.visited
+
+
+def test_solve_trace_names_each_rejection_s_conflict(tmp_path: Path) -> None:
+    problem = crowded_problem(CrowdedCase("row", 6, 3, 1))
+    problem_file = tmp_path / "row.yaml"
+    problem_file.write_text(yaml.safe_dump(problem_document(problem.problem)))
+    trace_file = tmp_path / "trace.json"
+    found = solve_json(problem_file, "--trace", trace_file)
+    assert found["valid"] and found["code"] == list(problem.answer)
+    trace = json.loads(trace_file.read_text())
+    assert trace == found["trace"]
+    rejected = [entry for entry in trace if entry["outcome"] != "valid"]
+    assert rejected and all(entry["conflict"] for entry in rejected)
+    names = problem.problem.scene.object_names
+    for entry in rejected:
+        assert all(entry["code"][names.index(name)] == rank for name, rank in entry["conflict"])
+    text = cli("solve", problem_file, "--tree")
+    assert text.returncode == 0 and "conflict {" in text.stdout and "candidates skipped" in text.stdout
+    # The root holds a rank ruled out alone: skipped, so its children head the tree and name it.
+    assert f"(queued by C{'1' * 6}, skipped)" in text.stdout
+
+
+def test_ranks_ruled_out_alone_are_in_collision_in_every_configuration() -> None:
+    """Before its first candidate, a group's search knows the ranks Rule 1 rules out alone (against the
+    floor, and against a neighbour at each of its ranks); each is in collision (checked in full, every
+    object placed) whatever the other objects' ranks: all of them in a small tower, 100 drawn at random
+    in a larger one, where the pairwise rule applies."""
+    rng = random.Random(0)
+    for case, sample in ((CrowdedCase("tower", 6, 3, 3), None), (CrowdedCase("tower", 9, 4, 3), 100)):
+        problem = crowded_problem(case)
+        scene, hypotheses, params = problem.problem.scene, problem.problem.hypotheses, problem.problem.scene.search
+        with PhysicsChecker(scene) as checker:
+            search = make_search(checker, hypotheses, params)
+            assert isinstance(search, ConflictSearch)
+            (group,) = search.groups()
+            assert isinstance(group, ConflictGroupSearch) and group.objects == checker.all_objects
+            ruled_out = list(group.conflicts)
+            assert ruled_out and group.stats.visited == 0
+            ranks = [range(1, len(h) + 1) for h in group.hypotheses]
+            for conflict in ruled_out:
+                ((position, rank),) = conflict.assignments
+                assert rank not in group.conflicts.live_ranks(position) and problem.answer[position] != rank
+                codes = (
+                    [c for c in itertools.product(*ranks) if c[position] == rank]
+                    if sample is None
+                    else [
+                        tuple(rank if p == position else rng.choice(r) for p, r in enumerate(ranks))
+                        for _ in range(sample)
+                    ]
+                )
+                for code in codes:
+                    poses = [hypotheses[i].pose(r) for i, r in zip(group.objects, code, strict=True)]
+                    assert checker.find_collision(poses, params.penetration_threshold) is not None, code
+            assert (search.run(None).code, True) == (problem.answer, True)
+
+
+def test_the_conflict_store_finds_the_smallest_conflict_and_the_ranks_left() -> None:
+    store = ConflictStore([3, 3, 4])
+    assert store.contained((1, 1, 1)) is None
+    pair = Conflict(((0, 1), (2, 2)), "collision")
+    triple = Conflict(((0, 1), (1, 1), (2, 2)), "unstable")
+    assert store.learn(triple) and store.learn(pair) and not store.learn(pair)
+    assert store.contained((1, 1, 2)) is pair  # the smaller of the two it holds
+    assert store.contained((1, 2, 2)) is pair and store.contained((2, 1, 2)) is None
+    assert store.next_rank(2, 1) == 2 and store.live_ranks(2) == [1, 2, 3, 4]
+    store.learn(Conflict(((2, 2),), "collision"))
+    store.learn(Conflict(((2, 3),), "collision"))
+    assert store.next_rank(2, 1) == 4 and store.next_rank(2, 4) is None
+    assert store.live_ranks(2) == [1, 4]
+    assert store.contained((3, 3, 3)) == Conflict(((2, 3),), "collision")
+    later_pair = Conflict(((0, 3), (1, 3)), "collision")
+    store.learn(later_pair)
+    assert store.contained((3, 3, 1)) is later_pair
+    store.learn(Conflict(((0, 3), (2, 1)), "collision"))
+    assert store.contained((3, 3, 1)) is later_pair  # of equal ones, the first learned
+
+
+def test_a_conflict_with_rank_sets_holds_in_every_combination_and_expands_past_them() -> None:
+    store = ConflictStore([3, 3, 5])
+    wide = Conflict(((0, 1), (2, 2)), "collision", ranks=(frozenset({1, 2}), frozenset({2, 3, 5})))
+    assert store.learn(wide) and not store.learn(wide)
+    assert store.learn(Conflict(((0, 1), (2, 2)), "collision"))  # the same ranks, narrower: another conflict
+    for code in itertools.product((1, 2, 3), (1, 2, 3), (1, 2, 3, 4, 5)):
+        holds = code[0] in (1, 2) and code[2] in (2, 3, 5)
+        assert wide.holds_in(code) == holds and (store.contained(code) is not None) == holds, code
+    assert store.next_rank(2, 2, wide.ranks[1]) == 4 and store.next_rank(2, 4, wide.ranks[1]) is None
+    assert store.next_rank(0, 1, wide.ranks[0]) == 3
+    store.learn(Conflict(((1, 2),), "collision", ranks=(frozenset({2, 3}),)))  # one object: both ruled out
+    assert store.live_ranks(1) == [1] and store.rules_out(1, 3) and not store.rules_out(1, 1)
+    assert wide.renumbered({0: 4, 2: 1}) == Conflict(
+        ((1, 2), (4, 1)), "collision", ranks=(frozenset({2, 3, 5}), frozenset({1, 2}))
+    )
+    with pytest.raises(ValueError, match="own ranks"):
+        Conflict(((0, 1),), "collision", ranks=(frozenset({2}),))
+
+
+def test_a_moving_settling_stops_a_falling_object_sooner_with_the_same_verdict() -> None:
+    """``moving``: an object far off and still falling ends the settling before it comes to rest."""
+    scene = floor_scene(cube("a"))
+    params = scene.search
+    floating = [unrotated(0.0, 0.0, 0.25)]  # 20 cm above its resting height
+    with PhysicsChecker(scene) as checker:
+        at_rest = checker.settle(
+            floating, params.settle_time, params.angular_weight, early_exit=early_exit_rule(params, complete=False)
+        )
+        rule = early_exit_rule(params, complete=False, moving=True)
+        assert rule is not None and rule.beyond_looks == MOVING_BEYOND_LOOKS < REST_CHECKS
+        moving = checker.settle(floating, params.settle_time, params.angular_weight, early_exit=rule)
+        three_looks = checker.settle(
+            floating, params.settle_time, params.angular_weight, early_exit=replace(rule, beyond_looks=REST_CHECKS)
+        )
+    assert moving.stopped == "beyond_threshold" and moving.steps < at_rest.steps
+    assert not moving.is_stable(params.jitter_threshold) and not at_rest.is_stable(params.jitter_threshold)
+    # Each look fewer ends it one look (CLOCK_CHECK_STEPS steps) sooner, with the same verdict.
+    assert three_looks.stopped == "beyond_threshold" and not three_looks.is_stable(params.jitter_threshold)
+    assert moving.steps == three_looks.steps - (REST_CHECKS - MOVING_BEYOND_LOOKS) * CLOCK_CHECK_STEPS
+    assert early_exit_rule(params, complete=True, moving=True) == early_exit_rule(params, complete=True)
+
+
+@pytest.mark.parametrize(
+    ("case", "rule_off"),
+    [(CrowdedCase("bin", 30, 2, 108), {"wobble_rate": None}), (CrowdedCase("bin", 30, 5, 112), {"drift": None})],
+    ids=["wobble", "drift"],
+)
+def test_a_packed_bin_is_at_rest_sooner_by_each_rest_rule_with_the_same_verdict(
+    case: CrowdedCase, rule_off: dict[str, None]
+) -> None:
+    """``moving``: objects shaking in their contacts without going anywhere count as at rest
+    (``wobble_rate``), and the rest rate grows as the settling's end nears (``drift``); with either,
+    the settling stops sooner than without it and every J_i is within the tolerance of a full settling's."""
+    problem = crowded_problem(case)
+    params = problem.problem.scene.search
+    truth = [h.pose(rank) for h, rank in zip(problem.problem.hypotheses, problem.answer, strict=True)]
+    moving = early_exit_rule(params, complete=False, moving=True)
+    assert moving is not None and all(getattr(moving, name) is not None for name in rule_off)
+    with PhysicsChecker(problem.problem.scene) as checker:
+
+        def settled(early_exit: EarlyExit | None) -> Settling:
+            return checker.settle(truth, params.settle_time, params.angular_weight, early_exit=early_exit)
+
+        without_rule = replace(moving, **rule_off)  # type: ignore[arg-type]
+        with_rule, without, full = settled(moving), settled(without_rule), settled(None)
+    assert with_rule.stopped == "rest" and with_rule.steps < without.steps
+    assert all(s.is_stable(params.jitter_threshold) for s in (with_rule, without, full))
+    assert all(abs(a - b) <= JITTER_TOLERANCE for a, b in zip(with_rule.jitters, full.jitters, strict=True))
+
+
+def test_the_rest_rate_grows_as_the_time_left_shrinks() -> None:
+    moving = early_exit_rule(SearchParams(), complete=False, moving=True)
+    assert moving is not None and moving.drift is not None
+    settle_time = SearchParams().settle_time
+    assert moving.rate_scale(settle_time) == moving.rate_scale(2 * settle_time) == 1.0
+    assert moving.rate_scale(settle_time / 4) == pytest.approx(4.0)
+    not_moving = early_exit_rule(SearchParams(), complete=False)
+    assert not_moving is not None and not_moving.rate_scale(settle_time / 4) == 1.0
+
+
+def test_waiting_children_count_against_the_queue_limit() -> None:
+    """The children an expansion holds back are nodes of the queue: with them, the queue holds at most
+    ``queue_limit``; beyond, the least probable are dropped and the search says it is truncated."""
+    problem = crowded_problem(CrowdedCase("wall", 10, 5, 2))
+    params = replace(problem.problem.scene.search, queue_limit=4, trace_limit=None)
+    with PhysicsChecker(problem.problem.scene) as checker:
+        search = make_search(checker, problem.problem.hypotheses, params)
+        queued = []
+        while not search.done:
+            search.run(0.001)
+            queued.append(search.queued)
+        result = search.result()
+    assert max(queued) <= 4
+    assert result.stats.dropped > 0 and result.stats.end == "truncated"
