@@ -1,10 +1,10 @@
 """How far a node tick's search runs past its deadline, on a problem far too large to finish.
 
 Run: ``.venv/bin/python benchmarks/deadline_slack.py [--ticks N] [--hypotheses M]``. Each
-tick is :meth:`physics_mapper.mapper.Mapper.tick`, the very call whose ``search_time`` the
+tick is :meth:`physics_mapper.mapping.mapper.Mapper.tick`, the very call whose ``search_time`` the
 node reports in its diagnostics; inputs stay unchanged, so every tick resumes the search,
 as in the node. Prints, per deadline, the overrun (search time - deadline) in milliseconds
-beside the documented bound :data:`physics_mapper.mapper.DEADLINE_SLACK`.
+beside the documented bound :data:`physics_mapper.mapping.mapper.DEADLINE_SLACK`.
 """
 
 from __future__ import annotations

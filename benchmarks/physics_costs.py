@@ -2,7 +2,7 @@
 
 The search's time goes almost entirely into Rule 2 (simulating ``settle_time`` seconds); Rule 1
 is a single collision pass. Also measured: the same check in a world rebuilt per configuration,
-which the persistent :class:`~physics_mapper.physics.PhysicsChecker` avoids, and a whole search.
+which the persistent :class:`~physics_mapper.physics.checker.PhysicsChecker` avoids, and a whole search.
 All figures are medians of wall-clock time (seconds).
 
 Run: ``physics-mapper bench physics_costs [PROBLEM ...] [--repeats N]`` (default: the shipped

@@ -4,7 +4,7 @@ Every problem of :mod:`physics_mapper.scenarios.scale_suite` is first searched t
 search (no deadline): its result is *the answer* (the configuration an exhaustive search returns).
 It is searched to the end once more with ``settle_exit: full``: early exits must give every visited
 configuration the same outcome and the same answer, its settled poses within
-:data:`~physics_mapper.physics.checker.REST_SHARE` x ``jitter_threshold`` (m + weighted rad).
+:data:`~physics_mapper.physics.settling.REST_SHARE` x ``jitter_threshold`` (m + weighted rad).
 Then each strategy searches it afresh in slices of :data:`SLICE` seconds of wall-clock time, as the
 node's ticks would, until its result is the answer or :data:`ANSWER_CAP` seconds have passed: the
 *time to the answer* counts building the search (grouping, tables) and searching, not assembling

@@ -10,13 +10,19 @@
   benchmark ``benchmarks/NAME.py`` (its ``--help``);
 - the parameter table of ``docs/node.md`` names exactly the node's parameters
   (``scene_file`` and :data:`physics_mapper.ros.node.PARAMETERS`);
-- the README stays a short guide, and its first ``python`` block runs from the repository root.
+- the README stays a short guide, and its first ``python`` block runs from the repository root;
+- every dotted name of the package (``physics_mapper.mapping.mapper.Mapper.tick``) written in the
+  docs, ``BENCHMARKS.md`` or a docstring (of the package, ``msg_adapters/``, ``benchmarks/``,
+  ``test/``) names a module, or something a module defines.
 """
 
 from __future__ import annotations
 
 import argparse
+import ast
 import functools
+import importlib
+import importlib.util
 import re
 import subprocess
 import sys
@@ -31,6 +37,13 @@ from physics_mapper.cli import build_parser
 README = REPO / "README.md"
 DOCS = sorted((REPO / "docs").glob("*.md"))
 PAGES = [README, *DOCS]
+#: Where dotted names are written: the pages, BENCHMARKS.md, and the docstrings of these folders' files.
+NAMING_PAGES = [*PAGES, REPO / "BENCHMARKS.md"]
+DOCSTRING_FOLDERS = ("physics_mapper", "msg_adapters", "benchmarks", "test")
+#: A dotted name of the package; one after a ``/`` or ``-`` is part of a file name (``launch/...``).
+DOTTED_NAME = re.compile(r"(?<![\w./-])physics_mapper(?:\.[A-Za-z_]\w*)+")
+#: File names that read like dotted names (``physics_mapper.launch.py``, ``physics_mapper.rviz``).
+FILE_SUFFIXES = (".py", ".rviz")
 README_MAX_LINES = 260
 #: Options of other tools (ROS, pip, colcon, rosdep, Ray) that the docs write on their own.
 OTHER_TOOLS_OPTIONS = {
@@ -295,3 +308,59 @@ def test_the_layout_page_names_every_module() -> None:
         and not _layout_lists(path.parent.name, path.stem, layout)
     ]
     assert missing == []
+
+
+def docstrings(path: Path) -> Iterator[str]:
+    """The module's, classes' and functions' docstrings of a Python file."""
+    for node in ast.walk(ast.parse(path.read_text(), str(path))):
+        if isinstance(node, ast.Module | ast.ClassDef | ast.FunctionDef | ast.AsyncFunctionDef):
+            text = ast.get_docstring(node, clean=False)
+            if text:
+                yield text
+
+
+def dotted_names() -> dict[str, set[str]]:
+    """Every dotted name of the package written in the pages and docstrings, and where."""
+    texts = {page_id(page): page.read_text() for page in NAMING_PAGES}
+    for folder in DOCSTRING_FOLDERS:
+        for path in sorted((REPO / folder).rglob("*.py")):
+            texts[page_id(path)] = "\n".join(docstrings(path))
+    found: dict[str, set[str]] = {}
+    for where, text in texts.items():
+        for name in DOTTED_NAME.findall(text):
+            if not name.endswith(FILE_SUFFIXES):
+                found.setdefault(name, set()).add(where)
+    return found
+
+
+def resolves(name: str) -> bool:
+    """Whether ``name`` is a module of the package, or an attribute (at any depth) of one."""
+    parts = name.split(".")
+    if parts[-1] == "__main__":  # importing it runs the command line
+        return importlib.util.find_spec(name) is not None
+    for length in range(len(parts), 0, -1):
+        try:
+            found: object = importlib.import_module(".".join(parts[:length]))
+        except ModuleNotFoundError:
+            continue
+        for attribute in parts[length:]:
+            if not hasattr(found, attribute):
+                return False
+            found = getattr(found, attribute)
+        return True
+    return False
+
+
+def test_every_dotted_name_written_resolves() -> None:
+    unresolved = {name: sorted(where) for name, where in dotted_names().items() if not resolves(name)}
+    assert unresolved == {}
+
+
+def test_the_name_check_sees_a_name_that_moved() -> None:
+    assert resolves("physics_mapper.mapping.mapper.Mapper.tick")
+    assert resolves("physics_mapper.__main__") and resolves("physics_mapper.msg_adapters.results")
+    assert not resolves("physics_mapper.mapper.Mapper.tick")  # the module moved to mapping/
+    assert not resolves("physics_mapper.mapping.mapper.Mapper.no_such_method")
+    assert DOTTED_NAME.findall("see physics_mapper.scoring; launch/physics_mapper.launch.py") == [
+        "physics_mapper.scoring"
+    ]
