@@ -1,7 +1,7 @@
 """Bins of identical objects as an estimator reports them: identities, maps and time per tick, in one run.
 
 Run: ``.venv/bin/python benchmarks/instances.py [--frames 30] [--particles 300] [--sizes 6 12 24] [--shapes box
-cylinder mesh] [--layers 1 2] [--seed 0] [--out DIR]``.
+cylinder mesh] [--layers 1 2] [--seed 0] [-o DIR]``, or ``physics-mapper bench instances`` with the same options.
 
 For each bin (N identical objects of one shape, in one or two layers, in a bin of four walls on a
 floor; ``count: N`` in the scene file), ``physics-mapper generate`` writes two bags from the same seed,
@@ -9,7 +9,8 @@ so with the same particle-filter hypotheses (the faults draw from a stream of th
 
 * **faulty**: ``--format detections`` at 2 Hz with the estimator's faults: order shuffled, 10 % misses,
   10 % false positives (half in the air, half inside the walls or the floor), 5 % double detections,
-  3-5 results per detection, 25 % with a wrong pose (3 cm off) first, no ids;
+  3-5 results per detection, 25 % with a wrong pose (3 cm off) first, the best result scored 0.7 to 0.95,
+  no ids;
 * **named**: the same hypotheses as PoseArrays per object name, in a stable order, without faults:
   what a user gets when every object has a name of its own.
 
@@ -57,7 +58,7 @@ SHAPES: dict[str, dict[str, Any]] = {
 }
 FAULTS = [
     "--format", "detections", "--shuffle", "--miss", "0.1", "--false-positives", "0.1", "--air-share", "0.5",
-    "--double", "0.05", "--results", "3-5", "--wrong-first", "0.25",
+    "--double", "0.05", "--results", "3-5", "--wrong-first", "0.25", "--confidence", "0.7-0.95",
 ]  # fmt: skip
 GAP = 0.01  # metres between neighbours
 
@@ -162,7 +163,7 @@ def main() -> None:
     parser.add_argument("--shapes", nargs="+", default=list(SHAPES))
     parser.add_argument("--layers", type=int, nargs="+", default=[1, 2])
     parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--out", type=Path, help="keep the scenes and bags here (default: a temporary folder)")
+    parser.add_argument("-o", "--output", type=Path, help="keep the scenes and bags here (default: a temporary folder)")
     args = parser.parse_args()
     reference = reference_settling()
     print(f"reference settling (pyramid stack, Rule 2): {reference * 1000:.1f} ms; the 0.2 s deadline scaled to "
@@ -174,7 +175,7 @@ def main() -> None:
     print(header)
     print("| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |")
     with tempfile.TemporaryDirectory() as temporary:
-        folder = args.out or Path(temporary)
+        folder = args.output or Path(temporary)
         folder.mkdir(parents=True, exist_ok=True)
         for shape in args.shapes:
             for count in args.sizes:

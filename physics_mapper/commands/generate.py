@@ -108,6 +108,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="results per detection, drawn uniformly in MIN-MAX (default: --top-m)",
     )
     faults.add_argument(
+        "--confidence",
+        type=_confidence_range,
+        metavar="LOW-HIGH",
+        help="scale each detection's scores so that its best is a confidence drawn in LOW-HIGH "
+        "(default: scores are the normalised weights)",
+    )
+    faults.add_argument(
         "--ids",
         choices=("none", "stable", "reassigned"),
         default="none",
@@ -129,6 +136,15 @@ def _result_range(text: str) -> tuple[int, int]:
         return int(low), int(high or low)
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected N or MIN-MAX, got {text!r}") from None
+
+
+def _confidence_range(text: str) -> tuple[float, float]:
+    """``LOW-HIGH`` as (LOW, HIGH)."""
+    low, _, high = text.partition("-")
+    try:
+        return float(low), float(high)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected LOW-HIGH, got {text!r}") from None
 
 
 _SETTING_OPTIONS = {
@@ -219,7 +235,7 @@ def _settings(args: argparse.Namespace) -> TrackerSettings:
     return settings
 
 
-_FAULT_OPTIONS = ("shuffle", "miss", "false_positives", "double", "wrong_first", "results")
+_FAULT_OPTIONS = ("shuffle", "miss", "false_positives", "double", "wrong_first", "results", "confidence")
 
 
 def _faults(args: argparse.Namespace, sigma_position: float) -> DetectionFaults | None:
@@ -246,6 +262,7 @@ def _faults(args: argparse.Namespace, sigma_position: float) -> DetectionFaults 
         wrong_offset=args.wrong_offset,
         results_min=low,
         results_max=high,
+        confidence=args.confidence,
         ids=args.ids,
         id_change=args.id_change,
         sigma_position=sigma_position,

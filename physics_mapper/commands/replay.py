@@ -121,7 +121,7 @@ def run(args: argparse.Namespace) -> int:
         _progress(f"{args.bag}: {len(bag.messages)} messages of the scene, {len(snapshots)} snapshots of hypotheses")
         if not snapshots:
             _progress(f"warning: {no_snapshot_reason(scene)}")
-        results = _offline(args, scene, snapshots) if args.offline else _live(args, scene, bag, snapshots)
+        results = _offline(args, scene, bag, len(snapshots)) if args.offline else _live(args, scene, bag, snapshots)
     except BagError as error:
         raise InputError(str(error)) from None
     if results is None:
@@ -134,9 +134,12 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _offline(args: argparse.Namespace, scene: Scene, snapshots: Sequence[BagSnapshot]) -> list[SnapshotResult]:
+def _offline(args: argparse.Namespace, scene: Scene, bag: Bag, expected: int) -> list[SnapshotResult]:
+    """Each snapshot searched as it is taken (:func:`~physics_mapper.evaluation.snapshot_results.replay_offline`);
+    ``expected``: the snapshots counted before, for the progress lines (with instances, the maps chosen may
+    change them)."""
     from physics_mapper.bags.storage import BagWriter
-    from physics_mapper.evaluation.snapshot_results import search_offline, write_results
+    from physics_mapper.evaluation.snapshot_results import replay_offline, write_results
     from physics_mapper.model.scene_files import search_with_overrides
     from physics_mapper.search.report import code_text
     from physics_mapper.search.results import SearchResult
@@ -149,14 +152,14 @@ def _offline(args: argparse.Namespace, scene: Scene, snapshots: Sequence[BagSnap
     def progress(index: int, result: SearchResult) -> None:
         state = "valid" if result.valid else ("fallback" if result.code else "no configuration")
         _progress(
-            f"snapshot {index + 1}/{len(snapshots)}: {code_text(result.code)} {state}, "
+            f"snapshot {index + 1}/{expected}: {code_text(result.code)} {state}, "
             f"{result.stats.visited} visited in {result.stats.search_time * 1000:.0f} ms"
         )
 
     with ExitStack() as stack:
         # Opened first: an unusable output path is reported before the searches, not after.
         writer = None if args.output is None else stack.enter_context(BagWriter(args.output, args.storage))
-        results = search_offline(snapshots, scene, budget, progress)
+        results = replay_offline(bag, scene, budget, progress=progress)
         if writer is not None:
             write_results(writer, results, scene.frame_id)
             _progress(f"results written to {args.output}")

@@ -27,7 +27,8 @@ from physics_mapper.bags.storage import (
 )
 from physics_mapper.evaluation.identity import identity_metrics, identity_text, record_frames
 from physics_mapper.evaluation.scoring import position_errors, rank_one_poses
-from physics_mapper.evaluation.snapshots import BagSnapshot
+from physics_mapper.evaluation.snapshots import BagSnapshot, bag_snapshots
+from physics_mapper.mapping.association import AssociationSettings
 from physics_mapper.mapping.topics import MAP_TOPIC_QOS, RECORDED_CONFIGURATION_TOPIC, RECORDED_SETTLED_TOPIC
 from physics_mapper.model.geometry import Pose, is_same_pose
 from physics_mapper.model.hypotheses import RankedHypotheses
@@ -70,14 +71,51 @@ def search_offline(
 
     ``progress(index, result)`` is called after each search.
     """
-    results = []
     with PhysicsChecker(scene) as checker:
-        for index, snapshot in enumerate(snapshots):
-            found = make_search(checker, snapshot.hypotheses, scene.search).run(budget)
-            results.append(SnapshotResult(snapshot, found.code, found.poses, found.settled_poses, found))
-            if progress is not None:
-                progress(index, found)
-    return results
+        search = OfflineSearch(checker, scene, budget, progress)
+        for snapshot in snapshots:
+            search(snapshot)
+    return search.results
+
+
+class OfflineSearch:
+    """Searches snapshots one by one in one physics world, ``budget`` seconds each (None: to the end), keeping
+    each :class:`SnapshotResult`; as a :data:`~physics_mapper.evaluation.snapshots.Decide`, it lets a bag's
+    snapshots follow the maps chosen, as the node's inputs follow its ticks (:func:`replay_offline`)."""
+
+    def __init__(
+        self,
+        checker: PhysicsChecker,
+        scene: Scene,
+        budget: float | None,
+        progress: Callable[[int, SearchResult], None] | None = None,
+    ) -> None:
+        self.checker, self.scene, self.budget, self.progress = checker, scene, budget, progress
+        self.results: list[SnapshotResult] = []
+
+    def __call__(self, snapshot: BagSnapshot) -> SearchResult:
+        found = make_search(self.checker, snapshot.hypotheses, self.scene.search).run(self.budget)
+        self.results.append(SnapshotResult(snapshot, found.code, found.poses, found.settled_poses, found))
+        if self.progress is not None:
+            self.progress(len(self.results) - 1, found)
+        return found
+
+
+def replay_offline(
+    bag: Bag,
+    scene: Scene,
+    budget: float | None,
+    association: AssociationSettings | None = None,
+    progress: Callable[[int, SearchResult], None] | None = None,
+) -> list[SnapshotResult]:
+    """The offline replay of a bag: its snapshots (:func:`~physics_mapper.evaluation.snapshots.bag_snapshots`,
+    detections associated with ``association``) each searched as it is taken, so that with instances
+    the next snapshots follow the map chosen, as the node's do. Without instances, the same as
+    :func:`search_offline` of the bag's snapshots."""
+    with PhysicsChecker(scene) as checker:
+        search = OfflineSearch(checker, scene, budget, progress)
+        bag_snapshots(bag, scene, association=association, decide=search)
+    return search.results
 
 
 def write_results(writer: BagWriter, results: Sequence[SnapshotResult], frame_id: str) -> None:
@@ -231,7 +269,11 @@ def evaluation_summary(results: Sequence[SnapshotResult], object_names: Sequence
     ]
     errors = mean_errors(results)
     if errors is None:
-        lines.append("no error against ground truth (no /ground_truth in the bag, or no configuration)")
+        lines.append(
+            "no error by name against ground truth (no /ground_truth in the bag, or no configuration holding "
+            "every object)"
+        )
+        lines.append(identity_text(result_identity(results, object_names)))
         return "\n".join(lines)
     width = max(len(name) for name in (*object_names, "total"))
     scored = sum(1 for o in results if is_scored(estimate_errors(o)))

@@ -10,7 +10,7 @@ problem, as it would be for the node, which otherwise resumes its search.
 
 from __future__ import annotations
 
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 
 from physics_mapper.bags.storage import (
@@ -24,13 +24,14 @@ from physics_mapper.bags.storage import (
 )
 from physics_mapper.mapping.association import AssociationSettings, InstanceTracks
 from physics_mapper.mapping.detections import RECORDED_DETECTIONS_TOPIC, detection_inputs
-from physics_mapper.mapping.existence import with_absent
+from physics_mapper.mapping.existence import MapMemory, absent_objects, searched_hypotheses
 from physics_mapper.mapping.inputs import InputSettings, InputTracker, check_poses, check_weights
 from physics_mapper.mapping.stamps import NANOSECONDS_PER_SECOND
 from physics_mapper.mapping.topics import GROUND_TRUTH_TOPIC, recorded_poses_topic, recorded_weights_topic
 from physics_mapper.model.geometry import Pose
 from physics_mapper.model.hypotheses import RankedHypotheses
 from physics_mapper.model.scene import Scene
+from physics_mapper.search.results import SearchResult
 
 #: Messages closer together than this (ns) form one burst, after which the node's inputs are snapshot.
 BURST_GAP_NS = 50_000_000
@@ -90,37 +91,41 @@ def no_snapshot_reason(scene: Scene) -> str:
     )
 
 
-def _with_absent(
-    hypotheses: tuple[RankedHypotheses, ...] | None, scene: Scene, instances: InstanceTracks
-) -> tuple[RankedHypotheses, ...] | None:
-    """Each instance that may not be there (a tentative track, a ``count: {max}`` one) with its *absent*
-    hypothesis, weighted as the node weighs it (:mod:`~physics_mapper.mapping.existence`)."""
-    if hypotheses is None:
-        return None
-    weights = (instances.absent_weight(name) for name in scene.object_names)
-    return tuple(
-        ranked if weight is None else with_absent(ranked, index, weight)
-        for index, (ranked, weight) in enumerate(zip(hypotheses, weights, strict=True))
-    )
+def has_instances(scene: Scene) -> bool:
+    """Whether some class of the scene is associated across frames (identical instances, optional ones)."""
+    return any(scene.is_tracked(scene.class_of(name)) for name in scene.object_names)
+
+
+#: Told after each new snapshot's search: the chosen configuration (None: nothing chosen).
+Decide = Callable[["BagSnapshot"], SearchResult | None]
 
 
 def bag_snapshots(
-    bag: Bag, scene: Scene, settings: InputSettings | None = None, association: AssociationSettings | None = None
+    bag: Bag,
+    scene: Scene,
+    settings: InputSettings | None = None,
+    association: AssociationSettings | None = None,
+    decide: Decide | None = None,
 ) -> list[BagSnapshot]:
     """Feed the bag's hypotheses through the node's input rules; one snapshot per new set of hypotheses.
 
     Only the messages on :func:`input_topics` count, also for the bursts: other topics of the bag
-    (a recording's camera or TF) neither decide nor cut a burst. Detections of identical instances
-    are associated across the bag's arrays as the node does (:mod:`~physics_mapper.mapping.association`,
-    with ``association``'s settings; tracks unmatched for ``max_age`` end and their instances forget
-    their hypotheses), and an instance that may not be there gets its *absent* hypothesis. A snapshot
-    needs hypotheses of every object, as before objects could be absent: an offline replay of a
-    ``count: {max: K}`` entry starts once each of its K instances has been seen. Raises BagError,
-    naming the bag, topic and time, for a message that cannot be decoded or a malformed ground truth.
+    (a recording's camera or TF) neither decide nor cut a burst. Raises BagError, naming the bag,
+    topic and time, for a message that cannot be decoded or a malformed ground truth.
+
+    In a scene without instances a snapshot needs hypotheses of every object. With instances the
+    node's rules hold (:mod:`~physics_mapper.mapping.existence`): detections are associated across
+    the bag's arrays (:mod:`~physics_mapper.mapping.association`, with ``association``'s settings;
+    tracks unmatched for ``max_age`` end), an instance that may not be there gets its *absent*
+    hypothesis, a silent object its last map pose beside *absent*, one never seen *absent* alone; and
+    after each new snapshot ``decide(snapshot)`` gives the configuration chosen for it, whose map
+    is remembered and whose left-out tentative instances end, as after the node's tick.
     """
     settings = settings or InputSettings()
     tracker = InputTracker(scene.object_names)
     instances = InstanceTracks(scene, association)
+    memory = MapMemory()
+    tracked = has_instances(scene)
     poses_of = {recorded_poses_topic(name): name for name in scene.object_names}
     weights_of = {recorded_weights_topic(name): name for name in scene.object_names}
     wanted = set(input_topics(scene))
@@ -151,15 +156,26 @@ def bag_snapshots(
                     )
                     for name, poses in detected.objects.items():
                         tracker.add_poses(name, poses)
+                    ended = () if detected.association is None else detected.association.ended
+                    for name in ended:
+                        tracker.forget(name)
                 else:
                     truth = _ground_truth(message, scene)
         now = burst[-1].time_ns / NANOSECONDS_PER_SECOND
         for name in instances.expire(now):
             tracker.forget(name)
         snapshot = tracker.snapshot(now, settings)
-        hypotheses, stamp_ns = _with_absent(snapshot.hypotheses, scene, instances), snapshot.stamp_ns
+        hypotheses = snapshot.hypotheses
+        if tracked and (len(snapshot.missing) < len(scene.objects) or memory.poses):
+            hypotheses = searched_hypotheses(snapshot, memory, instances.absent_weight, now, settings.max_age)
         new = not snapshots or hypotheses != snapshots[-1].hypotheses
-        if hypotheses is not None and stamp_ns is not None and new:
-            stamps = tuple(o.stamp_ns for o in snapshot.objects if o.stamp_ns is not None)
-            snapshots.append(BagSnapshot(burst[-1].time_ns, stamp_ns, hypotheses, truth, stamps))
+        if hypotheses is None or snapshot.stamp_ns is None or not new:
+            continue
+        stamps = tuple(o.stamp_ns for o in snapshot.objects if o.stamp_ns is not None)
+        snapshots.append(BagSnapshot(burst[-1].time_ns, snapshot.stamp_ns, hypotheses, truth, stamps))
+        result = None if decide is None else decide(snapshots[-1])
+        if tracked and result is not None and result.code is not None:
+            memory.remember(scene.object_names, hypotheses, result)
+            for name in instances.reject(absent_objects(scene.object_names, hypotheses, result), now):
+                tracker.forget(name)
     return snapshots

@@ -7,6 +7,10 @@ given :class:`numpy.random.Generator` (so a seed reproduces them):
 
 * **Results per detection**: each detection keeps between ``results_min`` and ``results_max`` of the
   object's heaviest hypotheses (uniformly drawn), its scores the renormalised weights.
+* **Confidence**: with ``confidence`` (low, high), each detection's scores are scaled so that its best
+  is a confidence drawn uniformly in [low, high], as an estimator scores each result on its own (the
+  ratios, so the normalised weights, stay); false positives are drawn from the same range: the
+  estimator is as sure of them, and physics must tell them apart. Without, scores are the weights.
 * **A wrong pose first**: with probability ``wrong_first``, a detection's first result is a wrong pose,
   its most likely hypothesis moved by ``wrong_offset`` metres in a uniformly random direction, scored
   1.05 to 1.5 times the best true result (then renormalised); the detection keeps its result count.
@@ -67,6 +71,7 @@ class DetectionFaults:
     wrong_offset: float = 0.03
     results_min: int | None = None
     results_max: int | None = None
+    confidence: tuple[float, float] | None = None
     ids: IdMode = "none"
     id_change: float = 0.1
     sigma_position: float = 0.005
@@ -87,6 +92,10 @@ def faults_problem(faults: DetectionFaults) -> str | None:
         return f"results per detection must be at least 1, got {low} to {high}"
     if low is not None and high is not None and low > high:
         return f"results_min ({low}) exceeds results_max ({high})"
+    if faults.confidence is not None:
+        bottom, top = faults.confidence
+        if not (0.0 < bottom <= top <= 1.0):
+            return f"confidence must be a range within (0, 1], got {bottom:g} to {top:g}"
     if faults.ids not in ID_MODES:
         return f"ids must be one of {', '.join(ID_MODES)}, got {faults.ids!r}"
     return None
@@ -130,7 +139,7 @@ class DetectionSimulator:
                 if faults.ids == "reassigned":
                     self._ids.pop(index, None)
                 continue
-            results = self._results(ranked)
+            results = self._scored(self._results(ranked))
             class_id = self.scene.class_of(self.scene.objects[index].name)
             detected.append(SimulatedDetection(class_id, results, self._object_id(index), "object", index))
             if rng.random() < faults.double:
@@ -153,6 +162,13 @@ class DetectionSimulator:
         wrong_pose = _shifted(kept.pose(1), direction * faults.wrong_offset)
         wrong = Hypothesis(wrong_pose, kept.weight(1) * float(rng.uniform(1.05, 1.5)))
         return RankedHypotheses.from_weighted([wrong, *kept.hypotheses[: count - 1]])
+
+    def _scored(self, ranked: RankedHypotheses) -> RankedHypotheses:
+        """Scores scaled so that the best is a confidence in ``confidence`` (unchanged without one)."""
+        if self.faults.confidence is None:
+            return ranked
+        scale = float(self.rng.uniform(*self.faults.confidence)) / ranked.weight(1)
+        return RankedHypotheses(tuple(Hypothesis(h.pose, h.weight * scale) for h in ranked.hypotheses))
 
     def _object_id(self, index: int) -> str:
         if self.faults.ids == "none":
@@ -188,8 +204,8 @@ class DetectionSimulator:
             make_pose(tuple(centre + rng.normal(0.0, self.faults.sigma_position, 3)), orientation) for _ in range(count)
         ]
         scores = rng.uniform(0.5, 1.0, count)
-        hypotheses = RankedHypotheses.from_weighted(
-            [Hypothesis(p, float(s)) for p, s in zip(poses, scores, strict=True)]
+        hypotheses = self._scored(
+            RankedHypotheses.from_weighted([Hypothesis(p, float(s)) for p, s in zip(poses, scores, strict=True)])
         )
         class_id = scene.class_of(scene.objects[like].name)
         return SimulatedDetection(class_id, hypotheses, self._fresh_id(), "air" if in_air else "static", None)

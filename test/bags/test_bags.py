@@ -175,7 +175,7 @@ SHIPPED_BAGS: dict[str, tuple[str, Tolerance]] = {
     "box_bin": (
         "generate config/scenes/box_bin.yaml -o test/data/box_bin --runs 1 --iterations 10 --particles 300 "
         "--sigma 0.005 --seed 1 --format detections --shuffle --miss 0.1 --false-positives 0.1 --double 0.05 "
-        "--wrong-first 0.25 --results 3-5",
+        "--wrong-first 0.25 --results 3-5 --confidence 0.7-0.95",
         LAST_BITS,
     ),
 }

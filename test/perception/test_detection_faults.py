@@ -135,6 +135,20 @@ def test_a_wrong_pose_ranks_first_at_its_rate_and_the_result_counts_stay_in_rang
     assert 0.2 < wrong / counted < 0.3
 
 
+def test_confidence_scales_each_detection_s_scores_and_keeps_their_ratios(scene: Scene) -> None:
+    faults = DetectionFaults(confidence=(0.7, 0.95), false_positive=0.2)
+    tops = []
+    for frame in frames(scene, faults, count=50):
+        for detection in frame:
+            ranked = detection.hypotheses
+            tops.append(ranked.weight(1))
+            if detection.source is not None:
+                original = hypotheses(scene)[detection.source]
+                ratios = [h.weight / ranked.weight(1) for h in ranked.hypotheses]
+                assert ratios == pytest.approx([h.weight / original.weight(1) for h in original.hypotheses])
+    assert min(tops) >= 0.7 and max(tops) <= 0.95 and max(tops) - min(tops) > 0.2
+
+
 def test_ids_none_stable_and_reassigned(scene: Scene) -> None:
     faults = DetectionFaults(double=0.1, false_positive=0.1, miss=0.1, shuffle=True)
     assert {d.id for f in frames(scene, faults, count=20) for d in f} == {""}
