@@ -304,7 +304,8 @@ def map_positions(result: SnapshotResult, names: Sequence[str]) -> dict[str, lis
 
 def snapshot_result_dict(result: SnapshotResult, names: Sequence[str]) -> dict[str, Any]:
     """One snapshot's result as plain data: times, code, per-object position errors (m) of each estimate
-    (:func:`estimate_errors`), the map's and the truth's positions (``positions``: ``map`` by object name,
+    (:func:`estimate_errors`), the detection each instance took in the snapshot's last array (``detections``:
+    name -> its index there), the map's and the truth's positions (``positions``: ``map`` by object name,
     :func:`map_positions`; ``truth`` in scene order, None without a ground truth) and, for an offline search,
     ``valid``, ``fallback_used``, ``visited`` (configurations checked) and ``stopped_at_deadline`` (None for a
     live node's choice). Wall-clock times are left out, so that the same search gives the same data on any
@@ -321,6 +322,7 @@ def snapshot_result_dict(result: SnapshotResult, names: Sequence[str]) -> dict[s
         "visited": None if search is None else search.stats.visited,
         "stopped_at_deadline": None if search is None else search.stats.stopped_at_deadline,
         "errors": estimate_errors(result),
+        "detections": dict(snapshot.detections),
         "positions": {
             "map": map_positions(result, names),
             "truth": None if truth is None else [list(pose.position) for pose in truth],

@@ -46,7 +46,8 @@ class BagSnapshot:
     ``time_ns``: bag time of the burst's last message; ``stamp_ns``: newest header stamp among
     the hypotheses used (the node's output stamp); ``stamps_ns``: the header stamp of each
     object's PoseArray in use, in scene order (what the node's diagnostics show as ``stamp [ns]``);
-    ``ground_truth``: newest ``/ground_truth`` so far.
+    ``ground_truth``: newest ``/ground_truth`` so far; ``detections``: (instance, index of the detection
+    it took in the burst's last ``Detection3DArray``) for each instance the association gave one.
     """
 
     time_ns: int
@@ -54,6 +55,7 @@ class BagSnapshot:
     hypotheses: tuple[RankedHypotheses, ...]
     ground_truth: tuple[Pose, ...] | None
     stamps_ns: tuple[int, ...] = ()
+    detections: tuple[tuple[str, int], ...] = ()
 
 
 def _bursts(messages: Sequence[BagMessage]) -> Iterator[list[BagMessage]]:
@@ -132,6 +134,7 @@ def bag_snapshots(
     truth: tuple[Pose, ...] | None = None
     snapshots: list[BagSnapshot] = []
     for burst in _bursts([m for m in bag.messages if m.topic in wanted]):
+        taken: tuple[tuple[str, int], ...] = ()
         for message in burst:
             received = message.time_ns / NANOSECONDS_PER_SECOND
             with decoding(bag, message):
@@ -156,9 +159,10 @@ def bag_snapshots(
                     )
                     for name, poses in detected.objects.items():
                         tracker.add_poses(name, poses)
-                    ended = () if detected.association is None else detected.association.ended
-                    for name in ended:
-                        tracker.forget(name)
+                    if detected.association is not None:
+                        taken = tuple((name, index) for index, name in sorted(detected.association.assigned.items()))
+                        for name in detected.association.ended:
+                            tracker.forget(name)
                 else:
                     truth = _ground_truth(message, scene)
         now = burst[-1].time_ns / NANOSECONDS_PER_SECOND
@@ -172,7 +176,7 @@ def bag_snapshots(
         if hypotheses is None or snapshot.stamp_ns is None or not new:
             continue
         stamps = tuple(o.stamp_ns for o in snapshot.objects if o.stamp_ns is not None)
-        snapshots.append(BagSnapshot(burst[-1].time_ns, snapshot.stamp_ns, hypotheses, truth, stamps))
+        snapshots.append(BagSnapshot(burst[-1].time_ns, snapshot.stamp_ns, hypotheses, truth, stamps, taken))
         result = None if decide is None else decide(snapshots[-1])
         if tracked and result is not None and result.code is not None:
             memory.remember(scene.object_names, hypotheses, result)
