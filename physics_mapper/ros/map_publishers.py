@@ -1,4 +1,4 @@
-"""The configured node's outputs: the map, its markers, each object's poses, and ``/diagnostics``.
+"""The configured node's outputs: the map, its markers, each object's poses, ``~/objects``, and ``/diagnostics``.
 
 Every map message carries the newest input stamp the tick used (:mod:`physics_mapper.msg_adapters.results`
 builds them); each object's pose topics are latched and published only when its poses or stamp change.
@@ -17,6 +17,7 @@ from physics_mapper.mapping.mapper import TickReport
 from physics_mapper.mapping.topics import (
     CONFIGURATION_TOPIC,
     MARKERS_TOPIC,
+    OBJECTS_TOPIC,
     SETTLED_TOPIC,
     object_pose_topic,
     object_settled_pose_topic,
@@ -36,44 +37,60 @@ class MapPublishers:
     markers: Publisher
     objects: list[tuple[Publisher, Publisher]]  # (chosen pose, settled pose) per scene object
     diagnostics: NodeDiagnostics
-    published_objects: tuple[int, SearchResult] | None = field(default=None, init=False)
+    #: ``~/objects`` (the map as ``vision_msgs/Detection3DArray``), where vision_msgs is installed.
+    detections: Publisher | None = None
+    published_objects: tuple[int, SearchResult, tuple[int, ...]] | None = field(default=None, init=False)
 
     def publish_map(self, report: TickReport, scene: Scene) -> None:
-        """A tick's map; outputs carry the newest input stamp used."""
+        """A tick's map of the objects present; outputs carry the newest input stamp used."""
         result = report.result
         stamp_ns = report.snapshot.stamp_ns
         if result is None or stamp_ns is None:
             return
-        configurations = configuration_msgs(result, frame_id=scene.frame_id, stamp_ns=stamp_ns)
+        present = report.present
+        configurations = configuration_msgs(result, frame_id=scene.frame_id, stamp_ns=stamp_ns, present=present)
         if configurations is None:
             return
         self.configuration.publish(configurations[0])
         self.settled.publish(configurations[1])
-        self.markers.publish(markers_msg(result, scene, stamp_ns=stamp_ns))
-        self._publish_objects(result, scene.frame_id, stamp_ns)
+        self.markers.publish(markers_msg(result, scene, stamp_ns=stamp_ns, present=present))
+        self._publish_objects(result, scene.frame_id, stamp_ns, present)
+        if self.detections is not None:
+            from physics_mapper.msg_adapters.objects import objects_msg  # needs vision_msgs: imported where it is
 
-    def _publish_objects(self, result: SearchResult, frame_id: str, stamp_ns: int) -> None:
-        """Each object's chosen and settled pose, when the map's poses or stamp changed (the topics are latched)."""
+            self.detections.publish(objects_msg(report, scene, stamp_ns=stamp_ns))
+
+    def _publish_objects(self, result: SearchResult, frame_id: str, stamp_ns: int, present: tuple[int, ...]) -> None:
+        """Each present object's chosen and settled pose, when the map's poses, stamp or objects changed (the
+        topics are latched: an object the map leaves out keeps its last pose there)."""
         last = self.published_objects
-        if last is not None and (last[0], last[1].poses, last[1].settled_poses) == (
+        if last is not None and (last[0], last[1].poses, last[1].settled_poses, last[2]) == (
             stamp_ns,
             result.poses,
             result.settled_poses,
+            present,
         ):
             return
-        per_object = object_pose_msgs(result, frame_id=frame_id, stamp_ns=stamp_ns)
+        per_object = object_pose_msgs(result, frame_id=frame_id, stamp_ns=stamp_ns, present=present)
         if per_object is None:
             return
-        for (pose_pub, settled_pub), (pose, settled) in zip(self.objects, per_object, strict=True):
-            pose_pub.publish(pose)
-            settled_pub.publish(settled)
-        self.published_objects = (stamp_ns, result)
+        for (pose_pub, settled_pub), poses in zip(self.objects, per_object, strict=True):
+            if poses is not None:
+                pose_pub.publish(poses[0])
+                settled_pub.publish(poses[1])
+        self.published_objects = (stamp_ns, result, present)
 
 
 def map_publishers(
     publisher: Callable[[type, str], Publisher], object_names: Sequence[str], diagnostics: NodeDiagnostics
 ) -> MapPublishers:
     """The map's publishers, made by ``publisher`` (message type, topic): the map, its markers, each object's poses."""
+    try:
+        from vision_msgs.msg import Detection3DArray
+    except ImportError:
+        detections = None
+    else:
+        detections = publisher(Detection3DArray, OBJECTS_TOPIC)
     return MapPublishers(
         configuration=publisher(PoseArray, CONFIGURATION_TOPIC),
         settled=publisher(PoseArray, SETTLED_TOPIC),
@@ -83,4 +100,5 @@ def map_publishers(
             for name in object_names
         ],
         diagnostics=diagnostics,
+        detections=detections,
     )

@@ -15,7 +15,7 @@ from rclpy.event_handler import QoSMessageLostInfo
 from rclpy.node import Node
 from std_msgs.msg import Float64MultiArray
 
-from physics_mapper.mapping.detections import DETECTIONS_TOPIC, detection_inputs
+from physics_mapper.mapping.detections import DETECTIONS_TOPIC
 from physics_mapper.mapping.inputs import MessageKind
 from physics_mapper.mapping.mapper import Mapper
 from physics_mapper.mapping.stamps import NANOSECONDS_PER_SECOND
@@ -81,13 +81,12 @@ class InputHandlers:
         return on_weights
 
     def detections(self) -> Callable[[Any, Mapping[str, Any]], None]:
-        """The ``detections`` handler: its results are the hypotheses of the objects their class ids name."""
-        scene, inputs = self._mapper.scene, self._mapper.inputs
+        """The ``detections`` handler: its results are the hypotheses of the objects their class ids name,
+        a class of instances's detections associated to instances (:meth:`Mapper.add_detections`)."""
 
         def on_detections(msg: Any, info: Mapping[str, Any]) -> None:
-            detected = detection_inputs(msg, scene, received=self.received(info))
+            detected = self._mapper.add_detections(msg, received=self.received(info))
             for name, received in detected.objects.items():
-                inputs.add_poses(name, received)
                 if received.refusal is not None:
                     self._notes.log_once(name, f"detections refused: {received.refusal}")
             for note in detected.unused:
