@@ -90,3 +90,19 @@ def test_replay_and_evaluate_report_identity(tmp_path: Path, capsys: pytest.Capt
     assert report["bags"][0]["summary"]["identity"]["idf1"] == pytest.approx(identity["idf1"])
     assert report["overall"]["identity"]["switches"] == 0
     assert "identity switches" in (tmp_path / "e" / "report.md").read_text()
+
+
+def test_the_shipped_box_bin_gives_each_instance_one_detection_and_draws_the_picture(tmp_path: Path) -> None:
+    """Offline, each instance takes at most one detection of a frame and no detection goes to two instances;
+    the picture is written as a PNG."""
+    scene = str(SCENES / "box_bin.yaml")
+    bag = str(REPO / "test" / "data" / "box_bin")
+    data, picture = tmp_path / "replay.json", tmp_path / "identities.png"
+    arguments = ["replay", bag, "--scene", scene, "--offline", "--json", str(data), "--identity-plot", str(picture)]
+    assert main(arguments) == 0
+    snapshots = json.loads(data.read_text())["snapshots"]
+    assert len(snapshots) == 10
+    for snapshot in snapshots:
+        taken = snapshot["detections"]
+        assert len(set(taken.values())) == len(taken) >= 4  # six cubes, about one missed per frame
+    assert picture.read_bytes().startswith(b"\x89PNG\r\n\x1a\n")
