@@ -63,7 +63,7 @@ def nearest_box(detection: Detection3D) -> int:
 def test_a_bin_of_identical_boxes_keeps_every_identity_over_shuffled_arrays(tmp_path: Path) -> None:
     scene = tmp_path / "bin.yaml"
     scene.write_text(SCENE)
-    parameters = {"rate_hz": 4.0, "deadline": 0.2, "max_age": 60.0}
+    parameters = {"rate_hz": 4.0, "deadline": 0.2, "max_age": 60.0, "association_gate": 0.04, "confirm_hits": 2}
     node = NodeProcess(scene, parameters, tmp_path / "node.log", NAMESPACE)
     client = RosClient(NAMESPACE)
     maps: dict[int, Detection3DArray] = {}
@@ -85,6 +85,7 @@ def test_a_bin_of_identical_boxes_keeps_every_identity_over_shuffled_arrays(tmp_
     finally:
         client.close()
         assert node.stop() == 0, node.output()
+    assert "unknown parameters" not in node.output()  # the association's parameters are the node's
     identities = [{d.id: nearest_box(d) for d in maps[stamp_of(index)].detections} for index in range(FRAMES)]
     assert sorted(identities[0]) == sorted(f"box_{k}" for k in range(1, 13))
     assert sorted(identities[0].values()) == list(range(12))  # each box one instance
