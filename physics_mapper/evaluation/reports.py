@@ -566,7 +566,7 @@ def write_sweep(
         if data["search_mode"] == "exhaustive" and note is not None:
             header.append(f"Note: {note}.")
         try:
-            text = node_parameters_yaml(context.scene_file, setting.params, header)
+            text = node_parameters_yaml(context.scene_file, setting.params, header, setting.association)
         except InputError as error:
             best["params_file_error"] = str(error)
         else:

@@ -150,18 +150,30 @@ def node_rate_hz(deadline: float) -> float:
     return float(math.floor(rate * 10**digits) / 10**digits)
 
 
-def node_parameters_yaml(scene_file: Path, params: SearchParams, header: Sequence[str]) -> str:
+#: Association settings the node takes as parameters, and their names there (the others stay at their defaults).
+NODE_ASSOCIATION_PARAMETERS = {"gate": "association_gate", "confirm_hits": "confirm_hits"}
+
+
+def node_parameters_yaml(
+    scene_file: Path, params: SearchParams, header: Sequence[str], association: AssociationSettings | None = None
+) -> str:
     """A node parameters file (``--params-file``) that runs the node on ``scene_file`` with ``params``.
 
     Every search parameter is written (each is a node parameter of the same name), with ``rate_hz``
-    from :func:`node_rate_hz`; ``header`` lines become comments. Raises InputError if the node would
-    refuse the values.
+    from :func:`node_rate_hz`, and the ``association`` settings that differ from the defaults and the
+    node takes (:data:`NODE_ASSOCIATION_PARAMETERS`); ``header`` lines become comments. Raises
+    InputError if the node would refuse the values.
     """
     rate_hz = node_rate_hz(params.deadline)
     problem = mapper_settings_problem(MapperSettings(params, InputSettings(), rate_hz))
     if problem is not None:
         raise InputError(f"the node would refuse these parameters: {problem}")
     values: dict[str, Any] = {"scene_file": str(scene_file.resolve()), "rate_hz": rate_hz, **asdict(params)}
+    defaults = AssociationSettings()
+    for field_name, parameter in NODE_ASSOCIATION_PARAMETERS.items():
+        value = getattr(association or defaults, field_name)
+        if value != getattr(defaults, field_name):
+            values[parameter] = value
     document = {PARAMS_FILE_NODE_KEY: {"ros__parameters": values}}
     comments = "".join(f"# {line}\n" for line in header)
     return comments + yaml.safe_dump(document, sort_keys=False, default_flow_style=False)

@@ -24,7 +24,7 @@ from physics_mapper.bags.storage import (
 )
 from physics_mapper.mapping.association import AssociationSettings, InstanceTracks
 from physics_mapper.mapping.detections import RECORDED_DETECTIONS_TOPIC, detection_inputs
-from physics_mapper.mapping.existence import MapMemory, absent_objects, searched_hypotheses
+from physics_mapper.mapping.existence import MapMemory, absent_objects, left_out_by_physics, searched_hypotheses
 from physics_mapper.mapping.inputs import InputSettings, InputTracker, check_poses, check_weights
 from physics_mapper.mapping.stamps import NANOSECONDS_PER_SECOND
 from physics_mapper.mapping.topics import GROUND_TRUTH_TOPIC, recorded_poses_topic, recorded_weights_topic
@@ -121,7 +121,8 @@ def bag_snapshots(
     tracks unmatched for ``max_age`` end), an instance that may not be there gets its *absent*
     hypothesis, a silent object its last map pose beside *absent*, one never seen *absent* alone; and
     after each new snapshot ``decide(snapshot)`` gives the configuration chosen for it, whose map
-    is remembered and whose left-out tentative instances end, as after the node's tick.
+    is remembered, whose instances may be confirmed and whose left-out tentative instances end (when
+    the search finished), as after the node's tick.
     """
     settings = settings or InputSettings()
     tracker = InputTracker(scene.object_names)
@@ -179,7 +180,12 @@ def bag_snapshots(
         snapshots.append(BagSnapshot(burst[-1].time_ns, snapshot.stamp_ns, hypotheses, truth, stamps, taken))
         result = None if decide is None else decide(snapshots[-1])
         if tracked and result is not None and result.code is not None:
-            memory.remember(scene.object_names, hypotheses, result)
-            for name in instances.reject(absent_objects(scene.object_names, hypotheses, result), now):
+            # As after the node's tick (Mapper.tick): the map remembered, its instances may be confirmed,
+            # and the tentative ones a finished search left out end.
+            names = scene.object_names
+            memory.remember(names, hypotheses, result)
+            left_out = absent_objects(names, hypotheses, result)
+            instances.keep([name for name in names if name not in left_out])
+            for name in instances.reject(left_out_by_physics(names, hypotheses, result), now):
                 tracker.forget(name)
     return snapshots

@@ -7,6 +7,7 @@ import json
 from pathlib import Path
 
 import pytest
+import yaml
 from conftest import REPO, SCENES
 
 from physics_mapper.bags.storage import read_bag
@@ -128,6 +129,8 @@ def test_sweep_grids_over_the_association_settings(tmp_path: Path) -> None:
     assert [(s["association"]["gate"], s["association"]["confirm_hits"]) for s in settings] == [(0.002, 1), (0.04, 1)]
     assert all(s["overall"]["identity"]["frames"] > 0 for s in settings)
     assert "| switches | IDF1 |" in (output / "sweep.md").read_text()
+    parameters = yaml.safe_load((output / "best_params.yaml").read_text())["/**/physics_mapper"]["ros__parameters"]
+    assert parameters["confirm_hits"] == 1 and parameters["association_gate"] in (0.002, 0.04)
 
 
 def test_the_association_settings_reach_the_bag_s_snapshots() -> None:
