@@ -51,6 +51,9 @@ _FIGURES = {
     "idr": "idr",
 }
 
+#: Our figures that are counts (whole numbers).
+_COUNTS = {"frames", "true_objects", "map_objects", "matches", "switches", "misses", "false_positives"}
+
 Position = Sequence[float]
 
 
@@ -98,9 +101,6 @@ def _figures(computed: Mapping[str, Any]) -> dict[str, Any]:
         value = float(computed[theirs])
         figures[ours] = None if np.isnan(value) else (int(value) if ours in _COUNTS else value)
     return figures
-
-
-_COUNTS = {"frames", "true_objects", "map_objects", "matches", "switches", "misses", "false_positives"}
 
 
 def _identities(
