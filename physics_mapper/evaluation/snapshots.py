@@ -24,7 +24,12 @@ from physics_mapper.bags.storage import (
 )
 from physics_mapper.mapping.association import AssociationSettings, InstanceTracks
 from physics_mapper.mapping.detections import RECORDED_DETECTIONS_TOPIC, detection_inputs
-from physics_mapper.mapping.existence import MapMemory, absent_objects, left_out_by_physics, searched_hypotheses
+from physics_mapper.mapping.existence import (
+    MapMemory,
+    held_by_valid_map,
+    left_out_by_physics,
+    searched_hypotheses,
+)
 from physics_mapper.mapping.inputs import InputSettings, InputTracker, check_poses, check_weights
 from physics_mapper.mapping.stamps import NANOSECONDS_PER_SECOND
 from physics_mapper.mapping.topics import GROUND_TRUTH_TOPIC, recorded_poses_topic, recorded_weights_topic
@@ -184,8 +189,7 @@ def bag_snapshots(
             # and the tentative ones a finished search left out end.
             names = scene.object_names
             memory.remember(names, hypotheses, result)
-            left_out = absent_objects(names, hypotheses, result)
-            instances.keep([name for name in names if name not in left_out])
+            instances.keep(held_by_valid_map(names, hypotheses, result))
             for name in instances.reject(left_out_by_physics(names, hypotheses, result), now):
                 tracker.forget(name)
     return snapshots
