@@ -14,8 +14,9 @@ so with the same particle-filter hypotheses (the faults draw from a stream of th
 * **named**: the same hypotheses as PoseArrays per object name, in a stable order, without faults:
   what a user gets when every object has a name of its own.
 
-Each bag is replayed offline as the node would tick (``bag_snapshots`` + ``search_offline``, each
-snapshot searched to the scene's deadline, 0.2 s, the node's default) and scored by identity
+Each bag is replayed offline as the node would tick (``replay_offline``: each snapshot searched to the
+scene's deadline, 0.2 s, the node's default, and the next snapshots following the map chosen: the map
+remembered, instances confirmed by valid maps, left-out tentative ones ended) and scored by identity
 (:mod:`physics_mapper.evaluation.identity`). Printed per bin: identity switches, IDF1, MOTA, false
 positives in the map (map objects matched to no true object: a false detection or a second instance
 of one object), misses, snapshots with a valid map, the position error by identity of the faulty and
@@ -40,8 +41,8 @@ import yaml
 from physics_mapper.bags.storage import read_bag
 from physics_mapper.cli import main as cli_main
 from physics_mapper.evaluation.identity import identity_metrics, record_frames
-from physics_mapper.evaluation.snapshot_results import search_offline, snapshot_result_dict
-from physics_mapper.evaluation.snapshots import bag_snapshots, input_topics
+from physics_mapper.evaluation.snapshot_results import replay_offline, snapshot_result_dict
+from physics_mapper.evaluation.snapshots import input_topics
 from physics_mapper.model.extents import body_box
 from physics_mapper.model.geometry import ORIGIN
 from physics_mapper.model.scene import Scene
@@ -141,8 +142,7 @@ def _generate(scene_file: Path, bag: Path, extra: list[str], frames: int, partic
 
 def replay(scene: Scene, bag: Path) -> dict[str, Any]:
     """The offline replay's figures of one bag (module docstring)."""
-    snapshots = bag_snapshots(read_bag(bag, input_topics(scene)), scene)
-    results = search_offline(snapshots, scene, scene.search.deadline)
+    results = replay_offline(read_bag(bag, input_topics(scene)), scene, scene.search.deadline)
     records = [snapshot_result_dict(r, scene.object_names) for r in results]
     identity = identity_metrics(record_frames(records))
     assert identity is not None

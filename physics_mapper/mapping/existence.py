@@ -8,8 +8,8 @@ the map of the previous ticks (:class:`MapMemory`):
   more, *absent*, with the weight w the association gives it
   (:meth:`~physics_mapper.mapping.association.InstanceTracks.absent_weight`); its other
   hypotheses are scaled by 1 - w.
-- **Silent** (its newest hypotheses older than ``max_age``, or its track ended): if the map held
-  it, its last map pose is kept as one hypothesis beside *absent*, whose weight grows with the
+- **Silent** (its newest hypotheses older than ``max_age``, or its track ended): if the last valid
+  map held it, its pose there is kept as one hypothesis beside *absent*, whose weight grows with the
   silence s (seconds since it fell silent): w_absent = 1 - exp(-s / max_age) / 2. From s = 0
   being absent is at least as likely as being there, so the search (which prefers the most
   probable pattern of existence among valid maps, then the least jitter) drops the object where
@@ -46,7 +46,7 @@ def with_absent(ranked: RankedHypotheses, index: int, weight: float) -> RankedHy
 
 @dataclass
 class MapMemory:
-    """What the map held: each object's last map pose (the chosen one), and since when each is silent."""
+    """What the valid maps held: each object's last pose in one (the chosen one), and since when each is silent."""
 
     poses: dict[str, Pose] = field(default_factory=dict)
     silent_since: dict[str, float] = field(default_factory=dict)
