@@ -47,9 +47,13 @@ FATAL_BAG = "b_pyramid_sqlite3"
 
 
 def die_on_bag(
-    scene: Scene, source: Path | Bag | UnreadableBag, budget: float | None, progress: Any = None
+    scene: Scene,
+    source: Path | Bag | UnreadableBag,
+    budget: float | None,
+    association: Any = None,
+    progress: Any = None,
 ) -> TaskOutput:
     """The offline evaluation, except that a worker given the bag FATAL_BAG dies, every time."""
     if (source if isinstance(source, Path) else source.path).name == FATAL_BAG:
         _die()
-    return evaluate_bag(scene, source, budget, progress)
+    return evaluate_bag(scene, source, budget, association, progress)

@@ -217,9 +217,10 @@ def pose_array_cdr(stamp_ns: int, frame_id: str, poses: Sequence[Pose]) -> bytes
     return bytes(TYPESTORE.serialize_cdr(message, POSE_ARRAY))
 
 
-def detections_cdr(stamp_ns: int, frame_id: str, detections: Sequence[tuple[str, RankedHypotheses]]) -> bytes:
-    """A CDR ``vision_msgs/msg/Detection3DArray``: one Detection3D per (class id, hypotheses), as a pose
-    estimator would publish them (no covariance, the box centred on the most likely pose, of size 0)."""
+def detections_cdr(stamp_ns: int, frame_id: str, detections: Sequence[tuple[str, RankedHypotheses, str]]) -> bytes:
+    """A CDR ``vision_msgs/msg/Detection3DArray``: one Detection3D per (class id, hypotheses, id), as a pose
+    estimator would publish them (no covariance, the box centred on the most likely pose, of size 0; an
+    empty id as estimators without a tracker leave it)."""
     types = TYPESTORE.types
     sec, nanosec = time_parts(stamp_ns)
     header = _Header(stamp=_Time(sec=sec, nanosec=nanosec), frame_id=frame_id)
@@ -244,9 +245,9 @@ def detections_cdr(stamp_ns: int, frame_id: str, detections: Sequence[tuple[str,
                 header=header,
                 results=[result(class_id, h) for h in hypotheses.hypotheses],
                 bbox=box(center=pose(hypotheses.pose(1)), size=size),
-                id="",
+                id=detection_id,
             )
-            for class_id, hypotheses in detections
+            for class_id, hypotheses, detection_id in detections
         ],
     )
     return bytes(TYPESTORE.serialize_cdr(message, DETECTION_ARRAY))
@@ -370,10 +371,10 @@ class BagWriter:
             raise BagError(f"cannot write bag {self.path}: {_reason(error)}") from None
 
     def write_detections(
-        self, time_ns: int, stamp_ns: int, frame_id: str, detections: Sequence[tuple[str, RankedHypotheses]]
+        self, time_ns: int, stamp_ns: int, frame_id: str, detections: Sequence[tuple[str, RankedHypotheses, str]]
     ) -> None:
         """At ``time_ns``, one ``vision_msgs/Detection3DArray`` stamped ``stamp_ns``: a Detection3D per
-        (class id, hypotheses), its results the hypotheses with their weights as scores."""
+        (class id, hypotheses, id), its results the hypotheses with their weights as scores."""
         raw = detections_cdr(stamp_ns, frame_id, detections)
         self.write(RECORDED_DETECTIONS_TOPIC, DETECTION_ARRAY, time_ns, raw)
 

@@ -18,6 +18,7 @@ if TYPE_CHECKING:
     from physics_mapper.bags.storage import BagWriter
     from physics_mapper.model.geometry import Pose
     from physics_mapper.model.scene import Scene
+    from physics_mapper.perception.detection_faults import DetectionFaults, DetectionSimulator
     from physics_mapper.perception.particle_filter import TrackerSettings
 
 HELP = "simulate noisy measurements and a particle filter per object; write the hypotheses to a bag"
@@ -57,6 +58,93 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="hypotheses as a PoseArray and weights per object (default), or one vision_msgs/Detection3DArray "
         "on /detections per iteration, scores as weights, as a pose estimator publishes them",
     )
+    faults = parser.add_argument_group(
+        "estimator faults (--format detections; rates are probabilities per object and frame)"
+    )
+    faults.add_argument("--shuffle", action="store_true", help="detections in a random order in every frame")
+    faults.add_argument("--miss", type=float, default=0.0, metavar="P", help="an object is not detected (default: 0)")
+    faults.add_argument(
+        "--false-positives",
+        type=float,
+        default=0.0,
+        metavar="P",
+        help="detections of nothing, Binomial(objects, P) per frame (default: 0)",
+    )
+    faults.add_argument(
+        "--air-share",
+        type=float,
+        default=0.5,
+        metavar="SHARE",
+        help="share of false positives in the air; the rest inside static bodies (default: 0.5)",
+    )
+    faults.add_argument(
+        "--double", type=float, default=0.0, metavar="P", help="an object is detected twice (default: 0)"
+    )
+    faults.add_argument(
+        "--double-offset",
+        type=float,
+        default=0.006,
+        metavar="METRES",
+        help="horizontal offset of a double detection (default: 0.006)",
+    )
+    faults.add_argument(
+        "--wrong-first",
+        type=float,
+        default=0.0,
+        metavar="P",
+        help="a detection's first result is a wrong pose (default: 0)",
+    )
+    faults.add_argument(
+        "--wrong-offset",
+        type=float,
+        default=0.03,
+        metavar="METRES",
+        help="how far a wrong pose is from the object's most likely one (default: 0.03)",
+    )
+    faults.add_argument(
+        "--results",
+        type=_result_range,
+        metavar="N|MIN-MAX",
+        help="results per detection, drawn uniformly in MIN-MAX (default: --top-m)",
+    )
+    faults.add_argument(
+        "--confidence",
+        type=_confidence_range,
+        metavar="LOW-HIGH",
+        help="scale each detection's scores so that its best is a confidence drawn in LOW-HIGH "
+        "(default: scores are the normalised weights)",
+    )
+    faults.add_argument(
+        "--ids",
+        choices=("none", "stable", "reassigned"),
+        default="none",
+        help="Detection3D.id: empty, a tracker's id per object, or one that changes (default: none)",
+    )
+    faults.add_argument(
+        "--id-change",
+        type=float,
+        default=0.1,
+        metavar="P",
+        help="--ids reassigned: an object gets a new id in a frame (default: 0.1)",
+    )
+
+
+def _result_range(text: str) -> tuple[int, int]:
+    """``N`` or ``MIN-MAX`` as (MIN, MAX)."""
+    low, _, high = text.partition("-")
+    try:
+        return int(low), int(high or low)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected N or MIN-MAX, got {text!r}") from None
+
+
+def _confidence_range(text: str) -> tuple[float, float]:
+    """``LOW-HIGH`` as (LOW, HIGH)."""
+    low, _, high = text.partition("-")
+    try:
+        return float(low), float(high)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected LOW-HIGH, got {text!r}") from None
 
 
 _SETTING_OPTIONS = {
@@ -72,19 +160,25 @@ def run(args: argparse.Namespace) -> int:
     from physics_mapper.bags.storage import BagError, BagWriter
     from physics_mapper.model.scene_files import load_scene
     from physics_mapper.model.scene_loading import load_stoppably
-    from physics_mapper.perception.particle_filter import run_generators, settle_ground_truth
+    from physics_mapper.perception.detection_faults import DetectionSimulator
+    from physics_mapper.perception.particle_filter import fault_generator, run_generators, settle_ground_truth
 
     scene = load_stoppably(args.scene, load_scene)
     if scene.ground_truth is None:
         raise InputError(f"{args.scene}: ground_truth: missing: generate needs every object's true pose")
     settings = _settings(args)
     period_ns = _period_ns(args.period, len(scene.objects))
-    detections = args.format == "detections"
+    faults = _faults(args, settings.sigma_position)
     truth = settle_ground_truth(scene, scene.ground_truth)
     try:
         with BagWriter(args.output, args.storage) as writer:
             for run_index, rng in enumerate(run_generators(args.seed, args.runs)):
-                _write_run(writer, scene, truth, settings, rng, run_index, period_ns, detections)
+                estimator = None
+                if faults is not None:
+                    estimator = DetectionSimulator(
+                        scene, truth, faults, fault_generator(args.seed, run_index), settings.top_m
+                    )
+                _write_run(writer, scene, truth, settings, rng, run_index, period_ns, estimator)
                 print(f"generate: run {run_index + 1}/{args.runs} written", file=sys.stderr)
     except BagError as error:
         raise InputError(str(error)) from None
@@ -141,6 +235,44 @@ def _settings(args: argparse.Namespace) -> TrackerSettings:
     return settings
 
 
+_FAULT_OPTIONS = ("shuffle", "miss", "false_positives", "double", "wrong_first", "results", "confidence")
+
+
+def _faults(args: argparse.Namespace, sigma_position: float) -> DetectionFaults | None:
+    """The estimator's faults for ``--format detections`` (None for PoseArrays), false positives scattered
+    by the measurement's ``sigma_position``; InputError for a fault option without it or a value out of range."""
+    from physics_mapper.perception.detection_faults import DetectionFaults, faults_problem
+
+    if args.format != "detections":
+        given = [option for option in _FAULT_OPTIONS if getattr(args, option) not in (None, False, 0.0)]
+        if args.ids != "none":
+            given.append("ids")
+        if given:
+            raise InputError(f"--{given[0].replace('_', '-')} is for --format detections")
+        return None
+    low, high = args.results if args.results is not None else (None, None)
+    faults = DetectionFaults(
+        shuffle=args.shuffle,
+        miss=args.miss,
+        false_positive=args.false_positives,
+        air_share=args.air_share,
+        double=args.double,
+        double_offset=args.double_offset,
+        wrong_first=args.wrong_first,
+        wrong_offset=args.wrong_offset,
+        results_min=low,
+        results_max=high,
+        confidence=args.confidence,
+        ids=args.ids,
+        id_change=args.id_change,
+        sigma_position=sigma_position,
+    )
+    problem = faults_problem(faults)
+    if problem is not None:
+        raise InputError(problem)
+    return faults
+
+
 def _write_run(
     writer: BagWriter,
     scene: Scene,
@@ -149,10 +281,10 @@ def _write_run(
     rng: np.random.Generator,
     run_index: int,
     period_ns: int,
-    detections: bool,
+    estimator: DetectionSimulator | None,
 ) -> None:
-    """One particle-filter run: per iteration, every object's hypotheses and weights (``detections``: one
-    Detection3DArray of them, each object's class id as the scene's ``class_map`` gives it), then the ground truth.
+    """One particle-filter run: per iteration, every object's hypotheses and weights (with an ``estimator``:
+    one Detection3DArray of its detections made of them, faults and all), then the ground truth.
 
     Iteration k of run r is stamped START_TIME_NS + (r * iterations + k) * period_ns; within an
     iteration the messages get distinct, increasing bag times (1 ns apart) so their order is unambiguous.
@@ -163,11 +295,11 @@ def _write_run(
 
     for iteration, snapshot in enumerate(track(scene, truth, settings, rng)):
         stamp = START_TIME_NS + (run_index * settings.iterations + iteration) * period_ns
-        if detections:
-            detected = [(scene.class_of(model.name), h) for model, h in zip(scene.objects, snapshot, strict=True)]
+        if estimator is not None:
+            detected = [(d.class_id, d.hypotheses, d.id) for d in estimator.frame(snapshot)]
             writer.write_detections(stamp, stamp, scene.frame_id, detected)
         for index, (model, hypotheses) in enumerate(zip(scene.objects, snapshot, strict=True)):
-            if not detections:
+            if estimator is None:
                 writer.write_hypotheses(stamp + 2 * index, stamp, scene.frame_id, model.name, hypotheses)
         truth_raw = pose_array_cdr(stamp, scene.frame_id, truth)
         writer.write(GROUND_TRUTH_TOPIC, POSE_ARRAY, stamp + 2 * len(scene.objects), truth_raw)

@@ -84,6 +84,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="live: play every topic of the bag, but /rosout, /parameter_events and /clock unless named in --topics",
     )
     parser.add_argument("--json", type=Path, metavar="FILE", help="write each snapshot's code and errors as JSON")
+    parser.add_argument(
+        "--identity-plot",
+        type=Path,
+        metavar="PNG",
+        help="draw frames against instances, each cell coloured by the true object the instance is on",
+    )
 
 
 def _progress(text: str) -> None:
@@ -108,8 +114,9 @@ def run(args: argparse.Namespace) -> int:
         raise InputError("--deadline is for --offline; a live node has its own deadline parameter")
     if args.offline and (args.topics or args.all_topics):
         raise InputError("--topics and --all-topics are for a live replay; --offline reads only the scene's topics")
-    if args.json is not None:
-        check_output_folder(args.json)
+    for path in (args.json, args.identity_plot):
+        if path is not None:
+            check_output_folder(path)
     scene = load_stoppably(args.scene, load_scene)
     try:
         # Only the scene's topics are read into memory; a live replay streams what it plays.
@@ -119,7 +126,7 @@ def run(args: argparse.Namespace) -> int:
         _progress(f"{args.bag}: {len(bag.messages)} messages of the scene, {len(snapshots)} snapshots of hypotheses")
         if not snapshots:
             _progress(f"warning: {no_snapshot_reason(scene)}")
-        results = _offline(args, scene, snapshots) if args.offline else _live(args, scene, bag, snapshots)
+        results = _offline(args, scene, bag, len(snapshots)) if args.offline else _live(args, scene, bag, snapshots)
     except BagError as error:
         raise InputError(str(error)) from None
     if results is None:
@@ -127,12 +134,17 @@ def run(args: argparse.Namespace) -> int:
     print(evaluation_summary(results, scene.object_names))
     if args.json is not None:
         _write_json(args.json, "offline" if args.offline else "live", results, scene.object_names)
+    if args.identity_plot is not None:
+        _write_identity_plot(args.identity_plot, args.bag, results, scene.object_names)
     return 0
 
 
-def _offline(args: argparse.Namespace, scene: Scene, snapshots: Sequence[BagSnapshot]) -> list[SnapshotResult]:
+def _offline(args: argparse.Namespace, scene: Scene, bag: Bag, expected: int) -> list[SnapshotResult]:
+    """Each snapshot searched as it is taken (:func:`~physics_mapper.evaluation.snapshot_results.replay_offline`);
+    ``expected``: the snapshots counted before, for the progress lines (with instances, the maps chosen may
+    change them)."""
     from physics_mapper.bags.storage import BagWriter
-    from physics_mapper.evaluation.snapshot_results import search_offline, write_results
+    from physics_mapper.evaluation.snapshot_results import replay_offline, write_results
     from physics_mapper.model.scene_files import search_with_overrides
     from physics_mapper.search.report import code_text
     from physics_mapper.search.results import SearchResult
@@ -145,14 +157,14 @@ def _offline(args: argparse.Namespace, scene: Scene, snapshots: Sequence[BagSnap
     def progress(index: int, result: SearchResult) -> None:
         state = "valid" if result.valid else ("fallback" if result.code else "no configuration")
         _progress(
-            f"snapshot {index + 1}/{len(snapshots)}: {code_text(result.code)} {state}, "
+            f"snapshot {index + 1}/{expected}: {code_text(result.code)} {state}, "
             f"{result.stats.visited} visited in {result.stats.search_time * 1000:.0f} ms"
         )
 
     with ExitStack() as stack:
         # Opened first: an unusable output path is reported before the searches, not after.
         writer = None if args.output is None else stack.enter_context(BagWriter(args.output, args.storage))
-        results = search_offline(snapshots, scene, budget, progress)
+        results = replay_offline(bag, scene, budget, progress=progress)
         if writer is not None:
             write_results(writer, results, scene.frame_id)
             _progress(f"results written to {args.output}")
@@ -226,13 +238,27 @@ def _live(
     return recorded_results(snapshots, output_bag, scene)
 
 
+def _write_identity_plot(path: Path, bag: Path, results: Sequence[SnapshotResult], names: Sequence[str]) -> None:
+    import io
+
+    from physics_mapper.evaluation.plots import identity_timeline
+    from physics_mapper.evaluation.snapshot_results import snapshot_result_dict
+    from physics_mapper.model.atomic_files import write_atomically
+
+    records = [snapshot_result_dict(result, names) for result in results]
+    buffer = io.BytesIO()
+    identity_timeline(records, names, bag.name).savefig(buffer, format="png", dpi=120)
+    write_atomically(path, buffer.getvalue())
+
+
 def _write_json(path: Path, mode: str, results: Sequence[SnapshotResult], object_names: Sequence[str]) -> None:
-    from physics_mapper.evaluation.snapshot_results import mean_errors, snapshot_result_dict
+    from physics_mapper.evaluation.snapshot_results import mean_errors, result_identity, snapshot_result_dict
 
     data = {
         "mode": mode,
         "objects": list(object_names),
         "mean_errors": mean_errors(results),
-        "snapshots": [snapshot_result_dict(o) for o in results],
+        "identity": result_identity(results, object_names),
+        "snapshots": [snapshot_result_dict(o, object_names) for o in results],
     }
     write_output(path, json.dumps(data, indent=1) + "\n")

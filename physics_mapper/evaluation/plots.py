@@ -187,3 +187,52 @@ def sweep_figure(data: dict[str, Any]) -> Figure:
         title = "snapshots with a valid map (%)" + (f"; {suffix}" if suffix else "")
         _heat_map(valid_axes, valid, axis_rows, axis_columns, title, framed, low_is_good=False, unit=" %", decimals=0)
     return figure
+
+
+def identity_timeline(records: Sequence[dict[str, Any]], names: Sequence[str], title: str) -> Figure:
+    """Frames on one axis, instances on the other: each cell coloured by the detection the instance took in
+    that frame's array (its index there, which changes as the estimator reorders them), and labelled with
+    the true object its map pose lies on (nearest within
+    :data:`~physics_mapper.evaluation.identity.IDENTITY_GATE`; ``x``: none). Grey: the instance took no
+    detection in that frame; no label: the map leaves it out (or there is no map). A row with one label is
+    an identity kept whatever the order; a label changing within a row is an identity switch."""
+    from matplotlib.colors import ListedColormap
+
+    from physics_mapper.evaluation.identity import IDENTITY_GATE
+
+    scored = [r for r in records if r["positions"]["truth"] is not None]
+    most = max((max(r["detections"].values(), default=-1) for r in scored), default=-1) + 1
+    palette = [(0.85, 0.85, 0.85)] + [tuple(float(c) for c in colour[:3]) for colour in _qualitative(most)]
+    cells = np.zeros((len(names), len(scored)), dtype=int)  # 0: no detection taken, 1 + i: detection i
+    for column, record in enumerate(scored):
+        for row, name in enumerate(names):
+            index = record["detections"].get(name)
+            cells[row, column] = 0 if index is None else 1 + index
+    figure = new_figure(max(4.0, 0.3 * len(scored) + 2.0), max(2.5, 0.3 * len(names) + 1.4))
+    axes = figure.add_subplot()
+    axes.imshow(cells, aspect="auto", interpolation="nearest", cmap=ListedColormap(palette), vmin=0,
+                vmax=len(palette) - 1)  # fmt: skip
+    for column, record in enumerate(scored):
+        truth = np.asarray(record["positions"]["truth"], dtype=float)
+        for row, name in enumerate(names):
+            position = (record["positions"]["map"] or {}).get(name)
+            if position is None:
+                continue
+            distances = np.linalg.norm(truth - np.asarray(position, dtype=float), axis=1)
+            nearest = int(np.argmin(distances))
+            label = str(nearest + 1) if distances[nearest] <= IDENTITY_GATE else "x"
+            axes.text(column, row, label, ha="center", va="center", fontsize=7)
+    axes.set_yticks(range(len(names)), list(names))
+    axes.set_xticks(range(len(scored)), [str(i + 1) for i in range(len(scored))])
+    axes.set_xlabel("frame (snapshot)")
+    axes.set_ylabel("instance")
+    axes.set_title(f"{title}: colour = detection taken, label = true object", fontsize=8)
+    return figure
+
+
+def _qualitative(count: int) -> list[Any]:
+    """``count`` distinguishable colours (matplotlib's tab20, repeated beyond 20)."""
+    from matplotlib import colormaps
+
+    table = colormaps["tab20"]
+    return [table(i % 20) for i in range(count)]

@@ -42,14 +42,14 @@ class Progress:
         prefix: str,
         total_snapshots: int,
         total_tasks: int,
-        stream: TextIO = sys.stderr,
+        stream: TextIO | None = None,
         mode: ProgressMode = "auto",
         clock: Callable[[], float] = time.monotonic,
     ) -> None:
         self.prefix = prefix
         self.total_snapshots = total_snapshots
         self.total_tasks = total_tasks
-        self.stream = stream
+        self.stream = stream = stream or sys.stderr  # now, not at import: a test may have replaced it
         self.mode: ProgressMode = ("bar" if stream.isatty() else "lines") if mode == "auto" else mode
         self.clock = clock
         self.started = clock()

@@ -256,7 +256,25 @@ def _summary_lines(summary: dict[str, Any], names: Sequence[str]) -> list[str]:
         f"C11..1: mean total error C11..1 {_cm(maps['top'])} cm, chosen {_cm(maps['chosen_or_top'])} cm, "
         f"settled {_cm(maps['settled_or_top'])} cm."
     )
-    return lines
+    return [*lines, "", _identity_text(summary["identity"])]
+
+
+def _identity_text(identity: dict[str, Any] | None) -> str:
+    """The identity metrics of a summary in a sentence (distances in cm)."""
+    if identity is None:
+        return "No identity metrics (no ground truth)."
+    return (
+        f"Identity (map names matched to true objects within {_cm(identity['gate_m'])} cm, "
+        f"{identity['frames']} snapshots): {identity['switches']} identity switches, "
+        f"IDF1 {_fraction(identity['idf1'])}, "
+        f"MOTA {_fraction(identity['mota'])}, MOTP {_cm(identity['motp_m'])} cm, {identity['misses']} misses and "
+        f"{identity['false_positives']} false positives in {identity['true_objects']} true object-snapshots, "
+        f"position error by identity {_cm(identity['identity_error_m'])} cm."
+    )
+
+
+def _fraction(value: float | None) -> str:
+    return MISSING if value is None else f"{value:.3f}"
 
 
 def _cell(text: object) -> str:
@@ -316,8 +334,8 @@ def evaluation_markdown(data: dict[str, Any], png_name: str) -> str:
 def _bag_table(bags: Sequence[dict[str, Any]], times: dict[str, Any]) -> list[str]:
     lines = [
         "| bag | storage | snapshots | valid | fallback | no map | total error C11..1 / chosen / settled [cm] "
-        "| settled vs C11..1 p | time p50 / p90 [ms] |",
-        "| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: |",
+        "| settled vs C11..1 p | identity switches | IDF1 | time p50 / p90 [ms] |",
+        "| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |",
     ]
     for bag in bags:
         summary = bag["summary"]
@@ -326,11 +344,12 @@ def _bag_table(bags: Sequence[dict[str, Any]], times: dict[str, Any]) -> list[st
         n, mean, tests = summary["snapshots"], summary["mean_m"], summary["tests"]
         errors = MISSING if mean is None else " / ".join(_cm(mean[e]["total"]) for e in mean)
         p = MISSING if tests is None else _p(tests["settled_vs_top"]["total"])
-        time = times[bag["path"]]
+        time, identity = times[bag["path"]], summary["identity"]
+        switches, idf1 = (MISSING, MISSING) if identity is None else (identity["switches"], _fraction(identity["idf1"]))
         lines.append(
             f"| {_code(bag['path'])} | {bag['storage']} | {n} | {_share(summary['valid'], n)} | "
             f"{_share(summary['fallback'], n)} | {_share(summary['no_map'], n)} | {errors} | {p} | "
-            f"{_ms(time['p50_s'])} / {_ms(time['p90_s'])} |"
+            f"{switches} | {idf1} | {_ms(time['p50_s'])} / {_ms(time['p90_s'])} |"
         )
     return lines
 
@@ -361,6 +380,12 @@ def overall_lines(data: dict[str, Any]) -> list[str]:
         lines.append(
             f"settled vs C11..1: paired Wilcoxon p = {test['p_value']:.2g} over {test['pairs']} "
             f"{overall['tests']['unit']}s (lower in {test['pairs_lower']}, higher in {test['pairs_higher']})"
+        )
+    identity = overall["identity"]
+    if identity is not None:
+        lines.append(
+            f"identity: {identity['switches']} switches, IDF1 {_fraction(identity['idf1'])}, "
+            f"MOTA {_fraction(identity['mota'])}, position error by identity {_cm(identity['identity_error_m'])} cm"
         )
     return lines
 
@@ -425,6 +450,7 @@ def sweep_data(run: BatchRun, context: ReportContext, criterion: Criterion) -> d
                 "label": setting.label,
                 "varied": dict(setting.varied),
                 "search": asdict(setting.params),
+                "association": asdict(setting.association),
                 "counts": _counts(run, index),
                 "complete": all((index, b) in run.outputs for b in readable),
                 "overall": overall_summary(evaluated, run.scene.object_names) if evaluated else None,
@@ -497,6 +523,8 @@ def sweep_markdown(data: dict[str, Any], png_name: str, params_file: str | None)
         "settled",
         "map error",
         "settled vs C11..1 p",
+        "switches",
+        "IDF1",
     ]
     lines += [
         "",
@@ -521,12 +549,14 @@ def _setting_row(
     cells = [f"{setting['index']}{marker}{incomplete}", *(value_text(setting["varied"][key]) for key in keys)]
     overall = setting["overall"]
     if overall is None:
-        return [*cells, *([MISSING] * 8), MISSING]
+        return [*cells, *([MISSING] * 10), MISSING]
     n, mean, maps, tests = overall["snapshots"], overall["mean_m"], overall["map_error_m"], overall["tests"]
     cells += [_share(overall[kind], n) for kind in ("valid", "fallback", "no_map")]
     cells += [MISSING] * 3 if mean is None else [_cm(mean[e]["total"]) for e in mean]
     cells += [_cm(None if maps is None else maps["settled_or_top"])]
     cells += [_p(None if tests is None else tests["settled_vs_top"]["total"])]
+    identity = overall["identity"]
+    cells += [MISSING] * 2 if identity is None else [str(identity["switches"]), _fraction(identity["idf1"])]
     return [*cells, _ms(None if times is None else times["p50_s"])]
 
 
@@ -557,7 +587,7 @@ def write_sweep(
         if data["search_mode"] == "exhaustive" and note is not None:
             header.append(f"Note: {note}.")
         try:
-            params_text = node_parameters_yaml(context.scene_file, setting.params, header)
+            params_text = node_parameters_yaml(context.scene_file, setting.params, header, setting.association)
         except InputError as error:
             best["params_file_error"] = str(error)
         else:

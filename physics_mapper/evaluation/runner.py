@@ -71,12 +71,14 @@ class BatchRun:
 
 class _Calls(Sequence[tuple[Any, ...]]):
     """Each task's arguments, made when the executor asks: (scene with the setting's search, the bag's
-    path or, for remote workers, its input topics read here (the last bag read is kept), budget)."""
+    path or, for remote workers, its input topics read here (the last bag read is kept), budget, the
+    setting's association settings)."""
 
     def __init__(self, run: BatchRun, keys: Sequence[TaskKey], remote: bool) -> None:
         self.keys, self.remote = keys, remote
         self.scenes = [replace(run.scene, search=setting.params) for setting in run.settings]
         self.budgets = [None if run.exhaustive else setting.params.deadline for setting in run.settings]
+        self.associations = [setting.association for setting in run.settings]
         self.bags, self.scene = run.bags, run.scene
         self._read: tuple[int, Bag | UnreadableBag] | None = None
 
@@ -92,7 +94,7 @@ class _Calls(Sequence[tuple[Any, ...]]):
 
     def __getitem__(self, index: int) -> tuple[Any, ...]:  # type: ignore[override]  # no slices asked for
         setting, bag = self.keys[index]
-        return (self.scenes[setting], self._source(bag), self.budgets[setting])
+        return (self.scenes[setting], self._source(bag), self.budgets[setting], self.associations[setting])
 
 
 class _Collector:
@@ -154,7 +156,7 @@ def run_batch(
 ) -> BatchRun:
     """Search every snapshot of every readable bag with every setting, on ``executor``.
 
-    ``function(scene, source, budget, progress=...)`` runs one task (the default reads the bag and
+    ``function(scene, source, budget, association, progress=...)`` runs one task (the default reads the bag and
     runs the offline replay's search and scoring); each setting's scene carries its search
     parameters, and the budget is its deadline, or None when ``exhaustive``. ``survey_time``:
     seconds it took to survey ``bags``.

@@ -1,7 +1,10 @@
 """Search settings of a batch run: ``--set KEY=VALUE`` overrides, ``--grid KEY=V1,V2,...`` sweeps, and
 the node parameters file of a chosen setting.
 
-Keys are the fields of :class:`~physics_mapper.model.scene.SearchParams`, and values are checked by
+Keys are the fields of :class:`~physics_mapper.model.scene.SearchParams` and, for a grid, those of the
+association of detections to instances as ``association.<field>``
+(:class:`~physics_mapper.mapping.association.AssociationSettings`: ``gate``, ``confirm_hits``,
+``process_noise``, ``measurement_noise``, ``max_age``). Search values are checked by
 the scene files' own reader (:func:`~physics_mapper.model.scene_files.search_with_overrides`), so a
 field added to the search is accepted here with the ranges a scene file has. A value is read as a
 scene file's YAML is (:func:`~physics_mapper.model.yaml_files.parse_yaml`: ``1e-4`` is a number).
@@ -12,12 +15,13 @@ from __future__ import annotations
 import itertools
 import math
 from collections.abc import Sequence
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any
 
 import yaml
 
+from physics_mapper.mapping.association import AssociationSettings
 from physics_mapper.mapping.inputs import InputSettings
 from physics_mapper.mapping.mapper import DEFAULT_RATE_HZ, MapperSettings, mapper_settings_problem
 from physics_mapper.mapping.topics import NODE_NAME
@@ -39,6 +43,7 @@ class Setting:
 
     varied: tuple[tuple[str, Any], ...]
     params: SearchParams
+    association: AssociationSettings = field(default_factory=AssociationSettings)
 
     @property
     def label(self) -> str:
@@ -98,11 +103,38 @@ def grid_settings(base: SearchParams, grid: Sequence[str], fixed: Sequence[str] 
     for combination in itertools.product(*axes.values()):
         varied = tuple(zip(axes, combination, strict=True))
         label = ", ".join(f"{key}={value}" for key, value in varied)
-        params = search_with_overrides(base, dict(varied), f"--grid {label}")
-        settings.append(Setting(tuple((key, getattr(params, key)) for key, _ in varied), params))
-    if len({setting.params for setting in settings}) < len(settings):
+        searched = {key: value for key, value in varied if not key.startswith(ASSOCIATION_PREFIX)}
+        params = search_with_overrides(base, searched, f"--grid {label}")
+        association = _association(dict(varied), f"--grid {label}")
+        given = tuple((key, getattr(params, key) if key in searched else value) for key, value in varied)
+        settings.append(Setting(given, params, association))
+    if len({(setting.params, setting.association) for setting in settings}) < len(settings):
         raise InputError("--grid: a value is repeated (two combinations give the same search parameters)")
     return settings
+
+
+#: Grid keys of the association of detections to instances: ``association.<field>`` of AssociationSettings.
+ASSOCIATION_PREFIX = "association."
+
+
+def _association(varied: dict[str, Any], where: str) -> AssociationSettings:
+    """The association settings with the grid's ``association.<field>`` values; InputError for an unknown
+    field or a value that is not a non-negative number (``confirm_hits``: a whole number of at least 1)."""
+    names = {f.name for f in fields(AssociationSettings)}
+    values: dict[str, Any] = {}
+    for key, value in varied.items():
+        if not key.startswith(ASSOCIATION_PREFIX):
+            continue
+        name = key.removeprefix(ASSOCIATION_PREFIX)
+        if name not in names:
+            raise InputError(f"{where}: {key} is no association setting (one of: {', '.join(sorted(names))})")
+        whole = name == "confirm_hits"
+        number = isinstance(value, int) if whole else isinstance(value, int | float)
+        if isinstance(value, bool) or not number or not math.isfinite(value) or value < (1 if whole else 0):
+            kind = "a whole number of at least 1" if whole else "a non-negative number"
+            raise InputError(f"{where}: {key} must be {kind}, got {value!r}")
+        values[name] = int(value) if whole else float(value)
+    return replace(AssociationSettings(), **values)
 
 
 def node_rate_hz(deadline: float) -> float:
@@ -118,18 +150,30 @@ def node_rate_hz(deadline: float) -> float:
     return float(math.floor(rate * 10**digits) / 10**digits)
 
 
-def node_parameters_yaml(scene_file: Path, params: SearchParams, header: Sequence[str]) -> str:
+#: Association settings the node takes as parameters, and their names there (the others stay at their defaults).
+NODE_ASSOCIATION_PARAMETERS = {"gate": "association_gate", "confirm_hits": "confirm_hits"}
+
+
+def node_parameters_yaml(
+    scene_file: Path, params: SearchParams, header: Sequence[str], association: AssociationSettings | None = None
+) -> str:
     """A node parameters file (``--params-file``) that runs the node on ``scene_file`` with ``params``.
 
     Every search parameter is written (each is a node parameter of the same name), with ``rate_hz``
-    from :func:`node_rate_hz`; ``header`` lines become comments. Raises InputError if the node would
-    refuse the values.
+    from :func:`node_rate_hz`, and the ``association`` settings that differ from the defaults and the
+    node takes (:data:`NODE_ASSOCIATION_PARAMETERS`); ``header`` lines become comments. Raises
+    InputError if the node would refuse the values.
     """
     rate_hz = node_rate_hz(params.deadline)
     problem = mapper_settings_problem(MapperSettings(params, InputSettings(), rate_hz))
     if problem is not None:
         raise InputError(f"the node would refuse these parameters: {problem}")
     values: dict[str, Any] = {"scene_file": str(scene_file.resolve()), "rate_hz": rate_hz, **asdict(params)}
+    defaults = AssociationSettings()
+    for field_name, parameter in NODE_ASSOCIATION_PARAMETERS.items():
+        value = getattr(association or defaults, field_name)
+        if value != getattr(defaults, field_name):
+            values[parameter] = value
     document = {PARAMS_FILE_NODE_KEY: {"ros__parameters": values}}
     comments = "".join(f"# {line}\n" for line in header)
     return comments + yaml.safe_dump(document, sort_keys=False, default_flow_style=False)

@@ -25,8 +25,10 @@ from physics_mapper.bags.storage import (
     pose_array_cdr,
     pose_array_from_cdr,
 )
+from physics_mapper.evaluation.identity import identity_metrics, identity_text, record_frames
 from physics_mapper.evaluation.scoring import position_errors, rank_one_poses
-from physics_mapper.evaluation.snapshots import BagSnapshot
+from physics_mapper.evaluation.snapshots import BagSnapshot, bag_snapshots
+from physics_mapper.mapping.association import AssociationSettings
 from physics_mapper.mapping.topics import MAP_TOPIC_QOS, RECORDED_CONFIGURATION_TOPIC, RECORDED_SETTLED_TOPIC
 from physics_mapper.model.geometry import Pose, is_same_pose
 from physics_mapper.model.hypotheses import RankedHypotheses
@@ -69,14 +71,51 @@ def search_offline(
 
     ``progress(index, result)`` is called after each search.
     """
-    results = []
     with PhysicsChecker(scene) as checker:
-        for index, snapshot in enumerate(snapshots):
-            found = make_search(checker, snapshot.hypotheses, scene.search).run(budget)
-            results.append(SnapshotResult(snapshot, found.code, found.poses, found.settled_poses, found))
-            if progress is not None:
-                progress(index, found)
-    return results
+        search = OfflineSearch(checker, scene, budget, progress)
+        for snapshot in snapshots:
+            search(snapshot)
+    return search.results
+
+
+class OfflineSearch:
+    """Searches snapshots one by one in one physics world, ``budget`` seconds each (None: to the end), keeping
+    each :class:`SnapshotResult`; as a :data:`~physics_mapper.evaluation.snapshots.Decide`, it lets a bag's
+    snapshots follow the maps chosen, as the node's inputs follow its ticks (:func:`replay_offline`)."""
+
+    def __init__(
+        self,
+        checker: PhysicsChecker,
+        scene: Scene,
+        budget: float | None,
+        progress: Callable[[int, SearchResult], None] | None = None,
+    ) -> None:
+        self.checker, self.scene, self.budget, self.progress = checker, scene, budget, progress
+        self.results: list[SnapshotResult] = []
+
+    def __call__(self, snapshot: BagSnapshot) -> SearchResult:
+        found = make_search(self.checker, snapshot.hypotheses, self.scene.search).run(self.budget)
+        self.results.append(SnapshotResult(snapshot, found.code, found.poses, found.settled_poses, found))
+        if self.progress is not None:
+            self.progress(len(self.results) - 1, found)
+        return found
+
+
+def replay_offline(
+    bag: Bag,
+    scene: Scene,
+    budget: float | None,
+    association: AssociationSettings | None = None,
+    progress: Callable[[int, SearchResult], None] | None = None,
+) -> list[SnapshotResult]:
+    """The offline replay of a bag: its snapshots (:func:`~physics_mapper.evaluation.snapshots.bag_snapshots`,
+    detections associated with ``association``) each searched as it is taken, so that with instances
+    the next snapshots follow the map chosen, as the node's do. Without instances, the same as
+    :func:`search_offline` of the bag's snapshots."""
+    with PhysicsChecker(scene) as checker:
+        search = OfflineSearch(checker, scene, budget, progress)
+        bag_snapshots(bag, scene, association=association, decide=search)
+    return search.results
 
 
 def write_results(writer: BagWriter, results: Sequence[SnapshotResult], frame_id: str) -> None:
@@ -153,11 +192,12 @@ def _estimates(result: SnapshotResult) -> tuple[tuple[Pose, ...] | None, ...]:
     return rank_one_poses(result.snapshot.hypotheses), result.chosen, result.settled
 
 
-EstimateErrors = Mapping[str, Sequence[float] | None]
+EstimateErrors = Mapping[str, Sequence[float | None] | None]
 
 
-def estimate_errors(result: SnapshotResult) -> dict[str, tuple[float, ...] | None] | None:
-    """Each estimate's per-object position errors in metres, keyed by :data:`ESTIMATES`.
+def estimate_errors(result: SnapshotResult) -> dict[str, tuple[float | None, ...] | None] | None:
+    """Each estimate's per-object position errors in metres, keyed by :data:`ESTIMATES`; None for an object
+    the estimate leaves out of the map (its *absent* hypothesis).
 
     ``chosen`` and ``settled`` are None where nothing was chosen (``top``, C11..1, always exists);
     the whole is None without a ground truth.
@@ -166,14 +206,35 @@ def estimate_errors(result: SnapshotResult) -> dict[str, tuple[float, ...] | Non
     if truth is None:
         return None
     return {
-        name: None if poses is None else position_errors(poses, truth)
-        for name, poses in zip(ESTIMATES, _estimates(result), strict=True)
+        name: None if poses is None else _present_errors(position_errors(poses, truth), ranks, result)
+        for name, poses, ranks in zip(ESTIMATES, _estimates(result), _estimate_codes(result), strict=True)
     }
 
 
+def _estimate_codes(result: SnapshotResult) -> tuple[Code | None, ...]:
+    """The ranks of each of :data:`ESTIMATES` (``top``: every object's first; settled: the chosen ones)."""
+    return tuple(1 for _ in result.snapshot.hypotheses), result.code, result.code
+
+
+def _present_errors(errors: tuple[float, ...], code: Code | None, result: SnapshotResult) -> tuple[float | None, ...]:
+    """``errors`` with None for each object whose hypothesis of ``code`` is *absent* (not in the map)."""
+    if code is None:
+        return errors
+    hypotheses = result.snapshot.hypotheses
+    return tuple(
+        None if ranked.is_absent(rank) else error for error, ranked, rank in zip(errors, hypotheses, code, strict=True)
+    )
+
+
+def is_complete(errors: Sequence[float | None] | None) -> bool:
+    """Whether an estimate has an error for every object (it was made, and left no object out)."""
+    return errors is not None and all(error is not None for error in errors)
+
+
 def is_scored(errors: EstimateErrors | None) -> bool:
-    """Whether a snapshot's :func:`estimate_errors` count in the means: a ground truth and a chosen configuration."""
-    return errors is not None and all(errors[name] is not None for name in ESTIMATES)
+    """Whether a snapshot's :func:`estimate_errors` count in the means: a ground truth and a chosen configuration
+    holding every object (errors by name; a map leaving some instance out is scored by identity alone)."""
+    return errors is not None and all(is_complete(errors[name]) for name in ESTIMATES)
 
 
 def mean_scored_errors(errors: Iterable[EstimateErrors | None]) -> dict[str, tuple[float, ...]] | None:
@@ -208,7 +269,11 @@ def evaluation_summary(results: Sequence[SnapshotResult], object_names: Sequence
     ]
     errors = mean_errors(results)
     if errors is None:
-        lines.append("no error against ground truth (no /ground_truth in the bag, or no configuration)")
+        lines.append(
+            "no error by name against ground truth (no /ground_truth in the bag, or no configuration holding "
+            "every object)"
+        )
+        lines.append(identity_text(result_identity(results, object_names)))
         return "\n".join(lines)
     width = max(len(name) for name in (*object_names, "total"))
     scored = sum(1 for o in results if is_scored(estimate_errors(o)))
@@ -218,15 +283,35 @@ def evaluation_summary(results: Sequence[SnapshotResult], object_names: Sequence
     for index, name in enumerate(object_names):
         lines.append(f"{name:<{width}}" + "".join(f"{e[index] * 100:10.2f}" for e in errors.values()))
     lines.append(f"{'total':<{width}}" + "".join(f"{sum(e) * 100:10.2f}" for e in errors.values()))
+    lines.append(identity_text(result_identity(results, object_names)))
     return "\n".join(lines)
 
 
-def snapshot_result_dict(result: SnapshotResult) -> dict[str, Any]:
+def result_identity(results: Sequence[SnapshotResult], object_names: Sequence[str]) -> dict[str, Any] | None:
+    """The identity metrics (:func:`~physics_mapper.evaluation.identity.identity_metrics`) of the results."""
+    return identity_metrics(record_frames(snapshot_result_dict(r, object_names) for r in results))
+
+
+def map_positions(result: SnapshotResult, names: Sequence[str]) -> dict[str, list[float]] | None:
+    """The chosen configuration's centre positions (m) by object name, objects left out (*absent*) not
+    listed (None without a configuration): what identity metrics match to the ground truth
+    (:mod:`~physics_mapper.evaluation.identity`)."""
+    if result.chosen is None or result.code is None:
+        return None
+    placed = zip(names, result.chosen, result.snapshot.hypotheses, result.code, strict=True)
+    return {name: list(pose.position) for name, pose, ranked, rank in placed if not ranked.is_absent(rank)}
+
+
+def snapshot_result_dict(result: SnapshotResult, names: Sequence[str]) -> dict[str, Any]:
     """One snapshot's result as plain data: times, code, per-object position errors (m) of each estimate
-    (:func:`estimate_errors`) and, for an offline search, ``valid``, ``fallback_used``, ``visited`` (configurations
-    checked) and ``stopped_at_deadline`` (None for a live node's choice). Wall-clock times are left out, so that the
-    same search gives the same data on any machine."""
+    (:func:`estimate_errors`), the detection each instance took in the snapshot's last array (``detections``:
+    name -> its index there), the map's and the truth's positions (``positions``: ``map`` by object name,
+    :func:`map_positions`; ``truth`` in scene order, None without a ground truth) and, for an offline search,
+    ``valid``, ``fallback_used``, ``visited`` (configurations checked) and ``stopped_at_deadline`` (None for a
+    live node's choice). Wall-clock times are left out, so that the same search gives the same data on any
+    machine."""
     snapshot, search = result.snapshot, result.search
+    truth = snapshot.ground_truth
     return {
         "time_ns": snapshot.time_ns,
         "stamp_ns": snapshot.stamp_ns,
@@ -237,4 +322,9 @@ def snapshot_result_dict(result: SnapshotResult) -> dict[str, Any]:
         "visited": None if search is None else search.stats.visited,
         "stopped_at_deadline": None if search is None else search.stats.stopped_at_deadline,
         "errors": estimate_errors(result),
+        "detections": dict(snapshot.detections),
+        "positions": {
+            "map": map_positions(result, names),
+            "truth": None if truth is None else [list(pose.position) for pose in truth],
+        },
     }

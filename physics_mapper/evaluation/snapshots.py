@@ -10,7 +10,7 @@ problem, as it would be for the node, which otherwise resumes its search.
 
 from __future__ import annotations
 
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 
 from physics_mapper.bags.storage import (
@@ -22,13 +22,21 @@ from physics_mapper.bags.storage import (
     pose_array_from_cdr,
     weights_from_cdr,
 )
+from physics_mapper.mapping.association import AssociationSettings, InstanceTracks
 from physics_mapper.mapping.detections import RECORDED_DETECTIONS_TOPIC, detection_inputs
+from physics_mapper.mapping.existence import (
+    MapMemory,
+    held_by_valid_map,
+    left_out_by_physics,
+    searched_hypotheses,
+)
 from physics_mapper.mapping.inputs import InputSettings, InputTracker, check_poses, check_weights
 from physics_mapper.mapping.stamps import NANOSECONDS_PER_SECOND
 from physics_mapper.mapping.topics import GROUND_TRUTH_TOPIC, recorded_poses_topic, recorded_weights_topic
 from physics_mapper.model.geometry import Pose
 from physics_mapper.model.hypotheses import RankedHypotheses
 from physics_mapper.model.scene import Scene
+from physics_mapper.search.results import SearchResult
 
 #: Messages closer together than this (ns) form one burst, after which the node's inputs are snapshot.
 BURST_GAP_NS = 50_000_000
@@ -43,7 +51,8 @@ class BagSnapshot:
     ``time_ns``: bag time of the burst's last message; ``stamp_ns``: newest header stamp among
     the hypotheses used (the node's output stamp); ``stamps_ns``: the header stamp of each
     object's PoseArray in use, in scene order (what the node's diagnostics show as ``stamp [ns]``);
-    ``ground_truth``: newest ``/ground_truth`` so far.
+    ``ground_truth``: newest ``/ground_truth`` so far; ``detections``: (instance, index of the detection
+    it took in the burst's last ``Detection3DArray``) for each instance the association gave one.
     """
 
     time_ns: int
@@ -51,6 +60,7 @@ class BagSnapshot:
     hypotheses: tuple[RankedHypotheses, ...]
     ground_truth: tuple[Pose, ...] | None
     stamps_ns: tuple[int, ...] = ()
+    detections: tuple[tuple[str, int], ...] = ()
 
 
 def _bursts(messages: Sequence[BagMessage]) -> Iterator[list[BagMessage]]:
@@ -88,21 +98,49 @@ def no_snapshot_reason(scene: Scene) -> str:
     )
 
 
-def bag_snapshots(bag: Bag, scene: Scene, settings: InputSettings | None = None) -> list[BagSnapshot]:
+def has_instances(scene: Scene) -> bool:
+    """Whether some class of the scene is associated across frames (identical instances, optional ones)."""
+    return any(scene.is_tracked(scene.class_of(name)) for name in scene.object_names)
+
+
+#: Told after each new snapshot's search: the chosen configuration (None: nothing chosen).
+Decide = Callable[["BagSnapshot"], SearchResult | None]
+
+
+def bag_snapshots(
+    bag: Bag,
+    scene: Scene,
+    settings: InputSettings | None = None,
+    association: AssociationSettings | None = None,
+    decide: Decide | None = None,
+) -> list[BagSnapshot]:
     """Feed the bag's hypotheses through the node's input rules; one snapshot per new set of hypotheses.
 
     Only the messages on :func:`input_topics` count, also for the bursts: other topics of the bag
     (a recording's camera or TF) neither decide nor cut a burst. Raises BagError, naming the bag,
     topic and time, for a message that cannot be decoded or a malformed ground truth.
+
+    In a scene without instances a snapshot needs hypotheses of every object. With instances the
+    node's rules hold (:mod:`~physics_mapper.mapping.existence`): detections are associated across
+    the bag's arrays (:mod:`~physics_mapper.mapping.association`, with ``association``'s settings;
+    tracks unmatched for ``max_age`` end), an instance that may not be there gets its *absent*
+    hypothesis, a silent object its last map pose beside *absent*, one never seen *absent* alone; and
+    after each new snapshot ``decide(snapshot)`` gives the configuration chosen for it, whose map
+    is remembered, whose instances may be confirmed and whose left-out tentative instances end (when
+    the search finished), as after the node's tick.
     """
     settings = settings or InputSettings()
     tracker = InputTracker(scene.object_names)
+    instances = InstanceTracks(scene, association)
+    memory = MapMemory()
+    tracked = has_instances(scene)
     poses_of = {recorded_poses_topic(name): name for name in scene.object_names}
     weights_of = {recorded_weights_topic(name): name for name in scene.object_names}
     wanted = set(input_topics(scene))
     truth: tuple[Pose, ...] | None = None
     snapshots: list[BagSnapshot] = []
     for burst in _bursts([m for m in bag.messages if m.topic in wanted]):
+        taken: tuple[tuple[str, int], ...] = ()
         for message in burst:
             received = message.time_ns / NANOSECONDS_PER_SECOND
             with decoding(bag, message):
@@ -123,16 +161,35 @@ def bag_snapshots(bag: Bag, scene: Scene, settings: InputSettings | None = None)
                     )
                 elif message.topic == RECORDED_DETECTIONS_TOPIC:
                     detected = detection_inputs(
-                        detections_from_cdr(message.raw, bag.definitions), scene, received=received
+                        detections_from_cdr(message.raw, bag.definitions), scene, received=received, tracks=instances
                     )
                     for name, poses in detected.objects.items():
                         tracker.add_poses(name, poses)
+                    if detected.association is not None:
+                        taken = tuple((name, index) for index, name in sorted(detected.association.assigned.items()))
+                        for name in detected.association.ended:
+                            tracker.forget(name)
                 else:
                     truth = _ground_truth(message, scene)
-        snapshot = tracker.snapshot(burst[-1].time_ns / NANOSECONDS_PER_SECOND, settings)
-        hypotheses, stamp_ns = snapshot.hypotheses, snapshot.stamp_ns
+        now = burst[-1].time_ns / NANOSECONDS_PER_SECOND
+        for name in instances.expire(now):
+            tracker.forget(name)
+        snapshot = tracker.snapshot(now, settings)
+        hypotheses = snapshot.hypotheses
+        if tracked and (len(snapshot.missing) < len(scene.objects) or memory.poses):
+            hypotheses = searched_hypotheses(snapshot, memory, instances.absent_weight, now, settings.max_age)
         new = not snapshots or hypotheses != snapshots[-1].hypotheses
-        if hypotheses is not None and stamp_ns is not None and new:
-            stamps = tuple(o.stamp_ns for o in snapshot.objects if o.stamp_ns is not None)
-            snapshots.append(BagSnapshot(burst[-1].time_ns, stamp_ns, hypotheses, truth, stamps))
+        if hypotheses is None or snapshot.stamp_ns is None or not new:
+            continue
+        stamps = tuple(o.stamp_ns for o in snapshot.objects if o.stamp_ns is not None)
+        snapshots.append(BagSnapshot(burst[-1].time_ns, snapshot.stamp_ns, hypotheses, truth, stamps, taken))
+        result = None if decide is None else decide(snapshots[-1])
+        if tracked and result is not None and result.code is not None:
+            # As after the node's tick (Mapper.tick): the map remembered, its instances may be confirmed,
+            # and the tentative ones a finished search left out end.
+            names = scene.object_names
+            memory.remember(names, hypotheses, result)
+            instances.keep(held_by_valid_map(names, hypotheses, result))
+            for name in instances.reject(left_out_by_physics(names, hypotheses, result), now):
+                tracker.forget(name)
     return snapshots

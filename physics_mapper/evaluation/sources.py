@@ -20,7 +20,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from physics_mapper.bags.storage import Bag, BagError, BagMismatch, check_hypothesis_topics, message_counts, read_bag
-from physics_mapper.evaluation.snapshots import BagSnapshot, bag_snapshots, input_topics, no_snapshot_reason
+from physics_mapper.evaluation.snapshots import BagSnapshot, Decide, bag_snapshots, input_topics, no_snapshot_reason
+from physics_mapper.mapping.association import AssociationSettings
 from physics_mapper.mapping.topics import recorded_poses_topic
 from physics_mapper.model.errors import InputError
 from physics_mapper.model.scene import Scene
@@ -122,7 +123,12 @@ def read_inputs(path: Path, scene: Scene) -> Bag | UnreadableBag:
         return UnreadableBag(path, _error_text(path, error))
 
 
-def load_snapshots(source: Path | Bag | UnreadableBag, scene: Scene) -> tuple[BagSnapshot, ...]:
+def load_snapshots(
+    source: Path | Bag | UnreadableBag,
+    scene: Scene,
+    association: AssociationSettings | None = None,
+    decide: Decide | None = None,
+) -> tuple[BagSnapshot, ...]:
     """A bag's snapshots as the node would take them; BagError (without the path in front) if it cannot be
     read, BagMismatch if it reads but holds no usable hypotheses of the scene."""
     if isinstance(source, UnreadableBag):
@@ -131,7 +137,7 @@ def load_snapshots(source: Path | Bag | UnreadableBag, scene: Scene) -> tuple[Ba
     try:
         bag = read_bag(source, input_topics(scene)) if isinstance(source, Path) else source
         check_hypothesis_topics(bag, scene.object_names)
-        snapshots = tuple(bag_snapshots(bag, scene))
+        snapshots = tuple(bag_snapshots(bag, scene, association=association, decide=decide))
     except BagError as error:
         raise type(error)(_error_text(path, error)) from None
     if not snapshots:

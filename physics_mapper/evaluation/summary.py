@@ -12,9 +12,13 @@ Errors are position errors in metres against ``/ground_truth`` of the three esti
   bag the pairs are its scored snapshots (``unit: snapshot``; they follow one another in time, so
   they are not independent: read p as a guide); overall, the pairs are the bags' mean errors
   (``unit: bag``, independent), or the snapshots when a single bag is scored.
-* ``map_error_m``: the mean total error over *every* snapshot with a ground truth, a snapshot without
-  a map counting with C11..1's error (the hypotheses a user has without the mapper), so that settings
-  which leave different snapshots without a map compare fairly (``chosen_or_top``, ``settled_or_top``).
+* ``map_error_m``: the mean total error over *every* snapshot with a ground truth (whose C11..1 holds
+  every object), a snapshot without a map (or with one leaving an object out) counting with C11..1's
+  error (the hypotheses a user has without the mapper), so that settings which leave different
+  snapshots without a map compare fairly (``chosen_or_top``, ``settled_or_top``).
+* ``identity``: whether each map name stays on one true object (identity switches, IDF1, MOTA, MOTP, the
+  position error by identity: :mod:`physics_mapper.evaluation.identity`); overall, every bag's frames
+  together, each bag a sequence of its own.
 
 Everything here is computed from records alone, so it is the same whatever ran the searches;
 search times (wall clock) are summarised apart, by :func:`time_summary`.
@@ -29,7 +33,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from physics_mapper.evaluation.snapshot_results import ESTIMATES, is_scored, mean_scored_errors
+from physics_mapper.evaluation.identity import identity_metrics, overall_identity_metrics, record_frames
+from physics_mapper.evaluation.snapshot_results import ESTIMATES, is_complete, is_scored, mean_scored_errors
 from physics_mapper.evaluation.statistics import paired_wilcoxon
 
 Record = Mapping[str, Any]
@@ -88,13 +93,13 @@ def _scored_arrays(records: Sequence[Record]) -> dict[str, NDArray[np.float64]]:
 
 def _map_errors(records: Sequence[Record]) -> dict[str, Any] | None:
     """Mean total errors over every snapshot with a ground truth, C11..1's where there is no map."""
-    truthful = [r["errors"] for r in records if r["errors"] is not None]
+    truthful = [r["errors"] for r in records if r["errors"] is not None and is_complete(r["errors"]["top"])]
     if not truthful:
         return None
     top = [sum(e["top"]) for e in truthful]
     result: dict[str, Any] = {"snapshots": len(truthful), "top": float(np.mean(top))}
     for estimate in COMPARED:
-        totals = [sum(e[estimate]) if e[estimate] is not None else t for e, t in zip(truthful, top, strict=True)]
+        totals = [sum(e[estimate]) if is_complete(e[estimate]) else t for e, t in zip(truthful, top, strict=True)]
         result[f"{estimate}_or_top"] = float(np.mean(totals))
     return result
 
@@ -107,6 +112,7 @@ def bag_summary(records: Sequence[Record], names: Sequence[str]) -> dict[str, An
     summary["mean_m"] = None if means is None else _errors_by_object(means, names)
     summary["tests"] = None if means is None else _tests(_scored_arrays(records), "snapshot", names)
     summary["map_error_m"] = _map_errors(records)
+    summary["identity"] = identity_metrics(record_frames(records))
     return summary
 
 
@@ -125,6 +131,7 @@ def overall_summary(bags: Sequence[Sequence[Record]], names: Sequence[str]) -> d
     else:
         summary["tests"] = None if means is None else _tests(_scored_arrays(records), "snapshot", names)
     summary["map_error_m"] = _map_errors(records)
+    summary["identity"] = overall_identity_metrics([record_frames(bag) for bag in bags])
     return summary
 
 

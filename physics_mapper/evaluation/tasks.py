@@ -17,9 +17,11 @@ from pathlib import Path
 from typing import Any
 
 from physics_mapper.bags.storage import Bag, BagError, BagMismatch
-from physics_mapper.evaluation.snapshot_results import SnapshotResult, search_offline, snapshot_result_dict
+from physics_mapper.evaluation.snapshot_results import OfflineSearch, SnapshotResult, snapshot_result_dict
 from physics_mapper.evaluation.sources import UnreadableBag, load_snapshots
+from physics_mapper.mapping.association import AssociationSettings
 from physics_mapper.model.scene import Scene
+from physics_mapper.physics.checker import PhysicsChecker
 from physics_mapper.search.results import SearchResult
 
 
@@ -48,26 +50,30 @@ def evaluate_bag(
     scene: Scene,
     source: Path | Bag | UnreadableBag,
     budget: float | None,
+    association: AssociationSettings | None = None,
     progress: Callable[[], None] | None = None,
 ) -> TaskOutput:
     """Search every snapshot of a bag (its path, or its input topics read elsewhere) with ``scene.search``,
-    ``budget`` seconds each (None: exhaustively), and score it. ``progress()`` is called after each snapshot.
+    ``budget`` seconds each (None: exhaustively), detections associated to instances with ``association``
+    (None: the defaults), and score it. ``progress()`` is called after each snapshot.
     """
     started = time.monotonic()
     worker = f"{socket.gethostname()}:{os.getpid()}"
-    try:
-        snapshots = load_snapshots(source, scene)
-    except BagError as error:
-        unusable = isinstance(error, BagMismatch)
-        return TaskOutput((), (), time.monotonic() - started, worker, str(error), unusable)
 
     def searched(_: int, __: SearchResult) -> None:
         if progress is not None:
             progress()
 
-    results = search_offline(snapshots, scene, budget, searched)
+    with PhysicsChecker(scene) as checker:
+        search = OfflineSearch(checker, scene, budget, searched)
+        try:
+            load_snapshots(source, scene, association, search)
+        except BagError as error:
+            unusable = isinstance(error, BagMismatch)
+            return TaskOutput((), (), time.monotonic() - started, worker, str(error), unusable)
+    results = search.results
     return TaskOutput(
-        records=tuple(snapshot_result_dict(result) for result in results),
+        records=tuple(snapshot_result_dict(result, scene.object_names) for result in results),
         search_times=tuple(map(_search_time, results)),
         busy_time=time.monotonic() - started,
         worker=worker,

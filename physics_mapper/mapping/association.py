@@ -33,8 +33,9 @@ saw, and keeps no order across frames. The rules that give each detection of a *
   take their instances in the order of their best results' positions (x, then y, then z), not of
   the array: even a first frame names the same boxes the same way however it is ordered.
 - **Confirmation.** A track is *tentative* until it was matched ``confirm_hits`` times and some
-  map held its instance (:meth:`InstanceTracks.keep`): a detection physics finds no place for, a
-  reflection in the air seen in every frame, is never confirmed by repeating itself.
+  *valid* map held its instance (:meth:`InstanceTracks.keep`): a detection physics finds no place for,
+  a reflection in the air seen in every frame, is never confirmed by repeating itself, nor by a
+  fallback's map, which holds every object it is given.
 - **Misses and ends.** An instance no detection matched keeps its own state and hypotheses; it
   never takes another's. A tentative track ends at its first miss, and when a finished search
   leaves its instance out (:meth:`InstanceTracks.reject`; a search the deadline stopped is no
@@ -125,7 +126,7 @@ class Track:
     key: str = ""
     hits: int = 0
     confidences: list[float] = field(default_factory=list)
-    kept: bool = False  # some map held its instance
+    kept: bool = False  # some valid map held its instance
 
     @property
     def position(self) -> NDArray[np.float64]:
@@ -207,7 +208,7 @@ class InstanceTracks:
 
     def tentative(self, name: str) -> bool:
         """Whether ``name`` has a track not confirmed yet: matched fewer than ``confirm_hits`` times, or never
-        held by a map (:meth:`keep`)."""
+        held by a valid map (:meth:`keep`)."""
         track = self.tracks.get(name)
         return track is not None and (track.hits < self.settings.confirm_hits or not track.kept)
 
@@ -221,7 +222,7 @@ class InstanceTracks:
         return None
 
     def keep(self, names: Sequence[str]) -> None:
-        """Note that a map holds the instances ``names``: their tracks may be confirmed."""
+        """Note that a valid map holds the instances ``names``: their tracks may be confirmed."""
         for name in names:
             track = self.tracks.get(name)
             if track is not None:

@@ -8,8 +8,8 @@ the map of the previous ticks (:class:`MapMemory`):
   more, *absent*, with the weight w the association gives it
   (:meth:`~physics_mapper.mapping.association.InstanceTracks.absent_weight`); its other
   hypotheses are scaled by 1 - w.
-- **Silent** (its newest hypotheses older than ``max_age``, or its track ended): if the map held
-  it, its last map pose is kept as one hypothesis beside *absent*, whose weight grows with the
+- **Silent** (its newest hypotheses older than ``max_age``, or its track ended): if the last valid
+  map held it, its pose there is kept as one hypothesis beside *absent*, whose weight grows with the
   silence s (seconds since it fell silent): w_absent = 1 - exp(-s / max_age) / 2. From s = 0
   being absent is at least as likely as being there, so the search (which prefers the most
   probable pattern of existence among valid maps, then the least jitter) drops the object where
@@ -46,14 +46,18 @@ def with_absent(ranked: RankedHypotheses, index: int, weight: float) -> RankedHy
 
 @dataclass
 class MapMemory:
-    """What the map held: each object's last map pose (the chosen one), and since when each is silent."""
+    """What the valid maps held: each object's last pose in one (the chosen one), and since when each is silent."""
 
     poses: dict[str, Pose] = field(default_factory=dict)
     silent_since: dict[str, float] = field(default_factory=dict)
 
     def remember(self, names: tuple[str, ...], hypotheses: tuple[RankedHypotheses, ...], result: SearchResult) -> None:
-        """Keep the chosen pose of every object the result's map holds; forget those it leaves out."""
-        if result.code is None or result.poses is None:
+        """Keep the chosen pose of every object a *valid* result's map holds; forget those it leaves out.
+
+        An invalid map (a fallback's, or a search's best so far that failed a rule) is not remembered:
+        its poses may lie inside a wall or another object, and kept as a silent object's only pose
+        beside *absent* they would feed that conflict to every later search."""
+        if not result.valid or result.code is None or result.poses is None:
             return
         for name, ranked, rank, pose in zip(names, hypotheses, result.code, result.poses, strict=True):
             if ranked.is_absent(rank):
@@ -111,3 +115,17 @@ def absent_objects(
     return tuple(
         name for name, ranked, rank in zip(names, hypotheses, result.code, strict=True) if ranked.is_absent(rank)
     )
+
+
+def held_by_valid_map(
+    names: tuple[str, ...], hypotheses: tuple[RankedHypotheses, ...], result: SearchResult | None
+) -> tuple[str, ...]:
+    """The objects a *valid* result's map holds (none for an invalid one): the instances a map may confirm.
+
+    An invalid map (a fallback's, or the best so far of a search the deadline stopped) holds every
+    object it was given, a detection inside a wall among them; confirmed by it, such a track would lose
+    its *absent* and leave its object no rank physics allows."""
+    if result is None or not result.valid or result.code is None:
+        return ()
+    left_out = absent_objects(names, hypotheses, result)
+    return tuple(name for name in names if name not in left_out)

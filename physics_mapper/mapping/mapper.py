@@ -17,7 +17,13 @@ from typing import Any
 
 from physics_mapper.mapping.association import AssociationSettings, InstanceTracks, Tracking
 from physics_mapper.mapping.detections import DetectionInputs, detection_inputs
-from physics_mapper.mapping.existence import MapMemory, absent_objects, left_out_by_physics, searched_hypotheses
+from physics_mapper.mapping.existence import (
+    MapMemory,
+    absent_objects,
+    held_by_valid_map,
+    left_out_by_physics,
+    searched_hypotheses,
+)
 from physics_mapper.mapping.inputs import InputSettings, InputSnapshot, InputTracker
 from physics_mapper.model.hypotheses import RankedHypotheses
 from physics_mapper.model.scene import Scene, SearchParams, search_params_problem
@@ -184,7 +190,7 @@ class Mapper:
         if report.result is not None and report.result.code is not None:
             self.memory.remember(names, hypotheses, report.result)
             with self._tracks_lock:
-                self.tracks.keep([name for name in names if name not in absent])
+                self.tracks.keep(held_by_valid_map(names, hypotheses, report.result))
                 self._ended(self.tracks.reject(left_out_by_physics(names, hypotheses, report.result), now))
         return replace(report, hypotheses=hypotheses, absent=absent, tracking=tracking)
 

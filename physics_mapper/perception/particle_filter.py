@@ -96,6 +96,13 @@ def run_generators(seed: int, runs: int) -> list[np.random.Generator]:
     return [np.random.default_rng(child) for child in np.random.SeedSequence(seed).spawn(runs)]
 
 
+def fault_generator(seed: int, run: int) -> np.random.Generator:
+    """The generator of run ``run``'s estimator faults (:mod:`~physics_mapper.perception.detection_faults`):
+    grandchild (run, 1) of ``numpy.random.SeedSequence(seed)``, a stream apart from the run's particle
+    filters (child ``run``, :func:`run_generators`), so faults leave the hypotheses as they were."""
+    return np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(run, 1)))
+
+
 def settle_ground_truth(
     scene: Scene, poses: Sequence[Pose], settle_time: float = GROUND_TRUTH_SETTLE_TIME
 ) -> tuple[Pose, ...]:

@@ -304,12 +304,17 @@ class ConflictGroupSearch(GroupSearch):
         """Take over what ``old`` (a group of the previous search, same physics parameters) learned that
         still holds: its conflicts and stable contexts among objects of this group whose hypotheses did
         not change (``changed``: scene indices). An instability's conflict also needs every object
-        that is new here, or changed, unable to reach the swept box it was learned from."""
+        that is new here, or changed, unable to reach the swept box it was learned from. A rank ruled out
+        alone by Rule 1 is not taken over: the ruling-out pass, made anew for this group, learns it again
+        where it still holds. It may have been ruled out by a neighbour at every rank of that neighbour
+        (one assignment, yet it holds only while the neighbour's hypotheses do): kept after they change,
+        it would rule out a pose that is now free, and an object with all its ranks so ruled out leaves
+        the search nothing to visit."""
         moved = {p: self._object_positions[i] for p, i in enumerate(old.objects) if i in self._object_positions}
         stale = {p for p, i in enumerate(old.objects) if i in changed}
         newcomers = [self._object_positions[i] for i in self.objects if i in changed or i not in old.objects]
         for conflict in old.conflicts:
-            if any(p in stale or p not in moved for p in conflict.positions):
+            if any(p in stale or p not in moved for p in conflict.positions) or _ruled_out_alone(conflict):
                 continue
             region = conflict.region
             if region is not None and any(self.blame.reaches(p, region) for p in newcomers):
@@ -379,6 +384,11 @@ class ConflictSearch(GroupedSearch):
             if set(old.objects) & set(objects):
                 group.keep_from(old, self._changed)
         return group
+
+
+def _ruled_out_alone(conflict: Conflict) -> bool:
+    """Whether ``conflict`` rules out one rank of one object by Rule 1 (:mod:`physics_mapper.search.ruling_out`)."""
+    return len(conflict.assignments) == 1 and conflict.kind == "collision"
 
 
 def _same_rules(a: SearchParams, b: SearchParams) -> bool:

@@ -20,6 +20,7 @@ from rosbags.rosbag2 import Reader, StoragePlugin, Writer
 from rosbags.typesys import Stores, get_typestore
 
 from physics_mapper.bags.mcap_storage import verify_checksums
+from physics_mapper.bags.storage import TYPESTORE as BAG_TYPES  # Jazzy's types and vision_msgs
 from physics_mapper.bags.storage import BagError, BagWriter, read_bag
 from physics_mapper.cli import main
 from physics_mapper.evaluation.scoring import position_errors, rank_one_poses
@@ -171,6 +172,12 @@ SHIPPED_BAGS: dict[str, tuple[str, Tolerance]] = {
         )
         for scene, seed in (("tabletop", 1), ("tray_pile", 2), ("jenga_tower", 3))
     },
+    "box_bin": (
+        "generate config/scenes/box_bin.yaml -o test/data/box_bin --runs 1 --iterations 10 --particles 300 "
+        "--sigma 0.005 --seed 1 --format detections --shuffle --miss 0.1 --false-positives 0.1 --double 0.05 "
+        "--wrong-first 0.25 --results 3-5 --confidence 0.7-0.95",
+        LAST_BITS,
+    ),
 }
 
 
@@ -186,7 +193,7 @@ def bag_differences(expected: RawBag, actual: RawBag, tolerance: Tolerance) -> l
     if order:
         return found + order
     for (topic, time_ns, raw), (_, _, other) in zip(expected.messages, actual.messages, strict=True):
-        want, got = (TYPESTORE.deserialize_cdr(r, bag.topics[topic]) for r, bag in ((raw, expected), (other, actual)))
+        want, got = (BAG_TYPES.deserialize_cdr(r, bag.topics[topic]) for r, bag in ((raw, expected), (other, actual)))
         found += differences(want, got, tolerance, f"{topic} at {time_ns} ns")
     return found
 

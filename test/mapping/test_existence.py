@@ -181,3 +181,32 @@ def test_only_a_finished_search_leaves_an_instance_out_for_good() -> None:
     stopped = replace(result, stats=replace(result.stats, end=None))  # as if the deadline had come first
     assert left_out_by_physics(names, report.hypotheses, stopped) == ()
     assert report.absent[0] not in mapper.tracks.tracks  # the finished search ended it
+
+
+def test_a_map_that_fails_the_rules_confirms_no_instance() -> None:
+    """A false detection inside a wall, seen while no map is valid (two confirmed boxes overlap), is held
+    by each fallback map; were that to confirm it, it would lose its *absent* and, its every pose in the
+    wall ruled out, leave the next searches no configuration at all (0 visited). It stays tentative, and
+    once the boxes are apart again physics leaves it out of a valid map."""
+    wall = {"name": "wall", "shape": "box", "size": [0.1, 0.4, 0.3], "pose": {"position": [0.3, 0.4, 0.15]}}
+    mapper = Mapper(make_scene({"name": "box", "count": 4, **BOX}, static=[wall]))
+    # One interaction group: the fallback's map (the root, each object's first rank) holds the wall's one.
+    settings = replace(SETTINGS, search=replace(SETTINGS.search, fallback="refine", interaction_margin=1.0))
+    apart = [(0.0, 0.0, 0.05), (0.11, 0.0, 0.05), (0.6, 0.0, 0.05)]
+    overlapping = [(0.0, 0.0, 0.05), (0.07, 0.0, 0.05), (0.6, 0.0, 0.05)]  # box_2 3 cm into box_1
+    in_wall = (0.3, 0.4, 0.05)
+    for step in range(3):  # box_1..box_3 confirmed: matched 3 times, held by valid maps
+        feed(mapper, apart, 0.5 * step)
+        report = mapper.tick(0.5 * step + 0.1, settings)
+        assert report.result is not None and report.result.valid
+    for step in range(3, 6):
+        feed(mapper, [*overlapping, in_wall], 0.5 * step)
+        report = mapper.tick(0.5 * step + 0.1, settings)
+        assert report.result is not None and not report.result.valid and report.result.fallback == "refine"
+
+        assert mapper.tracks.tentative("box_4")  # held by the fallback's map, never confirmed by it
+    feed(mapper, [*apart, in_wall], 3.0)
+    report = mapper.tick(3.1, settings)
+    assert report.result is not None and report.result.valid and report.result.stats.visited > 0
+    assert report.absent == ("box_4",)
+    assert "box_4" not in mapper.tracks.tracks  # left out by a finished search: ended

@@ -42,6 +42,7 @@ PROVIDERS: dict[str, str | None] = {
     "hypothesis": "python3-hypothesis",
     "pytest": "python3-pytest",
     "coacd": None,
+    "motmetrics": None,  # no key of its own found; pinned in requirements.txt
     "ray": None,
 }
 ROS_PACKAGES = {"rclpy", "ament_index_python", "rosidl_runtime_py"}

@@ -17,6 +17,7 @@ from typing import Any
 import pytest
 import yaml
 from core_builders import cli, cube, floor_scene, solve_json, unrotated
+from core_builders import ranked as ranked_poses
 from mesh_builders import box_mesh, floor_scene_dict, load_inline, mesh_object, write_mesh
 
 from physics_mapper.model.geometry import Pose
@@ -281,6 +282,22 @@ def test_new_hypotheses_for_one_object_keep_the_conflicts_of_the_others() -> Non
         assert 0 < new.stats.conflicts_kept <= len(kept) < len(old.conflicts)
     assert (after.code, after.valid) == (before.code, before.valid) == (problem.answer, True)
     assert after.stats.visited < before.stats.visited
+
+
+def test_a_rank_ruled_out_by_a_neighbour_is_free_again_once_the_neighbour_moves() -> None:
+    """Seven cubes in an L, one group: cube_1's only pose 3 cm into cube_0 rules out cube_0's only pose
+    (and its own), so nothing is visited. Once cube_1's hypothesis moves to its place, cube_0's pose is
+    free again though cube_0's hypotheses did not change: the next search must not keep that ruling-out."""
+    scene = floor_scene(*(cube(f"cube_{i}") for i in range(7)))
+    corners = [(0.0, 0.0), (0.11, 0.0), *((0.0, -0.11 * k) for k in range(1, 6))]
+    place = [ranked_poses([unrotated(x, y, 0.05)], [1.0]) for x, y in corners]
+    into_cube_0 = (place[0], ranked_poses([unrotated(0.03, 0.0, 0.05)], [1.0]), *place[2:])
+    with PhysicsChecker(scene) as checker:
+        first = make_search(checker, into_cube_0, scene.search)
+        before = first.run(None)
+        assert not before.valid and before.stats.visited == 0
+        after = make_search(checker, tuple(place), scene.search, first).run(None)
+    assert after.valid and after.code == (1,) * 7 and after.stats.visited > 0
 
 
 def test_solve_trace_names_each_rejection_s_conflict(tmp_path: Path) -> None:

@@ -1,0 +1,159 @@
+"""Identity metrics over a bag (identity switches, IDF1, MOTA/MOTP, position error by identity) on cases
+whose answer is known by hand, and as replay and evaluate report them."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+import yaml
+from conftest import REPO, SCENES
+
+from physics_mapper.bags.storage import read_bag
+from physics_mapper.cli import main
+from physics_mapper.evaluation.identity import IdentityFrame, identity_metrics, overall_identity_metrics
+from physics_mapper.evaluation.settings import grid_settings
+from physics_mapper.evaluation.snapshots import bag_snapshots
+from physics_mapper.mapping.association import AssociationSettings
+from physics_mapper.model.errors import InputError
+from physics_mapper.model.scene_files import load_scene
+
+TRUTH = [(0.0, 0.0, 0.05), (0.2, 0.0, 0.05)]
+
+
+def frame(**names: tuple[float, float, float]) -> IdentityFrame:
+    return IdentityFrame(TRUTH, names)
+
+
+def test_a_perfect_track_has_idf1_one_and_no_switch() -> None:
+    frames = [frame(a=(0.01, 0.0, 0.05), b=(0.2, 0.02, 0.05)) for _ in range(10)]
+    figures = identity_metrics(frames)
+    assert figures is not None
+    assert figures["idf1"] == 1.0 and figures["mota"] == 1.0 and figures["switches"] == 0
+    assert figures["motp_m"] == pytest.approx(0.015)
+    assert [(i["truth"], i["name"]) for i in figures["identities"]] == [(0, "a"), (1, "b")]
+    assert [i["mean_error_m"] for i in figures["identities"]] == pytest.approx([0.01, 0.02])
+    assert figures["identity_error_m"] == pytest.approx(0.015)
+
+
+def test_an_identity_switch_is_counted_once() -> None:
+    """Object 0 is named a for four frames, then c for six: one switch; IDF1 = 2 * 16 / 40."""
+    frames = [frame(a=TRUTH[0], b=TRUTH[1])] * 4 + [frame(c=TRUTH[0], b=TRUTH[1])] * 6
+    figures = identity_metrics(frames)
+    assert figures is not None
+    assert figures["switches"] == 1
+    assert figures["idf1"] == pytest.approx(2 * 16 / 40)
+    assert figures["mota"] == pytest.approx(1 - 1 / 20)
+    assert [i["name"] for i in figures["identities"]] == ["c", "b"]
+
+
+def test_a_swap_of_two_names_is_a_switch_of_each() -> None:
+    frames = [frame(a=TRUTH[0], b=TRUTH[1])] * 5 + [frame(a=TRUTH[1], b=TRUTH[0])] * 5
+    figures = identity_metrics(frames)
+    assert figures is not None and figures["switches"] == 2 and figures["idf1"] == pytest.approx(0.5)
+
+
+def test_misses_false_positives_and_frames_without_a_map() -> None:
+    """A second name on object 1 (a double detection kept), a name nowhere near an object (a false
+    positive in the air), a frame without a map: misses and false positives, matched within the gate."""
+    frames = [
+        frame(a=TRUTH[0], b=TRUTH[1], b2=(0.206, 0.0, 0.05)),
+        frame(a=TRUTH[0], b=TRUTH[1], air=(0.1, 0.0, 0.4)),
+        IdentityFrame(TRUTH, None),
+        frame(a=(0.0, 0.0, 0.11), b=TRUTH[1]),  # 6 cm off: beyond the 5 cm gate
+    ]
+    figures = identity_metrics(frames)
+    assert figures is not None
+    assert figures["false_positives"] == 3 and figures["misses"] == 3 and figures["switches"] == 0
+    assert figures["true_objects"] == 8 and figures["matches"] == 5
+    assert figures["mota"] == pytest.approx(1 - 6 / 8)
+    # By identity a stays object 0's name, and its error counts the frame outside the gate too.
+    assert figures["identities"][0]["mean_error_m"] == pytest.approx(0.06 / 3)
+
+
+def test_bags_together_sum_their_counts_and_keep_their_own_names() -> None:
+    perfect = [frame(a=TRUTH[0], b=TRUTH[1])] * 4
+    switching = [frame(a=TRUTH[0], b=TRUTH[1])] * 2 + [frame(c=TRUTH[0], b=TRUTH[1])] * 2
+    overall = overall_identity_metrics([perfect, switching])
+    assert overall is not None
+    assert overall["switches"] == 1 and overall["switches_max"] == 1 and overall["frames"] == 8
+    assert overall["idf1"] == pytest.approx((16 + 12) / 32)
+    assert identity_metrics([]) is None and overall_identity_metrics([]) is None
+
+
+def test_replay_and_evaluate_report_identity(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """The pyramid's named cubes keep their names: no switch; replay's JSON and evaluate's report agree."""
+    scene = str(SCENES / "pyramid.yaml")
+    bag = str(REPO / "test" / "data" / "pyramid")
+    replayed = tmp_path / "replay.json"
+    assert main(["replay", bag, "--scene", scene, "--offline", "--exhaustive", "--json", str(replayed)]) == 0
+    assert "0 identity switches" in capsys.readouterr().out
+    identity = json.loads(replayed.read_text())["identity"]
+    assert identity["switches"] == 0 and identity["false_positives"] == 0
+    assert [i["name"] for i in identity["identities"]] == ["cube_left", "cube_right", "cube_top"]
+    assert main(["evaluate", bag, "--scene", scene, "--exhaustive", "--workers", "0", "-o", str(tmp_path / "e")]) == 0
+    report = json.loads((tmp_path / "e" / "report.json").read_text())
+    assert report["bags"][0]["summary"]["identity"]["idf1"] == pytest.approx(identity["idf1"])
+    assert report["overall"]["identity"]["switches"] == 0
+    assert "identity switches" in (tmp_path / "e" / "report.md").read_text()
+
+
+def test_the_shipped_box_bin_gives_each_instance_one_detection_and_draws_the_picture(tmp_path: Path) -> None:
+    """Offline, each instance takes at most one detection of a frame and no detection goes to two instances;
+    the picture is written as a PNG."""
+    scene = str(SCENES / "box_bin.yaml")
+    bag = str(REPO / "test" / "data" / "box_bin")
+    data, picture = tmp_path / "replay.json", tmp_path / "identities.png"
+    arguments = ["replay", bag, "--scene", scene, "--offline", "--json", str(data), "--identity-plot", str(picture)]
+    assert main(arguments) == 0
+    snapshots = json.loads(data.read_text())["snapshots"]
+    assert len(snapshots) == 10
+    for snapshot in snapshots:
+        taken = snapshot["detections"]
+        assert len(set(taken.values())) == len(taken) >= 4  # six cubes, about one missed per frame
+    assert picture.read_bytes().startswith(b"\x89PNG\r\n\x1a\n")
+
+
+def test_sweep_grids_over_the_association_settings(tmp_path: Path) -> None:
+    scene = str(SCENES / "box_bin.yaml")
+    bag = str(REPO / "test" / "data" / "box_bin")
+    output = tmp_path / "sweep"
+    grid = ["--grid", "association.gate=0.002,0.04", "--grid", "association.confirm_hits=1"]
+    assert main(["sweep", bag, "--scene", scene, *grid, "--workers", "0", "--progress", "off", "-o", str(output)]) == 0
+    settings = json.loads((output / "sweep.json").read_text())["settings"]
+    assert [s["varied"] for s in settings] == [
+        {"association.gate": 0.002, "association.confirm_hits": 1},
+        {"association.gate": 0.04, "association.confirm_hits": 1},
+    ]
+    assert [(s["association"]["gate"], s["association"]["confirm_hits"]) for s in settings] == [(0.002, 1), (0.04, 1)]
+    assert all(s["overall"]["identity"]["frames"] > 0 for s in settings)
+    assert "| switches | IDF1 |" in (output / "sweep.md").read_text()
+    parameters = yaml.safe_load((output / "best_params.yaml").read_text())["/**/physics_mapper"]["ros__parameters"]
+    assert parameters["confirm_hits"] == 1 and parameters["association_gate"] in (0.002, 0.04)
+
+
+def test_the_association_settings_reach_the_bag_s_snapshots() -> None:
+    """A 2 mm gate is narrower than the estimator's noise: detections miss their tracks, every tentative
+    track ends at its first miss and is born again a frame later, so fewer detections reach an instance
+    than with the default gate (half the smallest extent of a cube, 5 cm), which gives one to nearly each."""
+    scene = load_scene(SCENES / "box_bin.yaml")
+    bag = read_bag(REPO / "test" / "data" / "box_bin")
+    default = bag_snapshots(bag, scene)
+    narrow = bag_snapshots(bag, scene, association=AssociationSettings(gate=0.002))
+    assert all(len(s.detections) >= 5 for s in default)
+    assert narrow[0].detections == default[0].detections  # the first frame's births
+    assert sum(len(s.detections) for s in narrow) < 0.75 * sum(len(s.detections) for s in default)
+
+
+@pytest.mark.parametrize(
+    ("grid", "message"),
+    [
+        ("association.nope=1", "association.nope is no association setting"),
+        ("association.gate=-0.1", "association.gate must be a non-negative number"),
+        ("association.confirm_hits=0.5", "association.confirm_hits must be a whole number of at least 1"),
+    ],
+)
+def test_a_bad_association_setting_is_refused(grid: str, message: str) -> None:
+    with pytest.raises(InputError, match=message):
+        grid_settings(load_scene(SCENES / "box_bin.yaml").search, [grid])
