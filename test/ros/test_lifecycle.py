@@ -186,7 +186,10 @@ def test_deactivating_during_a_search_answers_success_and_publishes_no_map_after
                 for name, (poses, weights) in floating_hypotheses(stamp_ns, shift):
                     client.publish(name, poses, weights)
 
-            client.keep_publishing(publish, lambda stamp_ns=stamp_ns: mapped(client, stamp_ns), "a map")
+            def mapped_now(stamp_ns: int = stamp_ns) -> bool:
+                return mapped(client, stamp_ns)
+
+            client.keep_publishing(publish, mapped_now, "a map")
             client.spin_until(lambda: False, timeout=SEARCH_DEADLINE / 2)  # into the next tick's search
             before = len(client.configurations)
             assert lifecycle.change(Transition.TRANSITION_DEACTIVATE)
