@@ -9,6 +9,7 @@ from typing import Any
 import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
+from matplotlib.image import AxesImage
 from matplotlib.patches import Rectangle
 
 from physics_mapper.evaluation.outputs import COLOR_WITH_PHYSICS, COLOR_WITHOUT_PHYSICS, new_figure
@@ -22,6 +23,13 @@ MAP_COLORS = {"valid": "tab:green", "fallback": "tab:orange", "no_map": "0.75"}
 MAX_BAG_BARS = 40
 #: Heat-map panels (combinations of the third and further grid keys) drawn at most.
 MAX_FACETS = 6
+#: A heat map's cells are labelled with their values only up to this many cells: matplotlib lays out
+#: every label, so a 100 x 100 grid's 20,000 labels took about 25 s (and could not be read).
+MAX_LABELLED_CELLS = 400
+#: Tick labels per heat-map axis at most (every k-th value is named beyond it).
+MAX_TICK_LABELS = 25
+#: Grid rows a facet's height grows with at most (inches per row below).
+MAX_ROWS_HIGH = 30
 
 
 def _short(path: str, width: int = 28) -> str:
@@ -138,24 +146,43 @@ def _heat_map(
 ) -> None:
     image = axes.imshow(values, cmap="viridis_r" if low_is_good else "viridis", aspect="auto")
     axes.figure.colorbar(image, ax=axes, shrink=0.8)
-    for (row, column), value in np.ndenumerate(values):
-        text = "-" if np.isnan(value) else f"{value:.{decimals}f}{unit}"
-        red, green, blue, _ = image.cmap(image.norm(value))
-        light = np.isnan(value) or 0.299 * red + 0.587 * green + 0.114 * blue > 0.5  # perceived brightness
-        axes.text(column, row, text, ha="center", va="center", fontsize=7, color="black" if light else "white")
+    if values.size <= MAX_LABELLED_CELLS:
+        _label_cells(axes, image, values, unit, decimals)
     if best is not None:
         axes.add_patch(Rectangle((best[1] - 0.5, best[0] - 0.5), 1, 1, fill=False, edgecolor="tab:red", linewidth=2))
-    axes.set_xticks(range(len(columns[1])), [value_text(v) for v in columns[1]], fontsize=7)
+    axes.set_xticks(*_ticks(columns[1]), fontsize=7)
     axes.set_xlabel(columns[0])
-    axes.set_yticks(range(len(rows[1])), [value_text(v) for v in rows[1]], fontsize=7)
+    axes.set_yticks(*_ticks(rows[1]), fontsize=7)
     if rows[0] is not None:
         axes.set_ylabel(rows[0])
     axes.set_title(title, fontsize=8)
 
 
+def _ticks(values: Sequence[Any]) -> tuple[range, list[str]]:
+    """Positions and labels of at most :data:`MAX_TICK_LABELS` of an axis's ``values``, evenly spaced."""
+    step = -(-len(values) // MAX_TICK_LABELS)  # ceiling division
+    positions = range(0, len(values), step)
+    return positions, [value_text(values[position]) for position in positions]
+
+
+def _label_cells(
+    axes: Axes, image: AxesImage, values: np.ndarray[Any, np.dtype[np.float64]], unit: str, decimals: int
+) -> None:
+    """Each cell's value written on it, black or white by the cell's perceived brightness."""
+    for (row, column), value in np.ndenumerate(values):
+        text = "-" if np.isnan(value) else f"{value:.{decimals}f}{unit}"
+        red, green, blue, _ = image.cmap(image.norm(value))
+        light = np.isnan(value) or 0.299 * red + 0.587 * green + 0.114 * blue > 0.5  # perceived brightness
+        axes.text(column, row, text, ha="center", va="center", fontsize=7, color="black" if light else "white")
+
+
 def sweep_figure(data: dict[str, Any]) -> Figure:
     """Heat maps of each setting's map error and valid share over the first two grid keys, one pair per
-    combination of the other keys (at most :data:`MAX_FACETS`); the best setting is framed in red."""
+    combination of the other keys (at most :data:`MAX_FACETS`); the best setting is framed in red.
+
+    A large grid (an interrupted 10,000-setting sweep writes its report within a kill grace) is drawn
+    without cell labels, with at most :data:`MAX_TICK_LABELS` tick labels per axis, and a height
+    that stops growing at :data:`MAX_ROWS_HIGH` rows."""
     grid: dict[str, list[Any]] = data["grid"]
     keys = list(grid)
     row_key, column_key = (keys[0], keys[1]) if len(keys) > 1 else (None, keys[0])
@@ -164,7 +191,7 @@ def sweep_figure(data: dict[str, Any]) -> Figure:
     facets = list(itertools.product(*(grid[key] for key in facet_keys)))[:MAX_FACETS]
     by_values = {tuple(s["varied"][key] for key in keys): s for s in data["settings"]}
     best = data["best"]["index"] if data["best"] is not None else None
-    figure = new_figure(11.0, 0.6 + (1.2 + 0.45 * len(rows)) * len(facets))
+    figure = new_figure(11.0, 0.6 + (1.2 + 0.45 * min(len(rows), MAX_ROWS_HIGH)) * len(facets))
     panels = figure.subplots(len(facets), 2, squeeze=False)
     for facet, (error_axes, valid_axes) in zip(facets, panels, strict=True):
         errors = np.full((len(rows), len(grid[column_key])), np.nan)

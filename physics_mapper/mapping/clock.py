@@ -44,14 +44,14 @@ def clock_sources_warning(publishers: int, sim_time: bool) -> str | None:
     """The warning when ``sim_time`` and more than one publisher is on ``/clock``, or None.
 
     Two sources (two simulators, a bag played with ``--clock`` beside a simulator) make the node's
-    clock jump between their times: its timers fire on every jump and its inputs look hundreds of
-    seconds old, which nothing else names.
+    clock jump between their times, which nothing else names. Meanwhile the node ticks by wall clock
+    and its inputs' ages take no jump as time passed (``MapperNodeBase``, ``InputTracker``).
     """
     if not sim_time or publishers <= 1:
         return None
     return (
         f"use_sim_time is true and {publishers} publishers are on /clock: the node's clock jumps between their "
-        "times, ticks and diagnostics fire on every jump and inputs look stale (keep one /clock source)"
+        "times; meanwhile ticks and diagnostics run by wall clock and no jump ages the inputs (keep one /clock source)"
     )
 
 

@@ -485,15 +485,26 @@ class InputTracker:
         # (node clock after it, seconds back) of the newest jumps; every one counted
         self._jumps: deque[tuple[float, float]] = deque(maxlen=JUMPS_REMEMBERED)
         self._jump_count = 0
+        self._several_clocks = False
+
+    def set_several_clocks(self, several: bool) -> None:
+        """Whether the node's clock has several sources (two ``/clock`` publishers): while it has, a jump
+        forward (to the other source's time) is no time passed either, as a jump back never is."""
+        with self._lock:
+            self._several_clocks = several
 
     def _timeline(self, clock: float) -> float:
-        """``clock`` (node clock, s) on the tracker's timeline; a backward jump moves the timeline's offset."""
+        """``clock`` (node clock, s) on the tracker's timeline; a backward jump moves the timeline's offset,
+        and so does a forward one while the clock has several sources."""
         time = clock + self._offset
         if time < self._latest - CLOCK_JUMP_TOLERANCE:
             back = self._latest - time
             self._offset += back
             self._jumps.append((clock, back))
             self._jump_count += 1
+            time = self._latest
+        elif self._several_clocks and self._latest > -math.inf and time > self._latest + CLOCK_JUMP_TOLERANCE:
+            self._offset -= time - self._latest
             time = self._latest
         self._latest = max(self._latest, time)
         return time

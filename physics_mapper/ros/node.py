@@ -82,6 +82,7 @@ class MapperNodeBase(Node):
         self._outputs: MapPublishers | None = None
         self._entities: list[Subscription | Publisher] = []
         self._tick_timers: dict[str, Timer] = {}  # by job: "tick", "diagnostics", "watch"
+        self._by_wall_clock = False  # the tick and diagnostics timers (several /clock sources)
         self._input_notes = InputNotes(self._logger)
         self._inputs_group = MutuallyExclusiveCallbackGroup()  # type: ignore[no-untyped-call]
         self.add_on_set_parameters_callback(self._on_set_parameters)
@@ -130,21 +131,39 @@ class MapperNodeBase(Node):
         return self._outputs
 
     def start_ticking(self) -> None:
-        """Start the tick timer (``rate_hz``) and the diagnostics timer (``diagnostics_period``)."""
+        """Start the tick timer (``rate_hz``), the diagnostics timer (``diagnostics_period``) and the watch."""
         values = self._node_parameters.parameter_values()
         # Latched: RViz shows the fixed bodies before the first map (each map repeats them).
         self.outputs.markers.publish(static_markers_msg(self.mapper.scene, stamp_ns=self._now_ns()))
-        diagnostics = self.outputs.diagnostics
         # The watch runs by wall clock: with use_sim_time the other timers wait for /clock, and a missing one
         # must be reported.
-        self._tick_timers = {
-            "tick": self.create_timer(1.0 / float(values["rate_hz"]), self._tick),
-            "diagnostics": self.create_timer(float(values["diagnostics_period"]), diagnostics.publish),
-            "watch": self.create_timer(WATCH_PERIOD, diagnostics.watch, clock=Clock(clock_type=ClockType.STEADY_TIME)),
-        }
+        self._tick_timers = {"watch": self.create_timer(WATCH_PERIOD, self._watch, clock=wall_clock())}
+        self._start_periodic(values, by_wall_clock=False)
+
+    def _start_periodic(self, values: Mapping[str, Any], *, by_wall_clock: bool) -> None:
+        """(Re)start the tick and diagnostics timers, on the node's clock or by wall clock."""
+        clock = wall_clock() if by_wall_clock else None
+        diagnostics = self.outputs.diagnostics
+        for job in ("tick", "diagnostics"):
+            if job in self._tick_timers:
+                self.destroy_timer(self._tick_timers.pop(job))
+        self._tick_timers["tick"] = self.create_timer(1.0 / float(values["rate_hz"]), self._tick, clock=clock)
+        period = float(values["diagnostics_period"])
+        self._tick_timers["diagnostics"] = self.create_timer(period, diagnostics.publish, clock=clock)
+        self._by_wall_clock = by_wall_clock
+
+    def _watch(self) -> None:
+        """The wall-clock watch; while ``/clock`` has several publishers the node's clock jumps between their
+        times, and a timer on it would fire at every jump forward: the ticks then run by wall clock."""
+        diagnostics = self.outputs.diagnostics
+        diagnostics.watch()
+        several = diagnostics.several_clock_sources
+        self.mapper.inputs.set_several_clocks(several)
+        if several != self._by_wall_clock and self._tick_timers:
+            self._start_periodic(self._node_parameters.parameter_values(), by_wall_clock=several)
 
     def stop_ticking(self) -> None:
-        """Stop both timers (the subscriptions go on collecting hypotheses)."""
+        """Stop every timer (the subscriptions go on collecting hypotheses)."""
         for timer in self._tick_timers.values():
             self.destroy_timer(timer)
         self._tick_timers = {}
@@ -281,6 +300,11 @@ class MapperNodeBase(Node):
     def destroy_node(self) -> None:
         self.release()
         super().destroy_node()  # type: ignore[no-untyped-call]
+
+
+def wall_clock() -> Clock:
+    """A clock for timers that must not follow ``/clock`` (steady: never jumps)."""
+    return Clock(clock_type=ClockType.STEADY_TIME)
 
 
 class PhysicsMapperNode(MapperNodeBase):

@@ -61,6 +61,11 @@ class NodeDiagnostics:
         if report.engine_fault is not None and self._fault is None:
             self._fault = report
 
+    @property
+    def several_clock_sources(self) -> bool:
+        """Whether the last watch saw more than one ``/clock`` publisher under ``use_sim_time``."""
+        return "clock sources" in self._watch_warnings
+
     def watch(self) -> None:
         """Check, by wall clock, what no tick can see: a stopped simulated clock, another node of this name."""
         node = self._node

@@ -113,6 +113,24 @@ def test_a_clock_jumping_back_keeps_ages_going_and_hypotheses_go_stale() -> None
     assert status.level == Level.ERROR and status.message.startswith("stale: ")  # max_age after it arrived
 
 
+@pytest.mark.parametrize("several_clocks", [False, True])
+def test_under_two_clocks_no_jump_ages_the_hypotheses(several_clocks: bool) -> None:
+    tracker = InputTracker(["cube"])
+    tracker.set_several_clocks(several_clocks)
+    raw = [((0.0, 0.0, 0.1), (0.0, 0.0, 0.0, 1.0))]
+    arrival = check_poses(
+        raw, frame_id="world", expected_frame="world", workspace=WORKSPACE, stamp_ns=0, received=1000.0
+    )
+    tracker.add_poses("cube", arrival)
+    for step in range(1, 20):  # the node's clock in turn at one source's time and the other's, 0.1 s on each
+        object_age(tracker, (500.0 if step % 2 else 1000.0) + 0.1 * step)
+    age = object_age(tracker, 1002.0)
+    if several_clocks:  # only the forward steps within one source's time count
+        assert 0.0 <= age <= 2.0
+    else:  # every jump forward counted as time passed, every jump back not undone: 500 s per pair
+        assert age > 4000.0
+
+
 def object_age(tracker: InputTracker, now: float) -> float:
     return float(dict(details(tracker, now))["age [s]"])
 
