@@ -1,9 +1,11 @@
 """ament_python package definition: `colcon build` on a ROS machine, `pip install -e .` here."""
 
+import os
+import string
 import sys
 from pathlib import Path
 
-from setuptools import find_packages, setup
+from setuptools import Command, find_packages, setup
 
 PACKAGE = "physics_mapper"
 #: Folders installed under share/physics_mapper/ with their relative paths kept, so that the commands find
@@ -37,6 +39,52 @@ def console_scripts():
     return scripts
 
 
+class SymlinkDevelop(Command):
+    """``setup.py develop`` as ``colcon build --symlink-install`` calls it, for setuptools >= 80.
+
+    colcon runs ``setup.py develop --editable --build-directory DIR --no-deps`` in its build folder
+    (where it has symlinked setup.py, setup.cfg and the packages), and ``develop --uninstall`` to
+    undo it; setuptools 80 turned ``develop`` into a call to ``pip install -e`` without these
+    options (colcon/colcon-core#696: "option --editable not recognized"). This command does what
+    the old one did for colcon: the egg-info beside the symlinked packages (on colcon's
+    ``PYTHONPATH``; it holds the entry points the scripts load) and the entry scripts, written by
+    ``install_scripts`` (as for ``setup.py install``) into setup.cfg's ``[develop] script_dir``.
+    colcon itself symlinks the data files and puts the build folder on ``PYTHONPATH``.
+    """
+
+    description = "colcon's symlink install: egg-info in place and the entry scripts"
+    user_options = [
+        ("editable", "e", "accepted for colcon (the packages are used in place)"),
+        ("build-directory=", "b", "accepted for colcon (nothing is built)"),
+        ("no-deps", "N", "accepted for colcon (dependencies are never installed)"),
+        ("uninstall", "u", "remove the entry scripts"),
+        ("script-dir=", "s", "folder of the entry scripts ($base: the installation prefix)"),
+    ]
+    boolean_options = ["editable", "no-deps", "uninstall"]
+
+    def initialize_options(self):
+        self.editable = self.no_deps = self.uninstall = False
+        self.build_directory = self.script_dir = None
+
+    def finalize_options(self):
+        if self.script_dir is not None:
+            base = self.get_finalized_command("install").install_base
+            self.script_dir = string.Template(self.script_dir).substitute(base=base)
+
+    def run(self):
+        self.run_command("egg_info")
+        scripts = self.reinitialize_command("install_scripts")
+        scripts.install_dir = self.script_dir
+        scripts.ensure_finalized()
+        if self.uninstall:
+            for name in self.distribution.entry_points["console_scripts"]:
+                script = os.path.join(scripts.install_dir, name.split("=")[0].strip())
+                if os.path.exists(script):
+                    os.remove(script)
+            return
+        self.run_command("install_scripts")
+
+
 def requirements(file_name):
     """The pinned requirements of a requirements file next to this one (comments and blank lines left out)."""
     lines = (Path(__file__).resolve().parent / file_name).read_text().splitlines()
@@ -62,4 +110,5 @@ setup(
     description="Physically consistent multi-object 3D maps from weighted pose hypotheses.",
     license="Apache-2.0",
     entry_points={"console_scripts": console_scripts()},
+    cmdclass={"develop": SymlinkDevelop},
 )
