@@ -1,7 +1,8 @@
 """Scored detections (``vision_msgs/Detection3DArray``) as hypotheses: the rules, scene class maps, and bags.
 
-The rules are :func:`detection_inputs`, tested here on the messages rosbags decodes; the bag path runs
-end to end (generate, replay, evaluate); the node's live subscription is test_node_detections.py's.
+The rules are :func:`detection_inputs`, tested here on the messages rosbags decodes (the association of
+instances across frames in mapping/test_association.py); the bag path runs end to end (generate, replay,
+evaluate); the node's live subscription is test_node_detections.py's.
 """
 
 from __future__ import annotations
@@ -70,29 +71,33 @@ def heights(inputs: Any, name: str) -> list[float]:
 
 
 def test_a_class_id_naming_an_object_gives_it_every_result_of_that_class_with_its_score() -> None:
-    message = array(detection(result("a", 0.7, 0.05), result("b", 0.2, 0.3)), detection(result("a", 0.3, 0.06)))
+    message = array(
+        detection(result("a", 0.7, 0.05), result("a", 0.1, 0.07)),
+        detection(result("a", 0.3, 0.06)),
+        detection(result("b", 0.2, 0.3)),
+    )
     inputs = detection_inputs(message, scene_with(), received=2.0)
     assert sorted(inputs.objects) == ["a", "b"]  # c, not detected, keeps what it has
-    assert heights(inputs, "a") == [0.05, 0.06]
+    assert heights(inputs, "a") == [0.05, 0.07, 0.06]
     weights = inputs.objects["a"].weights
-    assert weights is not None and weights.values.tolist() == [0.7, 0.3]
+    assert weights is not None and weights.values.tolist() == [0.7, 0.1, 0.3]
     assert inputs.objects["a"].refusal is None and inputs.objects["a"].stamp_ns == 1_000_000_000
     assert inputs.unused == ()
 
 
-def test_a_class_of_several_objects_gives_one_detection_to_each_instance_in_order() -> None:
+def test_a_class_of_several_objects_gives_each_detection_to_one_instance() -> None:
     scene = scene_with({"cube": ["b", "c"], "first": "a"})
     message = array(
         detection(result("cube", 1.0, 0.1)),
-        detection(result("cube", 1.0, 0.2)),
         detection(result("cube", 1.0, 0.3)),
+        detection(result("cube", 1.0, 0.5)),
         detection(result("first", 1.0, 0.4), result("mug", 0.5, 0.5)),
     )
     inputs = detection_inputs(message, scene, received=0.0)
-    assert (heights(inputs, "b"), heights(inputs, "c"), heights(inputs, "a")) == ([0.1], [0.2], [0.4])
+    assert (heights(inputs, "b"), heights(inputs, "c"), heights(inputs, "a")) == ([0.1], [0.3], [0.4])
     assert inputs.unused == (
         "class id 'mug' is no object of the scene",
-        "1 detection(s) of class 'cube' beyond its instances",
+        "1 detection(s) of class 'cube' outside every gate, with no free instance",
     )
     assert "a" not in scene.objects_of_class("a")  # mapped: its own name is no class id any more
 
@@ -163,8 +168,11 @@ def test_a_bag_s_own_definition_of_the_detections_is_the_one_decoded(tmp_path: P
         for name in ("cube_left", "cube_right", "cube_top")
     ]
     box = types["vision_msgs/msg/BoundingBox3D"](center=pose, size=TYPES["geometry_msgs/msg/Vector3"](x=0, y=0, z=0))
-    detected = types["vision_msgs/msg/Detection3D"](header=header(), results=results, bbox=box, id="", is_tracking=True)
-    message = types[DETECTION_ARRAY](header=header(), detections=[detected])
+    detected = [
+        types["vision_msgs/msg/Detection3D"](header=header(), results=[one], bbox=box, id="", is_tracking=True)
+        for one in results
+    ]
+    message = types[DETECTION_ARRAY](header=header(), detections=detected)
     with Writer(tmp_path / "bag", version=8) as writer:
         connection = writer.add_connection(RECORDED_DETECTIONS_TOPIC, DETECTION_ARRAY, typestore=typestore)
         writer.write(connection, 1_000, typestore.serialize_cdr(message, DETECTION_ARRAY))

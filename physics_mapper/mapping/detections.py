@@ -4,20 +4,27 @@ A pose estimator (FoundationPose, CosyPose, DOPE) publishes one ``Detection3DArr
 each ``Detection3D`` holds ``results``, each an ``ObjectHypothesisWithPose`` with a ``class_id``,
 a ``score`` and a pose. The rules that make them hypotheses:
 
-- A result's class id names the scene objects it may be (:meth:`Scene.objects_of_class`): by
-  default the object of that name, or those the scene's ``class_map:`` gives the estimator's id.
-- A class of one object: every result of that class, in every detection of the array, is one of
-  the object's hypotheses, its score the weight (normalised as any weights).
-- A class of several objects (instances, e.g. two mugs): the k-th detection holding results of
-  that class is the k-th object's, in ``class_map`` order; detections beyond them are counted,
-  not used. Estimators do not keep an order across frames, so give instances a class id each
-  where the estimator can (a tracker's id mapped by ``class_map``).
+- **One detection is one object.** Results of several classes in one ``Detection3D`` are one
+  object seen: the class of the best-scored result wins (the first of equal ones), and the other
+  classes' results are left out with a note. A result with a non-finite or negative score, or an
+  unknown class id, is refused alone (a note) and the rest of its detection is used.
+- A class id names the scene objects it may be (:meth:`Scene.objects_of_class`): by default the
+  object of that name (or the instances of the ``count:`` entry of that name), or those the
+  scene's ``class_map:`` gives the estimator's id.
+- **A class of one named object**: every result of that class, in every detection of the array,
+  is one of the object's hypotheses, its score the weight (normalised as any weights).
+- **A tracked class** (:meth:`Scene.is_tracked`: several instances, or ``count: {max: K}``):
+  each detection goes to one instance by the rules of :mod:`~physics_mapper.mapping.association`
+  (ids, gated distance to each instance's filtered position, optimal assignment), never by its
+  place in the array; its results are that instance's hypotheses.
 - Poses are in the detection's header frame, or the array's if the detection names none; the
-  scene's frame is required, as for PoseArrays. An object absent from an array keeps the
-  hypotheses it has (until they are older than ``max_age``).
+  scene's frame is required, as for PoseArrays (a tracked detection in another frame is refused
+  before it is matched). An object absent from an array keeps the hypotheses it has (until they
+  are older than ``max_age``).
 
 Messages are read by attribute, so rclpy's messages and those rosbags decodes from a bag give the
-same inputs (:func:`detection_inputs`).
+same inputs (:func:`detection_inputs`). Each result's numbers are read once into one array per
+detection; the checks then run on arrays.
 """
 
 from __future__ import annotations
@@ -26,8 +33,13 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
-from physics_mapper.mapping.inputs import RawPose, ReceivedPoses, check_poses, check_weights
+import numpy as np
+from numpy.typing import NDArray
+
+from physics_mapper.mapping.association import FrameAssociation, InstanceTracks, Observation
+from physics_mapper.mapping.inputs import POSE_COLUMNS, PoseBlock, ReceivedPoses, check_poses, check_weights
 from physics_mapper.mapping.stamps import to_nanoseconds
+from physics_mapper.model.limits import MAX_QUOTED_TEXT, clipped
 from physics_mapper.model.scene import Scene
 
 #: The node's input topic of scored detections, relative to its namespace.
@@ -39,77 +51,127 @@ DETECTION_ARRAY = "vision_msgs/msg/Detection3DArray"
 
 @dataclass(frozen=True)
 class DetectionInputs:
-    """What one Detection3DArray gave: each named object's poses with their scores as weights (in
-    object order), and what was not used (unknown class ids, detections beyond a class's instances)."""
+    """What one Detection3DArray gave: each object's poses with their scores as weights (in object
+    order), notes on what was not used (unknown class ids, refused results and detections,
+    detections outside every gate), and what the association did (None: no tracked class)."""
 
     objects: dict[str, ReceivedPoses] = field(default_factory=dict)
     unused: tuple[str, ...] = ()
+    association: FrameAssociation | None = None
 
 
-def _raw_pose(pose: Any) -> RawPose:
+@dataclass(frozen=True)
+class _Detection:
+    """One Detection3D's usable results, all of the class that scored best."""
+
+    index: int
+    class_id: str
+    frame: str
+    key: str
+    poses: PoseBlock  # (M, 7)
+    scores: NDArray[np.float64]
+
+
+def _read(detection: Any, index: int, array_frame: str, scene: Scene, notes: list[str]) -> _Detection | None:
+    """A detection's results as arrays, one class kept (module docstring), or None if none is usable."""
+    results = list(detection.results)
+    classes = [str(result.hypothesis.class_id) for result in results]
+    scores = np.fromiter((float(result.hypothesis.score) for result in results), np.float64, len(results))
+    usable = np.isfinite(scores) & (scores >= 0.0)
+    for position in np.flatnonzero(~usable).tolist():
+        notes.append(f"detection {index}: result {position} refused: score {scores[position]:g}")
+    known = np.array([bool(scene.objects_of_class(c)) for c in classes], dtype=bool)
+    usable &= known
+    if not usable.any():
+        if not results:
+            notes.append(f"detection {index} refused: no results")
+        return None
+    best = int(np.flatnonzero(usable)[np.argmax(scores[usable])])
+    chosen = classes[best]
+    kept = usable & np.array([c == chosen for c in classes], dtype=bool)
+    others = sorted({c for c, use in zip(classes, usable.tolist(), strict=True) if use and c != chosen})
+    if others:
+        left = ", ".join(repr(c) for c in others)
+        notes.append(
+            f"detection {index}: results of class {left} left out (one detection is one object; {chosen!r} scored best)"
+        )
+    poses = np.array(
+        [_pose_row(results[position].pose.pose) for position in np.flatnonzero(kept).tolist()], dtype=np.float64
+    ).reshape(-1, POSE_COLUMNS)
+    frame = str(detection.header.frame_id) or array_frame
+    return _Detection(index, chosen, frame, str(detection.id), poses, scores[kept])
+
+
+def _pose_row(pose: Any) -> tuple[float, ...]:
     p, q = pose.position, pose.orientation
-    return (float(p.x), float(p.y), float(p.z)), (float(q.x), float(q.y), float(q.z), float(q.w))
+    return (p.x, p.y, p.z, q.x, q.y, q.z, q.w)
 
 
-@dataclass
-class _Collected:
-    frames: set[str] = field(default_factory=set)
-    poses: list[RawPose] = field(default_factory=list)
-    scores: list[float] = field(default_factory=list)
+def _observation(detection: _Detection, scene: Scene, notes: list[str]) -> Observation | None:
+    """A tracked class's detection as an observation to associate, or None (a note) if it is refused."""
+    if detection.frame not in ("", scene.frame_id):
+        why = f"frame_id {clipped(detection.frame, MAX_QUOTED_TEXT)!r} is not the scene frame {scene.frame_id!r}"
+        notes.append(f"detection {detection.index} refused: {why}")
+        return None
+    finite = np.isfinite(detection.poses).all(axis=1)
+    if not finite.any():
+        notes.append(f"detection {detection.index} refused: no finite pose")
+        return None
+    return Observation(
+        detection.class_id, detection.poses[finite, :3], detection.scores[finite], detection.key, detection.index
+    )
 
 
-def _collect(message: Any, scene: Scene) -> tuple[dict[str, _Collected], list[str]]:
-    """Each object's results, by the rules of the module docstring; and notes on what was left out."""
-    collected: dict[str, _Collected] = {}
-    seen: dict[str, int] = {}  # class id -> detections of it so far
-    unknown: set[str] = set()
-    beyond: dict[str, int] = {}
+def detection_inputs(
+    message: Any, scene: Scene, *, received: float, tracks: InstanceTracks | None = None
+) -> DetectionInputs:
+    """A ``Detection3DArray`` (rclpy's or rosbags') received at ``received`` seconds, as per-object inputs.
+
+    ``tracks`` are the instances' tracks, kept from array to array (None: new ones, as for a first array).
+    """
+    notes: list[str] = []
     array_frame = str(message.header.frame_id)
-    for detection in message.detections:
-        frame = str(detection.header.frame_id) or array_frame
-        classes: dict[str, list[Any]] = {}
-        for result in detection.results:
-            classes.setdefault(str(result.hypothesis.class_id), []).append(result)
-        for class_id, results in classes.items():
-            objects = scene.objects_of_class(class_id)
-            if not objects:
-                unknown.add(class_id)
-                continue
-            instance = seen.get(class_id, 0) if len(objects) > 1 else 0
-            seen[class_id] = seen.get(class_id, 0) + 1
-            if instance >= len(objects):
-                beyond[class_id] = beyond.get(class_id, 0) + 1
-                continue
-            target = collected.setdefault(objects[instance], _Collected())
-            target.frames.add(frame)
-            target.poses += [_raw_pose(result.pose.pose) for result in results]
-            target.scores += [float(result.hypothesis.score) for result in results]
-    notes = [f"class id {class_id!r} is no object of the scene" for class_id in sorted(unknown)]
-    notes += [f"{count} detection(s) of class {c!r} beyond its instances" for c, count in sorted(beyond.items())]
-    return collected, notes
-
-
-def detection_inputs(message: Any, scene: Scene, *, received: float) -> DetectionInputs:
-    """A ``Detection3DArray`` (rclpy's or rosbags') received at ``received`` seconds, as per-object inputs."""
-    collected, notes = _collect(message, scene)
+    read = [_read(d, index, array_frame, scene, notes) for index, d in enumerate(message.detections)]
+    detections = [d for d in read if d is not None]
+    unknown = {str(r.hypothesis.class_id) for d in message.detections for r in d.results}
+    unknown = {c for c in unknown if not scene.objects_of_class(c)}
+    notes[:0] = [f"class id {class_id!r} is no object of the scene" for class_id in sorted(unknown)]
     stamp = message.header.stamp
     stamp_ns = to_nanoseconds(stamp.sec, stamp.nanosec)
+    collected: dict[str, list[_Detection]] = {}
+    tracked = [d for d in detections if scene.is_tracked(d.class_id)]
+    association = None
+    if tracked:
+        tracks = tracks if tracks is not None else InstanceTracks(scene)
+        observations = [o for o in (_observation(d, scene, notes) for d in tracked) if o is not None]
+        association = tracks.associate(observations, received)
+        by_index = {d.index: d for d in tracked}
+        for index, name in association.assigned.items():
+            collected[name] = [by_index[index]]
+        notes += [
+            f"{count} detection(s) of class {c!r} outside every gate, with no free instance"
+            for c, count in sorted(association.outside.items())
+        ]
+    for found in (d for d in detections if not scene.is_tracked(d.class_id)):
+        collected.setdefault(scene.objects_of_class(found.class_id)[0], []).append(found)
     objects: dict[str, ReceivedPoses] = {}
     for name in scene.object_names:
         found = collected.get(name)
         if found is None:
             continue
-        frame = next(iter(found.frames)) if len(found.frames) == 1 else _several(found.frames)
+        frames = {d.frame for d in found}
         poses = check_poses(
-            found.poses,
-            frame_id=frame,
+            np.concatenate([d.poses for d in found]),
+            frame_id=next(iter(frames)) if len(frames) == 1 else _several(frames),
             expected_frame=scene.frame_id,
             workspace=scene.workspace,
             stamp_ns=stamp_ns,
             received=received,
+            source="detection",
         )
-        objects[name] = poses.with_weights(check_weights(found.scores, received=received))
-    return DetectionInputs(objects, tuple(notes))
+        scores = np.concatenate([d.scores for d in found])
+        objects[name] = poses.with_weights(check_weights(scores, received=received))
+    return DetectionInputs(objects, tuple(notes), association)
 
 
 def _several(frames: Sequence[str] | set[str]) -> str:

@@ -96,7 +96,8 @@ class ReceivedPoses:
     length); ``refusal`` is set when the whole message is unusable. ``stamp_ns``: header stamp,
     nanoseconds; ``received``: node clock, seconds. ``frame_assumed``: the message named no frame
     (an empty frame_id) and was taken in the scene's. ``weights``: weights that came in the same
-    message (a detection's scores), which no separate weights message then pairs with.
+    message (a detection's scores), which no separate weights message then pairs with. ``source``
+    names the message in refusals: ``PoseArray``, or ``detection`` for a Detection3D's results.
     """
 
     stamp_ns: int
@@ -106,6 +107,7 @@ class ReceivedPoses:
     refusal: str | None = None
     frame_assumed: bool = False
     weights: ReceivedWeights | None = None
+    source: str = "PoseArray"
 
     @property
     def count(self) -> int:
@@ -147,6 +149,7 @@ def check_poses(
     workspace: Workspace,
     stamp_ns: int,
     received: float,
+    source: str = "PoseArray",
 ) -> ReceivedPoses:
     """A PoseArray's contents as received, refused as a whole for another frame or no pose at all.
 
@@ -160,10 +163,10 @@ def check_poses(
     assumed = frame_id == ""
     if frame_id != expected_frame and not assumed:
         refusal = f"frame_id {clipped(frame_id, MAX_QUOTED_TEXT)!r} is not the scene frame {expected_frame!r}"
-        return ReceivedPoses(stamp_ns, received, poses, workspace, refusal)
+        return ReceivedPoses(stamp_ns, received, poses, workspace, refusal, source=source)
     if len(poses) == 0:
-        return ReceivedPoses(stamp_ns, received, poses, workspace, "empty PoseArray", assumed)
-    return ReceivedPoses(stamp_ns, received, poses, workspace, frame_assumed=assumed)
+        return ReceivedPoses(stamp_ns, received, poses, workspace, f"empty {source}", assumed, source=source)
+    return ReceivedPoses(stamp_ns, received, poses, workspace, frame_assumed=assumed, source=source)
 
 
 def check_weights(values: Sequence[float] | NDArray[np.float64], *, received: float) -> ReceivedWeights:
@@ -314,7 +317,7 @@ class ObjectInputs:
         if poses.refusal is None:
             self._newest_usable = poses
         else:
-            self._refuse("PoseArray", poses.received, poses.refusal)
+            self._refuse(poses.source, poses.received, poses.refusal)
 
     def add_weights(self, weights: ReceivedWeights) -> None:
         self._weights.append(weights)
@@ -336,7 +339,7 @@ class ObjectInputs:
 
     def _refuse(self, kind: str, when: float, why: str) -> None:
         self._refusals[kind] = (when, f"{kind} refused: {why}")
-        self._counts["poses refused" if kind == "PoseArray" else "weights refused"] += 1
+        self._counts["weights refused" if kind == "weights" else "poses refused"] += 1
 
     def _owner(self, weights: ReceivedWeights) -> ReceivedPoses | None:
         """The PoseArray of the same length received closest in time to ``weights``."""
@@ -376,7 +379,7 @@ class ObjectInputs:
         else:
             attempt = rank(poses, weights, settings.max_hypotheses)
         if isinstance(attempt, str):
-            self._refuse("PoseArray", now, attempt)
+            self._refuse(poses.source, now, attempt)
         elif weights is None and self._weights:
             notes = (self._missing_weights(poses), *attempt.notes)
             self._in_use = InUse(attempt.hypotheses, poses, None, notes, attempt.dropped)
@@ -459,6 +462,11 @@ class InputTracker:
     def add_lost(self, name: str, kind: MessageKind, count: int, now: float) -> None:
         with self._lock:
             self.objects[name].add_lost(kind, count, self._timeline(now))
+
+    def forget(self, name: str) -> None:
+        """Drop everything received for object ``name`` (an instance whose track ended)."""
+        with self._lock:
+            self.objects[name] = ObjectInputs(name)
 
     @property
     def clock_jumps(self) -> tuple[tuple[float, float], ...]:

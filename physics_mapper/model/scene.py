@@ -286,8 +286,11 @@ class Scene:
     #: The scene file's ``workspace:`` box; None: the default (:attr:`workspace`).
     explicit_workspace: Workspace | None = None
     #: A pose estimator's class ids -> the objects they detect (``class_map:``; an object's own name
-    #: is its class id unless it is mapped). A class of several objects has instances.
+    #: is its class id unless it is mapped; a ``count:`` entry's name is the class id of its instances
+    #: unless it is mapped). A class of several objects has instances.
     class_map: tuple[tuple[str, tuple[str, ...]], ...] = ()
+    #: Objects that exist only once detected (the instances of ``count: {max: K}`` entries).
+    optional: frozenset[str] = frozenset()
     #: Warnings about what the file asks for (an extreme mass ratio), each as ``file: key: what``.
     notes: tuple[str, ...] = field(default=(), compare=False)
 
@@ -306,6 +309,12 @@ class Scene:
             return classes[class_id]
         mapped = {name for _, names in self.class_map for name in names}
         return (class_id,) if class_id in self.object_names and class_id not in mapped else ()
+
+    def is_tracked(self, class_id: str) -> bool:
+        """Whether detections of ``class_id`` are associated to instances across frames
+        (:mod:`~physics_mapper.mapping.association`): a class of several objects, or of optional ones."""
+        objects = self.objects_of_class(class_id)
+        return len(objects) > 1 or any(name in self.optional for name in objects)
 
     @cached_property
     def workspace(self) -> Workspace:

@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 import reprlib
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import fields, replace
+from dataclasses import dataclass, fields, replace
 from pathlib import Path
 from typing import Any, TypeVar
 
@@ -306,9 +306,61 @@ def _read_static(reader: _Reader, value: Any, key: str, meshes: _MeshLoader) -> 
     return StaticBody(name, shape, pose, friction)
 
 
+_OBJECT_KEYS = ("name", *_SHAPE_KEYS, "mass", "density", "friction", "rolling_friction", "count", "names")
+
+
+@dataclass(frozen=True)
+class _Entry:
+    """One ``objects:`` entry: its name, its objects (one, or its instances) and whether they are optional."""
+
+    name: str
+    objects: tuple[ObjectModel, ...]
+    counted: bool
+    optional: bool
+
+
+def _read_entry(reader: _Reader, value: Any, key: str, meshes: _MeshLoader) -> _Entry:
+    """An object, or with ``count:``/``names:`` its identical instances: one shape (one mesh, one
+    decomposition) shared by all, named ``<name>_1`` ... ``<name>_K`` unless ``names:`` lists them."""
+    model = _read_object(reader, value, key, meshes)
+    data = reader.mapping(value, key)
+    if "count" not in data and "names" not in data:
+        return _Entry(model.name, (model,), counted=False, optional=False)
+    count, optional = _read_count(reader, data, key)
+    if "names" in data:
+        names = [
+            reader.name(n, f"{key}.names[{i}]") for i, n in enumerate(reader.sequence(data["names"], f"{key}.names"))
+        ]
+        if count is not None and len(names) != count:
+            raise reader.fail(f"{key}.names", f"lists {len(names)} names for count {count}")
+    else:
+        names = [f"{model.name}_{k}" for k in range(1, (count or 0) + 1)]
+    if not names:
+        raise reader.fail(f"{key}.names", "needs at least one name")
+    for i, name in enumerate(names):
+        problem = object_name_problem(name)
+        if problem is not None:
+            raise reader.fail(f"{key}.names[{i}]", f"{_show(name)}: {problem}")
+    return _Entry(model.name, tuple(replace(model, name=name) for name in names), counted=True, optional=optional)
+
+
+def _read_count(reader: _Reader, data: Mapping[str, Any], key: str) -> tuple[int | None, bool]:
+    """``count: K`` (K instances) or ``count: {max: K}`` (up to K, optional): (K or None if absent, optional)."""
+    if "count" not in data:
+        return None, False
+    value, at = data["count"], f"{key}.count"
+    optional = isinstance(value, Mapping)
+    if optional:
+        reader.known_keys(value, at, ("max",))
+        value, at = reader.required(value, "max", at), f"{at}.max"
+    if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= MAX_OBJECTS:
+        raise reader.fail(at, f"must be a whole number in [1, {MAX_OBJECTS}], got {_show(value)}")
+    return value, optional
+
+
 def _read_object(reader: _Reader, value: Any, key: str, meshes: _MeshLoader) -> ObjectModel:
     data = reader.mapping(value, key)
-    reader.known_keys(data, key, ("name", *_SHAPE_KEYS, "mass", "density", "friction", "rolling_friction"))
+    reader.known_keys(data, key, _OBJECT_KEYS)
     name = reader.name(reader.required(data, "name", key), f"{key}.name")
     problem = object_name_problem(name)
     if problem is not None:
@@ -398,9 +450,13 @@ _SCENE_KEYS = ("frame_id", "static", "objects", "search", "ground_truth", "works
 
 
 def _read_class_map(
-    reader: _Reader, value: Any, key: str, names: Sequence[str]
+    reader: _Reader, value: Any, key: str, names: Sequence[str], counted: Mapping[str, tuple[str, ...]]
 ) -> tuple[tuple[str, tuple[str, ...]], ...]:
-    """``class_map:`` class id -> an object name or a list of them (instances); each object in one class."""
+    """``class_map:`` class id -> an object name or a list of them (instances); each object in one class.
+
+    A ``count:`` entry's name stands for all its instances (``counted``: entry name -> instance names).
+    A counted entry none of whose instances is mapped gets its own name as class id.
+    """
     mapping: dict[str, tuple[str, ...]] = {}
     owner: dict[str, str] = {}
     for class_id, objects in reader.mapping(value, key).items():
@@ -409,13 +465,22 @@ def _read_class_map(
         listed = [objects] if isinstance(objects, str) else list(reader.sequence(objects, at))
         if not listed:
             raise reader.fail(at, "needs at least one object")
+        expanded: list[str] = []
         for name in listed:
-            if name not in names:
+            if isinstance(name, str) and name in counted:
+                expanded += counted[name]
+            elif name in names:
+                expanded.append(name)
+            else:
                 raise reader.fail(at, f"{_show(name)} is not an object of the scene")
+        for name in expanded:
             if name in owner:
                 raise reader.fail(at, f"{name!r} is already the object of class {owner[name]!r}")
             owner[name] = class_id
-        mapping[class_id] = tuple(listed)
+        mapping[class_id] = tuple(expanded)
+    for entry, instances in counted.items():
+        if entry not in mapping and not any(name in owner for name in instances):
+            mapping[entry] = instances
     return tuple(mapping.items())
 
 
@@ -441,8 +506,15 @@ def scene_from_dict(
         raise reader.fail("objects", "needs at least one object")
     if len(items) > MAX_OBJECTS:
         raise reader.fail("objects", f"{len(items)} objects (at most {MAX_OBJECTS}: split the scene)")
-    objects = tuple(_read_object(reader, item, f"objects[{i}]", meshes) for i, item in enumerate(items))
+    entries = tuple(_read_entry(reader, item, f"objects[{i}]", meshes) for i, item in enumerate(items))
+    objects = tuple(model for entry in entries for model in entry.objects)
+    if len(objects) > MAX_OBJECTS:
+        raise reader.fail("objects", f"{len(objects)} objects with instances (at most {MAX_OBJECTS}: split the scene)")
+    counted = {entry.name: tuple(o.name for o in entry.objects) for entry in entries if entry.counted}
     names = [o.name for o in objects] + [b.name for b in static]
+    for entry in counted:
+        if entry in names:
+            raise reader.fail("objects", f"duplicate body name {entry!r} (the name of a count: entry)")
     for i, name in enumerate(names):
         if name in names[:i]:
             raise reader.fail("objects" if i < len(objects) else "static", f"duplicate body name {name!r}")
@@ -457,7 +529,8 @@ def scene_from_dict(
         truth = _read_per_object(reader, top["ground_truth"], "ground_truth", [o.name for o in objects], _read_pose)
     workspace = _read_workspace(reader, top["workspace"], "workspace") if "workspace" in top else None
     object_names = [o.name for o in objects]
-    class_map = _read_class_map(reader, top["class_map"], "class_map", object_names) if "class_map" in top else ()
+    class_map = _read_class_map(reader, top.get("class_map", {}), "class_map", object_names, counted)
+    optional = frozenset(o.name for entry in entries if entry.optional for o in entry.objects)
     scene = Scene(
         objects,
         static,
@@ -466,6 +539,7 @@ def scene_from_dict(
         ground_truth=truth,
         explicit_workspace=workspace,
         class_map=class_map,
+        optional=optional,
         notes=tuple(reader.notes),
     )
     for model, pose in zip(objects, truth or (), strict=False):

@@ -1,0 +1,305 @@
+"""Which detection is which instance: identical objects tracked across frames (ROS-free).
+
+A pose estimator knows the class of each detection, not which of several identical objects it
+saw, and keeps no order across frames. The rules that give each detection of a *tracked class*
+(:meth:`~physics_mapper.model.scene.Scene.is_tracked`: a class of several objects, or of
+``count: {max: K}`` ones) to one instance, per class and per array of detections:
+
+- **One detection, one instance.** Each detection (an :class:`Observation`) is one observation
+  of one instance, and its results are that instance's hypotheses, all of them.
+- **A state per instance.** Each instance with a *track* has filterpy's ``KalmanFilter`` on its
+  position p (m): a constant-position model, predict p' = p with process noise
+  Q = ``process_noise`` · dt · I (m², dt the seconds since its last update), measurement
+  z = p + v, R = ``measurement_noise``² · I. Orientation is not filtered: identical instances are
+  told apart by where they are, and each detection's results bring their own orientations as
+  hypotheses.
+- **The measurement.** Of a detection's results, the one nearest the instance's predicted
+  position (an estimator may rank a wrong pose first; the right one is usually among its
+  results); a new track starts at the best-scored result.
+- **Ids first.** A detection with a non-empty ``Detection3D.id`` that is the key of an instance
+  of its class goes to that instance, whatever the distance (a tracker upstream said so). The
+  id a detection brings becomes its instance's key.
+- **Then distance.** The other detections and instances are matched by
+  ``scipy.optimize.linear_sum_assignment`` on the distances (m) between predicted positions and
+  measurements; pairs farther apart than the class's *gate* are never matched. The gate is
+  ``gate`` metres, or by default half the smallest extent of the class's shape: two identical
+  bodies that do not overlap are at least that far from each other's gate, so a detection of
+  one never matches the other.
+- **Births.** A detection matched to no instance starts a *tentative* track on a free instance
+  (one without a track): the one whose ended track was last within the gate of the detection (an
+  instance seen again after a long miss keeps its name), else a never-tracked one, in scene
+  order, else the one whose track ended longest ago. With no free instance it is counted as
+  outside every gate and not used (``count: {max: K}`` stops at K).
+- **Misses and ends.** An instance no detection matched keeps its own state and hypotheses; it
+  never takes another's. A tentative track (matched fewer than ``confirm_hits`` times) ends at
+  its first miss; a confirmed one ends when unmatched for more than ``max_age`` seconds. An
+  ended track frees its instance, and the instance's hypotheses are forgotten.
+- **Existence.** An instance that may not be there, a tentative track or an instance of a
+  ``count: {max: K}`` entry, has a weight for *absent*:
+  w_absent = prod_k (1 - c_k) over its track's (newest 20) matched detections, c_k the detection's best
+  score clipped to [0, :data:`MAX_CONFIDENCE`] (each detection is independent evidence that the
+  instance exists: a noisy-OR). A confirmed instance of ``count: K`` has none: it exists.
+
+Identities never depend on the order of detections in an array: the assignment is optimal for
+the whole array, and ties in cost go to the lower instance and detection index.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+from filterpy.kalman import KalmanFilter
+from numpy.typing import NDArray
+from scipy.optimize import linear_sum_assignment
+
+from physics_mapper.model.extents import body_box
+from physics_mapper.model.geometry import ORIGIN
+from physics_mapper.model.scene import ObjectShape, Scene
+
+#: A detection's best score counts as at most this confidence that its instance exists.
+MAX_CONFIDENCE = 0.95
+#: Matched detections whose confidence counts for existence (the newest): w_absent stays above 0.05^20.
+CONFIDENCES_KEPT = 20
+#: Cost of a pair outside the gate: never chosen over a gated pair (distances are metres, ≤ 1e7).
+_FORBIDDEN = 1e12
+
+
+@dataclass(frozen=True)
+class AssociationSettings:
+    """How detections are matched to instances (module docstring).
+
+    gate: metres beyond which a detection never matches an instance (0: half the smallest extent
+    of the class's shape). confirm_hits: matches after which a track is confirmed.
+    process_noise: m²/s of random walk per second. measurement_noise: m, standard deviation of a
+    detection's position. max_age: seconds a confirmed track lives unmatched.
+    """
+
+    gate: float = 0.0
+    confirm_hits: int = 3
+    process_noise: float = 1.0e-4
+    measurement_noise: float = 0.01
+    max_age: float = 10.0
+
+
+@dataclass(frozen=True)
+class Observation:
+    """One detection of a tracked class: ``positions`` (M x 3, m) and ``scores`` (M) of its usable
+    results, its ``key`` (``Detection3D.id``, '' if none) and its ``index`` in the array."""
+
+    class_id: str
+    positions: NDArray[np.float64]
+    scores: NDArray[np.float64]
+    key: str = ""
+    index: int = 0
+
+    @property
+    def best(self) -> int:
+        """The index of the best-scored result (the first of equal ones)."""
+        return int(np.argmax(self.scores))
+
+    def nearest(self, point: NDArray[np.float64]) -> tuple[int, float]:
+        """The result nearest ``point`` and its distance (m)."""
+        distances = np.linalg.norm(self.positions - point, axis=1)
+        index = int(np.argmin(distances))
+        return index, float(distances[index])
+
+
+@dataclass
+class Track:
+    """An instance's filtered position, its key and its history of matches."""
+
+    filter: KalmanFilter
+    updated: float  # seconds, when the filter last took a measurement
+    key: str = ""
+    hits: int = 0
+    confidences: list[float] = field(default_factory=list)
+
+    @property
+    def position(self) -> NDArray[np.float64]:
+        return np.asarray(self.filter.x[:, 0], dtype=np.float64)
+
+    def predicted(self, now: float, process_noise: float) -> NDArray[np.float64]:
+        """The position predicted at ``now``: unchanged (constant position), its uncertainty grown."""
+        self.filter.Q = np.eye(3) * process_noise * max(0.0, now - self.updated)
+        self.filter.predict()
+        self.updated = now
+        return self.position
+
+    def absent_weight(self) -> float:
+        """prod_k (1 - c_k) over the matched detections' confidences (module docstring)."""
+        return float(np.prod([1.0 - c for c in self.confidences]))
+
+
+@dataclass(frozen=True)
+class FrameAssociation:
+    """What one array's detections became: detection index -> instance name, and what happened."""
+
+    assigned: dict[int, str]
+    born: tuple[str, ...] = ()
+    ended: tuple[str, ...] = ()
+    outside: dict[str, int] = field(default_factory=dict)  # class id -> detections matched to nothing
+
+
+def default_gate(shape: ObjectShape) -> float:
+    """Half the smallest extent (m) of ``shape``'s axis-aligned box, unrotated."""
+    low, high = body_box(shape, ORIGIN)
+    return 0.5 * min(h - lo for lo, h in zip(low, high, strict=True))
+
+
+class InstanceTracks:
+    """The tracks of a scene's tracked classes (module docstring); not thread-safe."""
+
+    def __init__(self, scene: Scene, settings: AssociationSettings | None = None) -> None:
+        self.scene = scene
+        self.settings = settings or AssociationSettings()
+        self.tracks: dict[str, Track] = {}
+        self._matched: dict[str, float] = {}  # name -> when its track was last matched, s
+        self._ended_at: dict[str, float] = {}
+        self._last_position: dict[str, NDArray[np.float64]] = {}  # where each ended track was
+        self._shapes = {model.name: model.shape for model in scene.objects}
+        #: Counts since the start: tracks born and ended, detections matched to nothing.
+        self.births = 0
+        self.ends = 0
+        self.outside = 0
+
+    def gate(self, class_id: str) -> float:
+        """The class's gate, metres."""
+        if self.settings.gate > 0.0:
+            return self.settings.gate
+        return default_gate(self._shapes[self.scene.objects_of_class(class_id)[0]])
+
+    def tentative(self, name: str) -> bool:
+        track = self.tracks.get(name)
+        return track is not None and track.hits < self.settings.confirm_hits
+
+    def absent_weight(self, name: str) -> float | None:
+        """The weight of ``name`` being absent, or None if it is certainly there while tracked."""
+        track = self.tracks.get(name)
+        if track is None:
+            return None
+        if name in self.scene.optional or track.hits < self.settings.confirm_hits:
+            return track.absent_weight()
+        return None
+
+    def instances_per_class(self) -> dict[str, int]:
+        """Tracked classes -> their instances with a track."""
+        return {
+            class_id: sum(name in self.tracks for name in names)
+            for class_id, names in self.scene.class_map
+            if self.scene.is_tracked(class_id)
+        }
+
+    def expire(self, now: float) -> tuple[str, ...]:
+        """End the tracks unmatched for more than ``max_age`` seconds at ``now``."""
+        ended = tuple(name for name, when in self._matched.items() if now - when > self.settings.max_age)
+        for name in ended:
+            self._end(name, now)
+        return ended
+
+    def _end(self, name: str, now: float) -> None:
+        self._last_position[name] = self.tracks[name].position
+        del self.tracks[name]
+        del self._matched[name]
+        self._ended_at[name] = now
+        self.ends += 1
+
+    def associate(self, observations: Sequence[Observation], now: float) -> FrameAssociation:
+        """Give each observation of one array, received at ``now`` (s), an instance (module docstring)."""
+        assigned: dict[int, str] = {}
+        born: list[str] = []
+        outside: dict[str, int] = {}
+        matched: set[str] = set()
+        ended = list(self.expire(now))
+        for class_id in dict.fromkeys(o.class_id for o in observations):
+            of_class = [o for o in observations if o.class_id == class_id]
+            names = self.scene.objects_of_class(class_id)
+            pairs = self._match(of_class, [n for n in names if n in self.tracks], class_id, now)
+            for observation, name in pairs:
+                self._update(name, observation, now)
+                assigned[observation.index] = name
+                matched.add(name)
+            for observation in (o for o in of_class if o.index not in assigned):
+                name = self._free(names, observation, self.gate(class_id))
+                if name is None:
+                    outside[class_id] = outside.get(class_id, 0) + 1
+                    continue
+                self._birth(name, observation, now)
+                assigned[observation.index] = name
+                matched.add(name)
+                born.append(name)
+        for name in [n for n in self.tracks if n not in matched and self.tentative(n)]:
+            self._end(name, now)  # a tentative track ends at its first miss
+            ended.append(name)
+        self.births += len(born)
+        self.outside += sum(outside.values())
+        return FrameAssociation(assigned, tuple(born), tuple(ended), outside)
+
+    def _match(
+        self, observations: list[Observation], names: list[str], class_id: str, now: float
+    ) -> list[tuple[Observation, str]]:
+        """Pairs by key, then by gated optimal assignment on distance."""
+        pairs: list[tuple[Observation, str]] = []
+        keyed = {self.tracks[n].key: n for n in names if self.tracks[n].key}
+        rest: list[Observation] = []
+        for observation in observations:
+            name = keyed.pop(observation.key, None) if observation.key else None
+            if name is None:
+                rest.append(observation)
+            else:
+                pairs.append((observation, name))
+        taken = {name for _, name in pairs}
+        free = [n for n in names if n not in taken]
+        if not rest or not free:
+            return pairs
+        predicted = [self.tracks[n].predicted(now, self.settings.process_noise) for n in free]
+        costs = np.array([[o.nearest(p)[1] for o in rest] for p in predicted])
+        gate = self.gate(class_id)
+        costs[costs > gate] = _FORBIDDEN
+        rows, columns = linear_sum_assignment(costs)
+        for row, column in zip(rows.tolist(), columns.tolist(), strict=True):
+            if costs[row, column] < _FORBIDDEN:
+                pairs.append((rest[column], free[row]))
+        return pairs
+
+    def _free(self, names: Sequence[str], observation: Observation, gate: float) -> str | None:
+        """The instance a new track starts on (module docstring): of those without a track, the one whose
+        ended track was last within the gate of ``observation``, else a never-tracked one, else the one
+        whose track ended longest ago."""
+        free = [n for n in names if n not in self.tracks]
+        back = [(observation.nearest(self._last_position[n])[1], n) for n in free if n in self._last_position]
+        near = min((pair for pair in back if pair[0] <= gate), default=None)
+        if near is not None:
+            return near[1]
+        never = [n for n in free if n not in self._ended_at]
+        if never:
+            return never[0]
+        return min(free, key=lambda n: self._ended_at[n], default=None)
+
+    def _birth(self, name: str, observation: Observation, now: float) -> None:
+        kalman = KalmanFilter(dim_x=3, dim_z=3)
+        kalman.x = observation.positions[observation.best].reshape(3, 1).copy()
+        kalman.F = np.eye(3)
+        kalman.H = np.eye(3)
+        kalman.R = np.eye(3) * self.settings.measurement_noise**2
+        kalman.P = np.eye(3) * self.settings.measurement_noise**2
+        self.tracks[name] = Track(kalman, now)
+        self._matched[name] = now
+        self._confirm(name, observation)
+
+    def _update(self, name: str, observation: Observation, now: float) -> None:
+        track = self.tracks[name]
+        point = track.predicted(now, self.settings.process_noise)
+        nearest, _ = observation.nearest(point)
+        track.filter.update(observation.positions[nearest].reshape(3, 1))
+        self._matched[name] = now
+        self._confirm(name, observation)
+
+    def _confirm(self, name: str, observation: Observation) -> None:
+        track = self.tracks[name]
+        track.hits += 1
+        track.confidences.append(min(MAX_CONFIDENCE, max(0.0, float(observation.scores[observation.best]))))
+        del track.confidences[:-CONFIDENCES_KEPT]
+        if observation.key:
+            track.key = observation.key

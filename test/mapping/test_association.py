@@ -1,0 +1,195 @@
+"""Detections of identical instances, associated across frames: the rules of ``mapping.association``.
+
+Arrays are built as rosbags decodes them (the node reads rclpy's by the same attributes).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import pytest
+
+from physics_mapper.bags.storage import TYPESTORE
+from physics_mapper.mapping.association import AssociationSettings, InstanceTracks
+from physics_mapper.mapping.detections import DETECTION_ARRAY, detection_inputs
+from physics_mapper.model.scene import Scene
+from physics_mapper.model.scene_files import scene_from_dict
+
+TYPES = TYPESTORE.types
+#: Six 10 cm cubes: four on the floor 1 cm apart, two on top.
+BIN = [(0.0, 0.0, 0.05), (0.11, 0.0, 0.05), (0.0, 0.11, 0.05), (0.11, 0.11, 0.05), (0.0, 0.0, 0.15), (0.11, 0.11, 0.15)]
+
+
+def bin_scene(count: Any = 6) -> Scene:
+    box = {"name": "box", "shape": "box", "size": [0.1, 0.1, 0.1], "mass": 0.2, "count": count}
+    return scene_from_dict({"objects": [box], "static": [{"name": "floor", "shape": "plane"}]}, "bin")
+
+
+def result(position: tuple[float, float, float], score: float = 0.9, class_id: str = "box") -> Any:
+    pose = TYPES["geometry_msgs/msg/Pose"](
+        position=TYPES["geometry_msgs/msg/Point"](x=position[0], y=position[1], z=position[2]),
+        orientation=TYPES["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0, w=1.0),
+    )
+    return TYPES["vision_msgs/msg/ObjectHypothesisWithPose"](
+        hypothesis=TYPES["vision_msgs/msg/ObjectHypothesis"](class_id=class_id, score=score),
+        pose=TYPES["geometry_msgs/msg/PoseWithCovariance"](pose=pose, covariance=np.zeros(36)),
+    )
+
+
+def detection(*results: Any, key: str = "") -> Any:
+    header = TYPES["std_msgs/msg/Header"](stamp=TYPES["builtin_interfaces/msg/Time"](sec=1, nanosec=0), frame_id="")
+    box = TYPES["vision_msgs/msg/BoundingBox3D"](
+        center=results[0].pose.pose, size=TYPES["geometry_msgs/msg/Vector3"](x=0.0, y=0.0, z=0.0)
+    )
+    return TYPES["vision_msgs/msg/Detection3D"](header=header, results=list(results), bbox=box, id=key)
+
+
+def array(detections: list[Any], sec: int = 1) -> Any:
+    header = TYPES["std_msgs/msg/Header"](
+        stamp=TYPES["builtin_interfaces/msg/Time"](sec=sec, nanosec=0), frame_id="world"
+    )
+    return TYPES[DETECTION_ARRAY](header=header, detections=detections)
+
+
+def positions_of(inputs: Any) -> dict[str, tuple[float, ...]]:
+    """Each instance's first hypothesis position, rounded to the millimetre."""
+    return {name: tuple(np.round(poses.poses[0, :3], 3).tolist()) for name, poses in inputs.objects.items()}
+
+
+def frames(count: int, seed: int = 0, missing: int | None = None, missed_frame: int = 3) -> list[list[Any]]:
+    """``count`` frames of the bin, each shuffled, 2 mm of noise, three results (sometimes a wrong one first)."""
+    rng = np.random.default_rng(seed)
+    made = []
+    for frame in range(count):
+        detections = []
+        for index, centre in enumerate(BIN):
+            if index == missing and frame == missed_frame:
+                continue
+            true = tuple(np.asarray(centre) + rng.normal(0.0, 0.002, 3))
+            wrong = tuple(np.asarray(true) + np.array([0.03, -0.02, 0.01]))
+            first, second = (wrong, true) if rng.random() < 0.3 else (true, wrong)
+            detections.append(detection(result(first, 0.6), result(second, 0.3), result(true, 0.1)))
+        rng.shuffle(detections)  # type: ignore[arg-type]
+        made.append(detections)
+    return made
+
+
+def nearest_box(position: tuple[float, ...]) -> int:
+    return int(np.argmin([np.linalg.norm(np.asarray(position) - centre) for centre in BIN]))
+
+
+def identities(scene: Scene, arrays: list[list[Any]], tracks: InstanceTracks) -> list[dict[str, int]]:
+    """Per frame, each instance -> the true box its detection came from (by its true result's place)."""
+    seen = []
+    for frame, detections in enumerate(arrays):
+        inputs = detection_inputs(array(detections), scene, received=float(frame), tracks=tracks)
+        seen.append({name: nearest_box(tuple(p.poses[-1, :3])) for name, p in inputs.objects.items()})
+    return seen
+
+
+def test_shuffled_order_keeps_identities() -> None:
+    scene = bin_scene()
+    tracks = InstanceTracks(scene)
+    seen = identities(scene, frames(12), tracks)
+    first = seen[0]
+    assert sorted(first.values()) == list(range(6))  # each box one instance
+    assert all(frame == first for frame in seen)
+    assert tracks.births == 6 and tracks.ends == 0
+
+
+def test_a_stable_id_wins_over_distance() -> None:
+    scene = bin_scene(2)
+    tracks = InstanceTracks(scene)
+    a, b = (0.0, 0.0, 0.05), (0.3, 0.0, 0.05)
+    detection_inputs(
+        array([detection(result(a), key="7"), detection(result(b), key="9")]), scene, received=0.0, tracks=tracks
+    )
+    # the tracker upstream says 7 is now where 9 was (and 9 where 7 was): the ids decide
+    swapped = array([detection(result(b), key="7"), detection(result(a), key="9")])
+    inputs = detection_inputs(swapped, scene, received=0.5, tracks=tracks)
+    assert positions_of(inputs) == {"box_1": b, "box_2": a}
+
+
+@pytest.mark.parametrize("missed_frame", [1, 3])  # while the track is tentative, and once it is confirmed
+def test_a_miss_neither_duplicates_nor_loses(missed_frame: int) -> None:
+    scene = bin_scene()
+    tracks = InstanceTracks(scene)
+    seen = identities(scene, frames(missed_frame + 2, seed=3, missing=2, missed_frame=missed_frame), tracks)
+    missed = next(name for name, box in seen[0].items() if box == 2)
+    during, after = seen[missed_frame], seen[missed_frame + 1]
+    assert missed not in during and len(during) == 5
+    assert {n: b for n, b in seen[0].items() if n != missed} == during  # nobody took the missed box's place
+    assert after == seen[0]  # and it is its own again
+    # a confirmed instance keeps its own hypotheses through the miss; a tentative one ends and comes back
+    assert tracks.ends == (1 if missed_frame < 3 else 0)
+
+
+def test_an_instance_ends_after_max_age_and_its_name_is_free_again() -> None:
+    scene = bin_scene(2)
+    tracks = InstanceTracks(scene, AssociationSettings(max_age=1.0, confirm_hits=1))
+    a, b = (0.0, 0.0, 0.05), (0.3, 0.0, 0.05)
+    detection_inputs(array([detection(result(a)), detection(result(b))]), scene, received=0.0, tracks=tracks)
+    kept = detection_inputs(array([detection(result(a))]), scene, received=0.9, tracks=tracks)
+    assert kept.association is not None and kept.association.ended == () and "box_2" in tracks.tracks
+    ended = detection_inputs(array([detection(result(a))]), scene, received=1.5, tracks=tracks)
+    assert ended.association is not None and ended.association.ended == ("box_2",)
+    assert set(tracks.tracks) == {"box_1"} and tracks.ends == 1
+
+
+def test_a_tentative_track_ends_at_its_first_miss() -> None:
+    scene = bin_scene(3)
+    tracks = InstanceTracks(scene)  # confirmed after 3 matches
+    a, floating = (0.0, 0.0, 0.05), (0.5, 0.0, 0.4)
+    for time in (0.0, 0.5, 1.0):
+        detection_inputs(array([detection(result(a))]), scene, received=time, tracks=tracks)
+    detection_inputs(array([detection(result(a)), detection(result(floating))]), scene, received=1.5, tracks=tracks)
+    assert tracks.tentative("box_2") and tracks.absent_weight("box_2") == pytest.approx(0.1)
+    assert tracks.absent_weight("box_1") is None  # a confirmed instance of count: K exists
+    after = detection_inputs(array([detection(result(a))]), scene, received=2.0, tracks=tracks)
+    assert after.association is not None and after.association.ended == ("box_2",)
+
+
+def test_count_max_stops_at_its_maximum_with_a_diagnostic() -> None:
+    scene = bin_scene({"max": 2})
+    tracks = InstanceTracks(scene)
+    far = [(0.0, 0.0, 0.05), (0.3, 0.0, 0.05), (0.6, 0.0, 0.05)]
+    inputs = detection_inputs(array([detection(result(p)) for p in far]), scene, received=0.0, tracks=tracks)
+    assert sorted(inputs.objects) == ["box_1", "box_2"]
+    assert inputs.unused == ("1 detection(s) of class 'box' outside every gate, with no free instance",)
+    assert tracks.outside == 1
+    assert tracks.absent_weight("box_1") == pytest.approx(0.1)  # optional: absent weighs (1 - 0.9)
+    detection_inputs(array([detection(result(p)) for p in far[:2]]), scene, received=0.5, tracks=tracks)
+    assert tracks.absent_weight("box_1") == pytest.approx(0.01)  # each detection is more evidence
+
+
+def test_a_double_detection_is_one_instance() -> None:
+    scene = bin_scene(2)
+    tracks = InstanceTracks(scene)
+    a, b = (0.0, 0.0, 0.05), (0.3, 0.0, 0.05)
+    detection_inputs(array([detection(result(a)), detection(result(b))]), scene, received=0.0, tracks=tracks)
+    twice = [detection(result((0.006, 0.0, 0.05))), detection(result(a)), detection(result(b))]
+    inputs = detection_inputs(array(twice), scene, received=0.5, tracks=tracks)
+    assert positions_of(inputs) == {"box_1": a, "box_2": b}  # the nearer one; the other matched nothing
+    assert inputs.association is not None and inputs.association.outside == {"box": 1}
+
+
+def test_results_of_several_classes_in_one_detection_are_one_object() -> None:
+    box = {"shape": "box", "size": [0.1, 0.1, 0.1]}
+    scene = scene_from_dict({"objects": [{"name": "a", **box}, {"name": "b", **box}]}, "two")
+    mixed = detection(
+        result((0.0, 0.0, 0.05), 0.4, "a"), result((0.0, 0.0, 0.06), 0.7, "b"), result((0, 0, 0.1), 0.2, "b")
+    )
+    inputs = detection_inputs(array([mixed]), scene, received=0.0)
+    assert list(inputs.objects) == ["b"] and inputs.objects["b"].count == 2
+    assert inputs.unused == (
+        "detection 0: results of class 'a' left out (one detection is one object; 'b' scored best)",
+    )
+
+
+def test_a_bad_score_refuses_that_result_only() -> None:
+    scene = bin_scene(1)
+    bad = detection(result((0.0, 0.0, 0.05), float("nan")), result((0.0, 0.0, 0.06), 0.5))
+    inputs = detection_inputs(array([bad]), scene, received=0.0)
+    assert positions_of(inputs) == {"box_1": (0.0, 0.0, 0.06)}
+    assert inputs.unused == ("detection 0: result 0 refused: score nan",)
