@@ -1,8 +1,16 @@
-"""ament_python package definition: `colcon build` on a ROS machine, `pip install -e .` here."""
+"""ament_python package definition: `colcon build` on a ROS machine, `pip install -e .` here.
+
+``ros2 run physics_mapper node`` runs ``<prefix>/lib/physics_mapper/node``. Console scripts cannot
+be put there by every kind of build: setup.cfg's ``[install]``/``[develop]`` script dirs move them
+for ``setup.py install`` and ``develop`` (colcon), but a wheel (pip, any PEP 517 build) puts them
+in ``bin/``, where a script named ``node`` shadows Node.js. So ``node`` and ``managed_node`` are
+data files of ``lib/physics_mapper/`` (``scripts/``, executable, ``#!/usr/bin/env python3``: the
+``python3`` of the sourced ROS environment), the same for every build; the one console script,
+``physics-mapper``, has a name of its own wherever it lands.
+"""
 
 import os
 import string
-import sys
 from pathlib import Path
 
 from setuptools import Command, find_packages, setup
@@ -23,20 +31,8 @@ def shipped_files() -> list[tuple[str, list[str]]]:
     return list(folders.items())
 
 
-def console_scripts():
-    """``physics-mapper`` always; ``ros2 run``'s ``node`` and ``managed_node`` only for colcon.
-
-    ``ros2 run physics_mapper node`` runs ``<prefix>/lib/physics_mapper/node``, where setup.cfg puts
-    the scripts of colcon's ``setup.py install`` and ``develop``. A wheel (``pip install``) would put
-    them in ``bin/``, where a script named ``node`` shadows Node.js; there ``physics-mapper node`` runs it.
-    """
-    scripts = ["physics-mapper = physics_mapper.cli:main"]
-    if {"install", "develop"} & set(sys.argv[1:]):
-        scripts += [
-            "node = physics_mapper.commands.node:main",
-            "managed_node = physics_mapper.commands.node:main_managed",
-        ]
-    return scripts
+#: ``ros2 run``'s executables, installed as data into ``lib/physics_mapper/`` by every kind of build.
+ROS2_RUN_SCRIPTS = ("scripts/node", "scripts/managed_node")
 
 
 class SymlinkDevelop(Command):
@@ -99,6 +95,7 @@ setup(
         ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE}"]),
         (f"share/{PACKAGE}", ["package.xml"]),
         (f"share/{PACKAGE}/launch", [str(path) for path in sorted(Path("launch").glob("*.launch.py"))]),
+        (f"lib/{PACKAGE}", list(ROS2_RUN_SCRIPTS)),
         *shipped_files(),
     ],
     install_requires=["setuptools"],
@@ -109,6 +106,8 @@ setup(
     maintainer_email="physics-mapper@example.com",
     description="Physically consistent multi-object 3D maps from weighted pose hypotheses.",
     license="Apache-2.0",
-    entry_points={"console_scripts": console_scripts()},
+    # The command line; setup.cfg puts it in lib/physics_mapper for colcon (``ros2 run physics_mapper
+    # physics-mapper``), a wheel in bin/ (``physics-mapper`` on PATH).
+    entry_points={"console_scripts": ["physics-mapper = physics_mapper.cli:main"]},
     cmdclass={"develop": SymlinkDevelop},
 )

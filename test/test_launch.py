@@ -47,9 +47,11 @@ def constant(expr: ast.expr) -> object:
 
 
 def ros_run_executables() -> set[str]:
-    """The scripts setup.py declares for colcon's ``setup.py install`` (in lib/physics_mapper, for ``ros2 run``)."""
-    declared = re.findall(r'"(\w+) = physics_mapper\.[\w.]+:\w+"', (REPO / "setup.py").read_text())
-    return set(declared) - {"physics"}
+    """The scripts setup.py installs for ``ros2 run`` (data files of lib/physics_mapper, for every build)."""
+    (listed,) = re.findall(r"ROS2_RUN_SCRIPTS = \(([^)]*)\)", (REPO / "setup.py").read_text())
+    scripts = {Path(path).name for path in ast.literal_eval(f"({listed})")}
+    assert all((REPO / "scripts" / name).is_file() for name in scripts)
+    return scripts
 
 
 def node_keywords() -> dict[str, ast.expr]:
@@ -122,9 +124,15 @@ def test_a_wheel_installs_no_ros2_run_script_and_no_top_level_package(tmp_path: 
     with zipfile.ZipFile(wheel) as archive:
         names = archive.namelist()
         entry_points = next(archive.read(n).decode() for n in names if n.endswith("entry_points.txt"))
+        modes = {Path(info.filename).name: info.external_attr >> 16 for info in archive.infolist()}
     assert entry_points.split() == ["[console_scripts]", "physics-mapper", "=", "physics_mapper.cli:main"]
     packages = {name.split("/")[0] for name in names if name.endswith(".py") and ".data/" not in name}
     assert packages == {"physics_mapper"}
+    # ros2 run's scripts: executable data of lib/physics_mapper (a pip install's <prefix>/lib/physics_mapper/)
+    for script in ("node", "managed_node"):
+        assert f"physics_mapper-0.1.0.data/data/lib/physics_mapper/{script}" in names
+        assert modes[script] & 0o111
+    assert not [name for name in names if ".data/scripts/" in name]
 
 
 def test_the_node_takes_the_log_level_and_the_clock_arguments() -> None:
