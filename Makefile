@@ -16,8 +16,8 @@ $(STAMP): requirements.txt requirements-dev.txt requirements-ray.txt setup.py
 	touch $(STAMP)
 
 lint: venv
-	$(BIN)/ruff check physics_mapper test benchmarks .ci
-	$(BIN)/ruff format --check physics_mapper test benchmarks .ci
+	$(BIN)/ruff check physics_mapper msg_adapters test benchmarks .ci
+	$(BIN)/ruff format --check physics_mapper msg_adapters test benchmarks .ci
 	$(BIN)/mypy
 
 # vision_msgs has no PyPI wheel: the tests build its Detection3DArray into the venv (test/vision_msgs/).

@@ -16,6 +16,9 @@ from pathlib import Path
 from setuptools import Command, find_packages, setup
 
 PACKAGE = "physics_mapper"
+#: The top-level folder of message adapters, installed as the subpackage physics_mapper.msg_adapters.
+ADAPTERS = "msg_adapters"
+ADAPTER_PACKAGES = [f"{PACKAGE}.{name}" for name in find_packages(include=[ADAPTERS, f"{ADAPTERS}.*"])]
 #: Folders installed under share/physics_mapper/ with their relative paths kept, so that the commands find
 #: them the same way installed or in a checkout (physics_mapper/model/shipped.py).
 SHIPPED = ("config", "test/data")
@@ -90,7 +93,14 @@ def requirements(file_name):
 setup(
     name=PACKAGE,
     version="0.1.0",
-    packages=find_packages(include=["physics_mapper", "physics_mapper.*"]),
+    # msg_adapters/ sits beside physics_mapper/ in the source tree and is installed inside its namespace, as
+    # physics_mapper.msg_adapters: no package of a generic name lands at the top of site-packages. (The link
+    # physics_mapper/msg_adapters -> ../msg_adapters is for tools that know no package_dir: mypy, editors.)
+    packages=[
+        *find_packages(include=[PACKAGE, f"{PACKAGE}.*"], exclude=[f"{PACKAGE}.{ADAPTERS}", f"{PACKAGE}.{ADAPTERS}.*"]),
+        *ADAPTER_PACKAGES,
+    ],
+    package_dir={f"{PACKAGE}.{ADAPTERS}": ADAPTERS},
     data_files=[
         ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE}"]),
         (f"share/{PACKAGE}", ["package.xml"]),

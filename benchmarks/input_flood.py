@@ -37,31 +37,44 @@ from std_msgs.msg import Float64MultiArray
 
 from physics_mapper.mapping.topics import poses_topic, weights_topic
 from physics_mapper.msg_adapters.hypotheses import hypotheses_msgs
+from physics_mapper.ros import node as node_module
 from physics_mapper.ros.node import PhysicsMapperNode
+from physics_mapper.ros.node_inputs import InputHandlers
 
 RATE_HZ, DEADLINE = 5.0, 0.15
 NAMESPACE = "/flood"
 
 
+#: How long each message waited, in milliseconds, from its arrival to its callback (every node of this process).
+WAITS_MS: list[float] = []
+
+
+class TimedHandlers(InputHandlers):
+    """The node's input handlers, noting how long each message waited."""
+
+    def received(self, info: Mapping[str, Any]) -> float:
+        if info.get("received_timestamp"):
+            WAITS_MS.append((time.time_ns() - int(info["received_timestamp"])) / 1e6)
+        return super().received(info)
+
+
 class TimedNode(PhysicsMapperNode):
-    """The node, noting when each tick starts, how long it searched, and how long each message waited."""
+    """The node, noting when each tick starts and how long it searched; its handlers note the waits."""
 
     def __init__(self, **kwargs: Any) -> None:
         self.tick_starts: list[float] = []
         self.search_times: list[float] = []
-        self.waits_ms: list[float] = []
+        WAITS_MS.clear()
+        self.waits_ms = WAITS_MS
+        node_module.InputHandlers = TimedHandlers  # type: ignore[attr-defined]  # the node makes its handlers by this name
         super().__init__(**kwargs)
 
     def _tick(self) -> None:
         self.tick_starts.append(time.monotonic())
         super()._tick()
-        if self._report is not None:
-            self.search_times.append(self._report.search_time)
-
-    def _received(self, info: Mapping[str, Any]) -> float:
-        if info.get("received_timestamp"):
-            self.waits_ms.append((time.time_ns() - int(info["received_timestamp"])) / 1e6)
-        return super()._received(info)
+        report = self.outputs.diagnostics.last_report
+        if report is not None:
+            self.search_times.append(report.search_time)
 
 
 def flood(hz: float, seconds: float) -> None:

@@ -55,7 +55,9 @@ ROS_ROOMS = {"ros", "msg_adapters", "commands"}
 #: ``ament_index_python`` is a pure-Python file lookup (no messages, no middleware): the model finds
 #: ``package://`` files with it, so it is not among them.
 ROS_PACKAGES = {"rclpy", "rmw", "rcl_interfaces", "builtin_interfaces"}
-SOURCES = sorted((REPO / "physics_mapper").rglob("*.py"))
+#: ``msg_adapters/`` is a room at the top level, installed as ``physics_mapper.msg_adapters`` (setup.py);
+#: ``physics_mapper/msg_adapters`` is a link to it, which ``rglob`` does not follow.
+SOURCES = sorted([*(REPO / "physics_mapper").rglob("*.py"), *(REPO / "msg_adapters").rglob("*.py")])
 
 
 def is_ros_package(module: str) -> bool:
@@ -64,8 +66,10 @@ def is_ros_package(module: str) -> bool:
 
 
 def room_of(path: Path) -> str:
-    """The room of a source file: its subpackage of physics_mapper, or cli for top-level modules."""
+    """The room of a source file: its subpackage of physics_mapper (or msg_adapters), or cli for top-level modules."""
     parts = path.relative_to(REPO).parts
+    if parts[0] == "msg_adapters":
+        return "msg_adapters"
     if parts[1:] == ("__init__.py",):
         return "api"
     return parts[1] if len(parts) > 2 else "cli"
@@ -102,6 +106,12 @@ def violations(path: Path) -> list[str]:
 
 def test_every_source_file_is_in_a_known_room() -> None:
     assert {room_of(path) for path in SOURCES} == set(ALLOWED)
+
+
+def test_msg_adapters_is_at_the_top_level_and_linked_into_the_package() -> None:
+    link = REPO / "physics_mapper" / "msg_adapters"
+    assert (REPO / "msg_adapters" / "__init__.py").is_file()
+    assert link.is_symlink() and link.resolve() == (REPO / "msg_adapters").resolve()
 
 
 @pytest.mark.parametrize("path", SOURCES, ids=lambda path: str(path.relative_to(REPO)))

@@ -47,6 +47,8 @@ PROVIDERS: dict[str, str | None] = {
 ROS_PACKAGES = {"rclpy", "ament_index_python", "rosidl_runtime_py", "launch", "launch_ros"}
 #: The Python packages setup.py installs.
 INSTALLED = ("physics_mapper",)
+#: Their source folders: msg_adapters/ is installed as physics_mapper.msg_adapters.
+SOURCE_FOLDERS = ("physics_mapper", "msg_adapters")
 TESTS = REPO / "test"
 
 
@@ -108,7 +110,7 @@ def missing(found: dict[str, list[str]], allowed: set[str], tag: str) -> list[st
 
 def installed_sources() -> list[Path]:
     """The installed package's modules and the launch files (installed to share/, run by ``ros2 launch``)."""
-    modules = [path for package in INSTALLED for path in (REPO / package).rglob("*.py")]
+    modules = [path for folder in SOURCE_FOLDERS for path in (REPO / folder).rglob("*.py")]
     return sorted([*modules, *(REPO / "launch").glob("*.launch.py")])
 
 

@@ -41,7 +41,7 @@ def hold_stop_signals() -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from physics_mapper.ros.node import main
+    from physics_mapper.ros.run_node import main
 
     return main([sys.argv[0], "--ros-args", *args.ros_args], managed=args.managed)
 
@@ -49,7 +49,7 @@ def run(args: argparse.Namespace) -> int:
 def main() -> int:
     """``ros2 run physics_mapper node`` (setup.py's ``node`` script): the node with its arguments as given."""
     hold_stop_signals()
-    from physics_mapper.ros.node import main as run_node
+    from physics_mapper.ros.run_node import main as run_node
 
     return run_node(sys.argv)
 
@@ -57,6 +57,6 @@ def main() -> int:
 def main_managed() -> int:
     """``ros2 run physics_mapper managed_node`` (setup.py's ``managed_node`` script): the lifecycle node."""
     hold_stop_signals()
-    from physics_mapper.ros.node import main as run_node
+    from physics_mapper.ros.run_node import main as run_node
 
     return run_node(sys.argv, managed=True)

@@ -1,0 +1,116 @@
+"""What the node's subscriptions do with a received message: hypotheses for the mapper's inputs.
+
+Each handler puts a message through its adapter (:mod:`physics_mapper.msg_adapters.hypotheses`,
+:mod:`physics_mapper.mapping.detections`) into the mapper's input tracker, stamped with the time
+the middleware received it, and logs what became of a refused message once per object and note.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Mapping
+from typing import Any
+
+from rclpy.event_handler import QoSMessageLostInfo
+from rclpy.node import Node
+from std_msgs.msg import Float64MultiArray
+
+from physics_mapper.mapping.detections import DETECTIONS_TOPIC, detection_inputs
+from physics_mapper.mapping.inputs import MessageKind
+from physics_mapper.mapping.mapper import Mapper
+from physics_mapper.mapping.stamps import NANOSECONDS_PER_SECOND
+from physics_mapper.msg_adapters.hypotheses import received_pose_array, received_weights
+
+#: Distinct input notes (object, text) logged in full before they are throttled.
+MAX_LOGGED_INPUT_NOTES = 1000
+
+
+class InputNotes:
+    """What became of the node's inputs, logged once per object and text: a stream of bad messages
+    logs one line (the diagnostics count them all); past :data:`MAX_LOGGED_INPUT_NOTES` notes, at
+    most one line per second."""
+
+    def __init__(self, logger: Any) -> None:
+        self._logger = logger
+        self._logged: set[tuple[str, str]] = set()
+
+    def log_once(self, name: str, what: str) -> None:
+        """Log ``what`` of object (or topic) ``name``, unless it was logged already."""
+        key = (name, what)
+        if key in self._logged:
+            return
+        if len(self._logged) < MAX_LOGGED_INPUT_NOTES:
+            self._logged.add(key)
+            self._logger.warning(f"{name}: {what}")
+        else:
+            self._logger.warning(f"{name}: {what}", throttle_duration_sec=1.0)
+
+
+class InputHandlers:
+    """The subscription callbacks of ``node``, feeding ``mapper``'s inputs; each gets the message info."""
+
+    def __init__(self, node: Node, mapper: Mapper, notes: InputNotes) -> None:
+        self._node = node
+        self._mapper = mapper
+        self._notes = notes
+
+    def poses(self, name: str) -> Callable[[bytes, Mapping[str, Any]], None]:
+        """Object ``name``'s serialised PoseArray handler."""
+        scene, inputs = self._mapper.scene, self._mapper.inputs
+        frame, workspace = scene.frame_id, scene.workspace
+
+        def on_poses(raw: bytes, info: Mapping[str, Any]) -> None:
+            received = received_pose_array(raw, expected_frame=frame, workspace=workspace, received=self.received(info))
+            inputs.add_poses(name, received)
+            if received.frame_assumed:
+                self._notes.log_once(name, f"a PoseArray without a frame_id is taken in the scene frame {frame!r}")
+            if received.refusal is not None:
+                self._notes.log_once(name, f"PoseArray refused: {received.refusal}")
+
+        return on_poses
+
+    def weights(self, name: str) -> Callable[[Float64MultiArray, Mapping[str, Any]], None]:
+        """Object ``name``'s weights handler."""
+
+        def on_weights(msg: Float64MultiArray, info: Mapping[str, Any]) -> None:
+            received = received_weights(msg, received=self.received(info))
+            self._mapper.inputs.add_weights(name, received)
+            if received.refusal is not None:
+                self._notes.log_once(name, f"weights refused: {received.refusal}")
+
+        return on_weights
+
+    def detections(self) -> Callable[[Any, Mapping[str, Any]], None]:
+        """The ``detections`` handler: its results are the hypotheses of the objects their class ids name."""
+        scene, inputs = self._mapper.scene, self._mapper.inputs
+
+        def on_detections(msg: Any, info: Mapping[str, Any]) -> None:
+            detected = detection_inputs(msg, scene, received=self.received(info))
+            for name, received in detected.objects.items():
+                inputs.add_poses(name, received)
+                if received.refusal is not None:
+                    self._notes.log_once(name, f"detections refused: {received.refusal}")
+            for note in detected.unused:
+                self._notes.log_once(DETECTIONS_TOPIC, note)
+
+        return on_detections
+
+    def lost(self, name: str, kind: MessageKind) -> Callable[[QoSMessageLostInfo], None]:
+        """The middleware's message-lost event of object ``name``'s ``kind`` input, counted."""
+
+        def on_lost(info: QoSMessageLostInfo) -> None:
+            now = self._node.get_clock().now().nanoseconds / NANOSECONDS_PER_SECOND
+            self._mapper.inputs.add_lost(name, kind, int(info.total_count_change), now)
+
+        return on_lost
+
+    def received(self, info: Mapping[str, Any]) -> float:
+        """When the middleware received a message, on the node's clock (seconds).
+
+        The middleware's receive stamp is system time; the node's clock may be simulated time,
+        so the message's wait since then is taken from the node's clock now.
+        """
+        now_ns = self._node.get_clock().now().nanoseconds
+        received_ns = int(info.get("received_timestamp", 0) or 0)
+        waited_ns = max(0, time.time_ns() - received_ns) if received_ns else 0
+        return (now_ns - waited_ns) / NANOSECONDS_PER_SECOND
