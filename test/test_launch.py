@@ -17,7 +17,7 @@ from pathlib import Path
 
 from conftest import REPO, not_sources
 
-from physics_mapper.ros.node import PARAMETERS, RCLPY_PARAMETERS
+from physics_mapper.ros.parameters import PARAMETERS, RCLPY_PARAMETERS
 
 LAUNCH = REPO / "launch" / "physics_mapper.launch.py"
 
