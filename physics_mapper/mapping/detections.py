@@ -220,8 +220,8 @@ def detection_inputs(
             f"{count} detection(s) of class {c!r} outside every gate, with no free instance"
             for c, count in sorted(association.outside.items())
         ]
-    for found in (d for d in detections if not scene.is_tracked(d.class_id)):
-        collected.setdefault(scene.objects_of_class(found.class_id)[0], []).append(found)
+    for untracked in (d for d in detections if not scene.is_tracked(d.class_id)):
+        collected.setdefault(scene.objects_of_class(untracked.class_id)[0], []).append(untracked)
     objects: dict[str, ReceivedPoses] = {}
     for name in scene.object_names:
         found = collected.get(name)

@@ -37,13 +37,14 @@ from __future__ import annotations
 
 import bisect
 from collections.abc import Iterable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Generic, TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation, Slerp
 
+from physics_mapper.mapping.inputs import ReceivedPoses
 from physics_mapper.mapping.stamps import NANOSECONDS_PER_SECOND
 from physics_mapper.model.geometry import Pose, Quaternion, Vector3, pose_problem
 from physics_mapper.model.limits import MAX_QUOTED_TEXT, clipped
@@ -89,7 +90,9 @@ class Transform:
         return Pose((x, y, z), (qx, qy, qz, qw))
 
     @staticmethod
-    def of(translation: Sequence[float], rotation: Sequence[float]) -> Transform:
+    def of(
+        translation: Sequence[float] | NDArray[np.float64], rotation: Sequence[float] | NDArray[np.float64]
+    ) -> Transform:
         return Transform(Rotation.from_quat(rotation), np.asarray(translation, dtype=np.float64))
 
 
@@ -289,6 +292,12 @@ def transform_poses(transform: Transform, poses: NDArray[np.float64]) -> NDArray
     return moved
 
 
+def moved_into(poses: ReceivedPoses, transform: Transform, frame: str) -> ReceivedPoses:
+    """Poses received in a sensor frame, moved into ``frame`` by ``transform`` (the frame's refusal lifted)."""
+    refusal = None if poses.count else f"empty {poses.source}"
+    return replace(poses, poses=transform_poses(transform, poses.poses), frame_id=frame, refusal=refusal)
+
+
 def rotate_covariance(transform: Transform, covariance: NDArray[np.float64]) -> NDArray[np.float64]:
     """A 6x6 pose covariance (x, y, z, rotation about x, y, z) expressed in the transform's target frame.
 
@@ -315,11 +324,11 @@ class _Waiting(Generic[Item]):
 
 @dataclass(frozen=True)
 class Resolved(Generic[Item]):
-    """An input whose frames are resolved: each frame's transform into the target, or why not."""
+    """An input whose frames are resolved: each frame's transform into the target, or why there is none."""
 
     item: Item
     transforms: dict[str, Transform]
-    refusal: str | None
+    unresolved: dict[str, str]
 
 
 class TransformWait(Generic[Item]):
@@ -328,8 +337,8 @@ class TransformWait(Generic[Item]):
     tf2's ``lookupTransform(..., timeout)`` blocks; a node's callback must not, so an input whose
     frames cannot be looked up yet (:attr:`LookupFailure.may_arrive`) waits here and is tried
     again when transforms arrive or time passes (:meth:`ready`). After ``timeout`` seconds it is
-    refused with the lookup's reason. At most ``capacity`` inputs wait; the oldest is refused
-    first ("too many inputs waiting").
+    resolved with the lookup's reasons. At most ``capacity`` inputs wait; the oldest goes first
+    ("too many inputs waiting").
     """
 
     def __init__(self, target: str, capacity: int = 100) -> None:
@@ -344,26 +353,19 @@ class TransformWait(Generic[Item]):
         self._waiting.append(_Waiting(item, frozenset(frames), stamp_ns, now))
 
     def ready(self, buffer: TransformBuffer, now: float, timeout: float) -> list[Resolved[Item]]:
-        """The inputs whose transforms are all found, or whose wait is over (refused), in arrival order."""
+        """The inputs whose transforms are all found, or whose wait is over, in arrival order."""
         done: list[Resolved[Item]] = []
         kept: list[_Waiting[Item]] = []
         overflow = len(self._waiting) - self._capacity
         for index, waiting in enumerate(self._waiting):
-            transforms: dict[str, Transform] = {}
-            failure: LookupFailure | None = None
-            for frame in sorted(waiting.frames):
-                found = buffer.lookup(self.target, frame, waiting.stamp_ns)
-                if isinstance(found, LookupFailure):
-                    failure = found
-                    break
-                transforms[frame] = found
-            if failure is None:
-                done.append(Resolved(waiting.item, transforms, None))
-            elif index < overflow:
-                done.append(Resolved(waiting.item, {}, f"{failure.reason} (too many inputs waiting for transforms)"))
-            elif not failure.may_arrive or now - waiting.since >= timeout:
-                waited = "" if not failure.may_arrive else f" (waited {timeout:g} s)"
-                done.append(Resolved(waiting.item, {}, failure.reason + waited))
+            found = {frame: buffer.lookup(self.target, frame, waiting.stamp_ns) for frame in sorted(waiting.frames)}
+            transforms = {frame: t for frame, t in found.items() if isinstance(t, Transform)}
+            failures = {frame: f for frame, f in found.items() if isinstance(f, LookupFailure)}
+            over = now - waiting.since >= timeout
+            if not failures or index < overflow or over or not all(f.may_arrive for f in failures.values()):
+                why = " (too many inputs waiting for transforms)" if index < overflow else f" (waited {timeout:g} s)"
+                unresolved = {frame: f.reason + (why if f.may_arrive else "") for frame, f in failures.items()}
+                done.append(Resolved(waiting.item, transforms, unresolved))
             else:
                 kept.append(waiting)
         self._waiting = kept

@@ -1,14 +1,22 @@
-"""The configured node's outputs: the map, its markers, each object's poses, and ``/diagnostics``.
+"""The configured node's outputs: the map, its status, its markers, each object's poses and /tf frame, and
+``/diagnostics``.
 
 Every map message carries the newest input stamp the tick used (:mod:`physics_mapper.msg_adapters.results`
 builds them); each object's pose topics are latched and published only when its poses or stamp change.
+``~/map_status`` (latched) goes out with every map, before it, with the same stamp: valid or a
+fallback, and the object names in the map's order; before the first map it says ``no map yet``.
+With ``publish_tf``, each object's pose (``tf_pose``: settled or chosen) goes on ``/tf`` as frame
+``<tf_prefix><object>`` of the scene's frame, with every map (``/tf`` is not latched: a listener
+started later gets the next tick's).
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
+from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseArray, PoseStamped
 from rclpy.publisher import Publisher
 from visualization_msgs.msg import MarkerArray
@@ -16,29 +24,54 @@ from visualization_msgs.msg import MarkerArray
 from physics_mapper.mapping.mapper import TickReport
 from physics_mapper.mapping.topics import (
     CONFIGURATION_TOPIC,
+    MAP_STATUS_TOPIC,
     MARKERS_TOPIC,
     SETTLED_TOPIC,
+    TF_TOPIC,
     object_pose_topic,
     object_settled_pose_topic,
 )
 from physics_mapper.model.scene import Scene
-from physics_mapper.msg_adapters.results import configuration_msgs, markers_msg, object_pose_msgs
+from physics_mapper.msg_adapters.results import configuration_msgs, map_status_msg, markers_msg, object_pose_msgs
+from physics_mapper.msg_adapters.transforms import object_transforms
 from physics_mapper.ros.node_diagnostics import NodeDiagnostics
+from physics_mapper.ros.qos import TF_QOS
 from physics_mapper.search.results import SearchResult
+
+
+@dataclass(frozen=True)
+class TfOutput:
+    """The ``publish_tf``, ``tf_prefix`` and ``tf_pose`` parameters: whether, as what and which pose."""
+
+    enabled: bool
+    prefix: str
+    settled: bool
 
 
 @dataclass
 class MapPublishers:
-    """The output publishers of one configured node, and what they last published per object."""
+    """The output publishers of one configured node, and what they last published per object.
+
+    ``tf``: the ``/tf`` publisher and ``TFMessage`` type where tf2_msgs is installed, else None.
+    """
 
     configuration: Publisher
     settled: Publisher
     markers: Publisher
+    status: Publisher
     objects: list[tuple[Publisher, Publisher]]  # (chosen pose, settled pose) per scene object
     diagnostics: NodeDiagnostics
+    status_name: str  # the map status's name, ``<node>: map``
+    hardware_id: str  # the node's fully qualified name, as in /diagnostics
+    tf: tuple[Publisher, Any] | None = None
     published_objects: tuple[int, SearchResult] | None = field(default=None, init=False)
 
-    def publish_map(self, report: TickReport, scene: Scene) -> None:
+    def publish_status(self, result: SearchResult | None, scene: Scene, stamp_ns: int) -> None:
+        """``~/map_status`` for the map ``result`` stamped ``stamp_ns`` (None: no map yet)."""
+        message = map_status_msg(result, scene, name=self.status_name, hardware_id=self.hardware_id, stamp_ns=stamp_ns)
+        self.status.publish(message)
+
+    def publish_map(self, report: TickReport, scene: Scene, tf: TfOutput) -> None:
         """A tick's map; outputs carry the newest input stamp used."""
         result = report.result
         stamp_ns = report.snapshot.stamp_ns
@@ -47,10 +80,23 @@ class MapPublishers:
         configurations = configuration_msgs(result, frame_id=scene.frame_id, stamp_ns=stamp_ns)
         if configurations is None:
             return
+        self.publish_status(result, scene, stamp_ns)
+        self._publish_tf(result, scene, stamp_ns, tf)
         self.configuration.publish(configurations[0])
         self.settled.publish(configurations[1])
         self.markers.publish(markers_msg(result, scene, stamp_ns=stamp_ns))
         self._publish_objects(result, scene.frame_id, stamp_ns)
+
+    def _publish_tf(self, result: SearchResult, scene: Scene, stamp_ns: int, tf: TfOutput) -> None:
+        """Each object's frame on /tf, when ``publish_tf`` is on (and tf2_msgs installed)."""
+        poses = result.settled_poses if tf.settled else result.poses
+        if not tf.enabled or self.tf is None or poses is None:
+            return
+        publisher, message_type = self.tf
+        transforms = object_transforms(
+            poses, scene.object_names, frame_id=scene.frame_id, prefix=tf.prefix, stamp_ns=stamp_ns
+        )
+        publisher.publish(message_type(transforms=transforms))
 
     def _publish_objects(self, result: SearchResult, frame_id: str, stamp_ns: int) -> None:
         """Each object's chosen and settled pose, when the map's poses or stamp changed (the topics are latched)."""
@@ -71,16 +117,32 @@ class MapPublishers:
 
 
 def map_publishers(
-    publisher: Callable[[type, str], Publisher], object_names: Sequence[str], diagnostics: NodeDiagnostics
+    publisher: Callable[..., Publisher],
+    object_names: Sequence[str],
+    diagnostics: NodeDiagnostics,
+    *,
+    node_name: str,
+    hardware_id: str,
 ) -> MapPublishers:
-    """The map's publishers, made by ``publisher`` (message type, topic): the map, its markers, each object's poses."""
+    """The map's publishers, made by ``publisher`` (message type, topic[, QoS]): the map, its status, its
+    markers, each object's poses, and /tf where tf2_msgs is installed."""
+    try:
+        from tf2_msgs.msg import TFMessage
+    except ImportError:
+        tf = None
+    else:
+        tf = (publisher(TFMessage, TF_TOPIC, TF_QOS), TFMessage)
     return MapPublishers(
         configuration=publisher(PoseArray, CONFIGURATION_TOPIC),
         settled=publisher(PoseArray, SETTLED_TOPIC),
         markers=publisher(MarkerArray, MARKERS_TOPIC),
+        status=publisher(DiagnosticArray, MAP_STATUS_TOPIC),
         objects=[
             (publisher(PoseStamped, object_pose_topic(name)), publisher(PoseStamped, object_settled_pose_topic(name)))
             for name in object_names
         ],
         diagnostics=diagnostics,
+        status_name=f"{node_name}: map",
+        hardware_id=hardware_id,
+        tf=tf,
     )

@@ -51,11 +51,18 @@ from physics_mapper.mapping.topics import (
 )
 from physics_mapper.model.errors import InputError
 from physics_mapper.msg_adapters.results import static_markers_msg
-from physics_mapper.ros.map_publishers import MapPublishers, map_publishers
+from physics_mapper.ros.map_publishers import MapPublishers, TfOutput, map_publishers
 from physics_mapper.ros.node_diagnostics import WATCH_PERIOD, NodeDiagnostics
+from physics_mapper.ros.node_frames import SensorFrames
 from physics_mapper.ros.node_inputs import InputHandlers, InputNotes
 from physics_mapper.ros.node_scene import load_scene_spinning, resolve_scene_path
-from physics_mapper.ros.parameters import PARAMETERS, SCENE_FILE_DESCRIPTOR, NodeParameters, parameters_problem
+from physics_mapper.ros.parameters import (
+    PARAMETERS,
+    SCENE_FILE_DESCRIPTOR,
+    NodeParameters,
+    parameters_problem,
+)
+from physics_mapper.ros.parameters import settings as parameter_settings
 from physics_mapper.ros.qos import DIAGNOSTICS_QOS, MAP_QOS, input_qos
 from physics_mapper.ros.spinning import SignalStop
 
@@ -80,6 +87,7 @@ class MapperNodeBase(Node):
         self._node_parameters = NodeParameters(self)
         self._mapper: Mapper | None = None
         self._outputs: MapPublishers | None = None
+        self._frames: SensorFrames | None = None
         self._entities: list[Subscription | Publisher] = []
         self._tick_timers: dict[str, Timer] = {}  # by job: "tick", "diagnostics", "watch"
         self._input_notes = InputNotes(self._logger)
@@ -102,14 +110,23 @@ class MapperNodeBase(Node):
         self._node_parameters.drop_unknown_parameters(unknown)
         self._mapper = Mapper(scene)
         reliability = cast(InputReliability, values["input_reliability"])
-        handlers = InputHandlers(self, self._mapper, self._input_notes)
+        self._frames = SensorFrames(self, scene, self._input_notes.log_once)
+        self._frames.set_timeout(float(values["transform_timeout"]))
+        self._entities += self._frames.subscribe(self._inputs_group)
+        handlers = InputHandlers(self, self._mapper, self._input_notes, self._frames)
         topics = [topic for name in scene.object_names for topic in self._subscribe(handlers, name, reliability)]
         topics += self._subscribe_detections(handlers, reliability)
         diagnostics_pub = self._map_publisher(DiagnosticArray, DIAGNOSTICS_TOPIC, DIAGNOSTICS_QOS)
         diagnostics = NodeDiagnostics(
             self, self._mapper, self._node_parameters, diagnostics_pub, best_effort=reliability == "best_effort"
         )
-        self._outputs = map_publishers(self._map_publisher, scene.object_names, diagnostics)
+        self._outputs = map_publishers(
+            self._map_publisher,
+            scene.object_names,
+            diagnostics,
+            node_name=self.get_name(),
+            hardware_id=self.get_fully_qualified_name(),
+        )
         self._logger.info(
             f"scene {scene_path}: objects {', '.join(scene.object_names)} in frame {scene.frame_id!r}; "
             f"listening on {', '.join(topics)} ({reliability})"
@@ -123,6 +140,13 @@ class MapperNodeBase(Node):
         return self._mapper
 
     @property
+    def frames(self) -> SensorFrames:
+        """The sensor frames of the configured node."""
+        if self._frames is None:
+            raise RuntimeError("the node is not configured")
+        return self._frames
+
+    @property
     def outputs(self) -> MapPublishers:
         """The output publishers of the configured node."""
         if self._outputs is None:
@@ -132,8 +156,10 @@ class MapperNodeBase(Node):
     def start_ticking(self) -> None:
         """Start the tick timer (``rate_hz``) and the diagnostics timer (``diagnostics_period``)."""
         values = self._node_parameters.parameter_values()
-        # Latched: RViz shows the fixed bodies before the first map (each map repeats them).
+        # Latched: RViz shows the fixed bodies before the first map (each map repeats them), a consumer
+        # the object names and that there is no map yet.
         self.outputs.markers.publish(static_markers_msg(self.mapper.scene, stamp_ns=self._now_ns()))
+        self.outputs.publish_status(None, self.mapper.scene, self._now_ns())
         diagnostics = self.outputs.diagnostics
         # The watch runs by wall clock: with use_sim_time the other timers wait for /clock, and a missing one
         # must be reported.
@@ -159,6 +185,7 @@ class MapperNodeBase(Node):
                 self._destroy_publisher(entity)
         self._entities = []
         self._outputs = None
+        self._frames = None
         if self._mapper is not None:
             self._mapper.close()
             self._mapper = None
@@ -175,11 +202,15 @@ class MapperNodeBase(Node):
     # --- parameters -----------------------------------------------------------------------------
 
     def _on_set_parameters(self, parameters: list[Parameter]) -> SetParametersResult:
-        """Refuse a change that leaves the combination of values invalid; accepted ones apply at the next tick.
+        """Refuse a change that leaves the combination of values invalid, and any change of a read-only
+        parameter; accepted ones apply at the next tick.
 
-        While the node is still declaring its parameters (:meth:`configure`) there is no combination
-        to judge yet.
+        Before the node is configured there is no combination to judge yet: a value set then is
+        judged when :meth:`configure` declares the parameters.
         """
+        read_only = self._node_parameters.read_only_problem(parameters)
+        if read_only is not None:
+            return SetParametersResult(successful=False, reason=read_only)
         if self._mapper is None:
             return SetParametersResult(successful=True)
         problem = self._node_parameters.change_problem(parameters)
@@ -263,12 +294,20 @@ class MapperNodeBase(Node):
 
     def _tick(self) -> None:
         start = time.monotonic()
-        settings = self._node_parameters.settings()
+        values = self._node_parameters.parameter_values()
+        settings = parameter_settings(values)
+        now = self._now_ns() / NANOSECONDS_PER_SECOND
+        self.frames.set_timeout(float(values["transform_timeout"]))
+        self.frames.flush(now)  # inputs whose wait for a transform is over are refused before the snapshot
         with self._stop.interruptible():  # a signal stops a search at once
-            report = self.mapper.tick(self._now_ns() / NANOSECONDS_PER_SECOND, settings)
+            report = self.mapper.tick(now, settings)
+        for status in report.snapshot.objects:  # what only a tick finds: dropped poses, uniform weights
+            for note in status.notes:
+                self._input_notes.log_once(status.name, note)
         diagnostics = self.outputs.diagnostics
         diagnostics.record(report)
-        self.outputs.publish_map(report, self.mapper.scene)
+        tf = TfOutput(bool(values["publish_tf"]), str(values["tf_prefix"]), values["tf_pose"] == "settled")
+        self.outputs.publish_map(report, self.mapper.scene, tf)
         tick_time = time.monotonic() - start
         diagnostics.ticks.record(
             start=start,

@@ -24,7 +24,13 @@ SECOND = 1_000_000_000
 QUARTER_TURN_Z = quaternion_about_axis((0.0, 0.0, 1.0), math.pi / 2)
 
 
-def transform(parent: str, child: str, stamp_s: float, xyz: tuple[float, float, float], q=(0.0, 0.0, 0.0, 1.0)):
+def transform(
+    parent: str,
+    child: str,
+    stamp_s: float,
+    xyz: tuple[float, float, float],
+    q: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 1.0),
+) -> StampedTransform:
     return StampedTransform(parent, child, round(stamp_s * SECOND), xyz, q)
 
 
@@ -137,9 +143,10 @@ def test_inputs_wait_for_late_transforms_up_to_the_timeout() -> None:
     assert wait.ready(buffer, now=100.1, timeout=0.5) == []
     buffer.add(transform("world", "camera", 5.0, (0.0, 0.0, 1.0)), static=False)
     (late,) = wait.ready(buffer, now=100.2, timeout=0.5)
-    assert late.item == "late" and late.refusal is None
+    assert late.item == "late" and late.unresolved == {}
     np.testing.assert_allclose(late.transforms["camera"].translation, [0.0, 0.0, 1.0])
     (never,) = wait.ready(buffer, now=100.5, timeout=0.5)
     assert never.item == "never" and never.transforms == {}
-    assert never.refusal == "no transform from 'nowhere' to 'world': frame 'nowhere' is unknown (waited 0.5 s)"
+    why = "no transform from 'nowhere' to 'world': frame 'nowhere' is unknown (waited 0.5 s)"
+    assert never.unresolved == {"nowhere": why}
     assert len(wait) == 0
