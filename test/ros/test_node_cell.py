@@ -11,6 +11,7 @@ import math
 import subprocess
 from collections.abc import Iterator, Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -109,10 +110,15 @@ def mapped_position(client: RosClient, stamp_ns: int) -> tuple[float, float, flo
     return (pose.position.x, pose.position.y, pose.position.z)
 
 
-def publish_until_mapped(client: RosClient, publish: Sequence[tuple[object, object]], stamp_ns: int) -> None:
+def publish_until_mapped(client: RosClient, publish: Sequence[tuple[Any, Any]], stamp_ns: int) -> None:
     """Publish each (publisher, message) until a map of ``stamp_ns`` comes out."""
+
+    def publish_all() -> None:
+        for publisher, message in publish:
+            publisher.publish(message)
+
     client.keep_publishing(
-        lambda: [publisher.publish(message) for publisher, message in publish],  # type: ignore[attr-defined]
+        publish_all,
         lambda: any(stamp_ns_of(c) == stamp_ns for c in client.configurations),
         f"a map stamped {stamp_ns}",
     )
@@ -161,7 +167,7 @@ def test_an_eye_in_hand_camera_moves_on_tf_and_stamps_between_samples_are_interp
 
 @pytest.mark.parametrize("cell", [{"transform_timeout": 0.3}], indirect=True)
 def test_a_detection_without_a_transform_is_refused_and_logged(cell: tuple[NodeProcess, RosClient]) -> None:
-    _node, client = cell
+    node, client = cell
     found = client.node.create_publisher(Detection3DArray, "detections", 10)
     client.wait_for(lambda: found.get_subscription_count() > 0, what="the node's detections subscription")
     message = detections("uncalibrated_camera", 3 * SECOND, (0.0, 0.0, 0.95))
@@ -242,7 +248,7 @@ def test_scene_file_is_refused_before_configure_and_configure_loads_the_given_on
         client.wait_for(lambda: change.wait_for_service(timeout_sec=0.1), what="the lifecycle service")
         future = change.call_async(ChangeState.Request(transition=Transition(id=Transition.TRANSITION_CONFIGURE)))
         client.wait_for(future.done, what="configure")
-        assert future.result().success  # type: ignore[union-attr]
+        assert future.result().success  # type: ignore[no-untyped-call]
         assert client.get_parameters("scene_file", "deadline") == [str(tmp_path / "cell.yaml"), 0.1]
         assert client.set_parameter("input_reliability", "reliable")[0] is False
     finally:
@@ -265,7 +271,7 @@ def test_a_renamed_node_runs_with_the_shipped_parameters_file(tmp_path: Path) ->
         names = ["deadline", "rate_hz", "fallback", "penetration_threshold", "scene_file"]
         future = parameters.get_parameters(names)
         client.wait_for(future.done, what="its parameters")
-        got = [parameter_value_to_python(v) for v in future.result().values]  # type: ignore[union-attr]
+        got = [parameter_value_to_python(v) for v in future.result().values]  # type: ignore[no-untyped-call]
     finally:
         client.close()
         process.send_signal(2)
