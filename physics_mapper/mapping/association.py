@@ -32,8 +32,10 @@ saw, and keeps no order across frames. The rules that give each detection of a *
   outside every gate and not used (``count: {max: K}`` stops at K).
 - **Misses and ends.** An instance no detection matched keeps its own state and hypotheses; it
   never takes another's. A tentative track (matched fewer than ``confirm_hits`` times) ends at
-  its first miss; a confirmed one ends when unmatched for more than ``max_age`` seconds. An
-  ended track frees its instance, and the instance's hypotheses are forgotten.
+  its first miss, and when the map leaves its instance out (:meth:`InstanceTracks.reject`: a
+  detection physics finds no place for is never confirmed by repeating itself); a confirmed one
+  ends when unmatched for more than ``max_age`` seconds. An ended track frees its instance, and
+  the instance's hypotheses are forgotten.
 - **Existence.** An instance that may not be there, a tentative track or an instance of a
   ``count: {max: K}`` entry, has a weight for *absent*:
   w_absent = prod_k (1 - c_k) over its track's (newest 20) matched detections, c_k the detection's best
@@ -142,10 +144,22 @@ class FrameAssociation:
     outside: dict[str, int] = field(default_factory=dict)  # class id -> detections matched to nothing
 
 
+@dataclass(frozen=True)
+class Tracking:
+    """What the association did over a while (a tick): instances whose tracks began (``births``) and
+    ended (``ends``); each tracked class's instances with a track; detections matched to no instance
+    since the start (``outside``)."""
+
+    births: tuple[str, ...] = ()
+    ends: tuple[str, ...] = ()
+    instances: tuple[tuple[str, int], ...] = ()
+    outside: int = 0
+
+
 def default_gate(shape: ObjectShape) -> float:
     """Half the smallest extent (m) of ``shape``'s axis-aligned box, unrotated."""
     low, high = body_box(shape, ORIGIN)
-    return 0.5 * min(h - lo for lo, h in zip(low, high, strict=True))
+    return 0.5 * float(np.min(high - low))
 
 
 class InstanceTracks:
@@ -198,6 +212,15 @@ class InstanceTracks:
             self._end(name, now)
         return ended
 
+    def reject(self, names: Sequence[str], now: float) -> tuple[str, ...]:
+        """End the tentative tracks of ``names``, instances the map left out at ``now``: physics found no
+        place for them, so they are not confirmed by being detected again there (a persistent false
+        positive stays tentative, with its *absent*). Returns the names whose tracks ended."""
+        ended = tuple(name for name in names if self.tentative(name))
+        for name in ended:
+            self._end(name, now)
+        return ended
+
     def _end(self, name: str, now: float) -> None:
         self._last_position[name] = self.tracks[name].position
         del self.tracks[name]
@@ -221,14 +244,14 @@ class InstanceTracks:
                 assigned[observation.index] = name
                 matched.add(name)
             for observation in (o for o in of_class if o.index not in assigned):
-                name = self._free(names, observation, self.gate(class_id))
-                if name is None:
+                free = self._free(names, observation, self.gate(class_id))
+                if free is None:
                     outside[class_id] = outside.get(class_id, 0) + 1
                     continue
-                self._birth(name, observation, now)
-                assigned[observation.index] = name
-                matched.add(name)
-                born.append(name)
+                self._birth(free, observation, now)
+                assigned[observation.index] = free
+                matched.add(free)
+                born.append(free)
         for name in [n for n in self.tracks if n not in matched and self.tentative(n)]:
             self._end(name, now)  # a tentative track ends at its first miss
             ended.append(name)

@@ -214,14 +214,14 @@ def detection_inputs(
         observations = [o for o in (_observation(d, notes, refusals.get(d.index)) for d in tracked) if o is not None]
         association = tracks.associate(observations, received)
         by_index = {d.index: d for d in tracked}
-        for index, name in association.assigned.items():
-            collected[name] = [by_index[index]]
+        for index, instance in association.assigned.items():
+            collected[instance] = [by_index[index]]
         notes += [
             f"{count} detection(s) of class {c!r} outside every gate, with no free instance"
             for c, count in sorted(association.outside.items())
         ]
-    for untracked in (d for d in detections if not scene.is_tracked(d.class_id)):
-        collected.setdefault(scene.objects_of_class(untracked.class_id)[0], []).append(untracked)
+    for single in (d for d in detections if not scene.is_tracked(d.class_id)):
+        collected.setdefault(scene.objects_of_class(single.class_id)[0], []).append(single)
     objects: dict[str, ReceivedPoses] = {}
     for name in scene.object_names:
         found = collected.get(name)

@@ -219,6 +219,11 @@ class InputSnapshot:
     objects: tuple[ObjectStatus, ...]
 
     @property
+    def names(self) -> tuple[str, ...]:
+        """Every object's name, in scene object order."""
+        return tuple(o.name for o in self.objects)
+
+    @property
     def missing(self) -> tuple[str, ...]:
         """Objects without usable hypotheses; the search waits for them."""
         return tuple(o.name for o in self.objects if o.hypotheses is None)

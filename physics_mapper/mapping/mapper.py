@@ -1,15 +1,23 @@
 """One map-building tick, ROS-free: snapshot the inputs, resume or restart the search, time it.
 
 The node (``physics_mapper.ros.node``) owns a :class:`Mapper`, feeds its :attr:`Mapper.inputs`
-from subscriptions and calls :meth:`Mapper.tick` from its timer; everything it publishes
-comes from the returned :class:`TickReport`.
+from subscriptions (detections through :meth:`Mapper.add_detections`, which associates them to
+instances, :mod:`~physics_mapper.mapping.association`) and calls :meth:`Mapper.tick` from its
+timer; everything it publishes comes from the returned :class:`TickReport`. Which objects the
+search may leave out, and how likely, is :mod:`~physics_mapper.mapping.existence`: an object
+that is silent or was never seen never stops the map of the others.
 """
 
 from __future__ import annotations
 
+import threading
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
+from typing import Any
 
+from physics_mapper.mapping.association import AssociationSettings, InstanceTracks, Tracking
+from physics_mapper.mapping.detections import DetectionInputs, detection_inputs
+from physics_mapper.mapping.existence import MapMemory, absent_objects, searched_hypotheses
 from physics_mapper.mapping.inputs import InputSettings, InputSnapshot, InputTracker
 from physics_mapper.model.hypotheses import RankedHypotheses
 from physics_mapper.model.scene import Scene, SearchParams, search_params_problem
@@ -36,11 +44,13 @@ class MapperSettings:
     """Everything a tick depends on; the node builds it from its parameters at each tick.
 
     rate_hz: ticks per second; ``search.deadline`` (seconds) must be shorter than 1 / rate_hz.
+    association: how detections are matched to instances (its ``max_age`` is ``inputs.max_age``).
     """
 
     search: SearchParams
     inputs: InputSettings
     rate_hz: float = DEFAULT_RATE_HZ
+    association: AssociationSettings = field(default_factory=AssociationSettings)
 
 
 def mapper_settings_problem(settings: MapperSettings) -> str | None:
@@ -64,7 +74,10 @@ def mapper_settings_problem(settings: MapperSettings) -> str | None:
 class TickReport:
     """What one tick saw and found.
 
-    ``result`` is None while some object has no usable hypotheses. ``search_time`` is the
+    ``result`` is None while no object has ever had usable hypotheses. ``hypotheses`` are those
+    searched, in object order (with *absent* where an object may be left out); ``absent`` names the
+    objects the map leaves out (every object without a result). ``tracking`` says what the
+    association of instances did since the previous tick. ``search_time`` is the
     wall-clock seconds this tick spent in the search (at most ``deadline`` plus a small slack).
     ``resumed`` says the tick continued the previous search (same inputs and settings); with the
     grouped strategy, ``result.groups`` say which groups were kept when some were restarted.
@@ -82,6 +95,14 @@ class TickReport:
     settling_in_progress: Code | None = None
     engine_fault: str | None = None
     settling_group: int | None = None
+    hypotheses: tuple[RankedHypotheses, ...] = ()
+    absent: tuple[str, ...] = ()
+    tracking: Tracking = field(default_factory=Tracking)
+
+    @property
+    def present(self) -> tuple[int, ...]:
+        """Scene indices of the objects the map holds, in scene order."""
+        return tuple(i for i, name in enumerate(self.snapshot.names) if name not in self.absent)
 
 
 class Mapper:
@@ -94,8 +115,31 @@ class Mapper:
     def __init__(self, scene: Scene) -> None:
         self.scene = scene
         self.inputs = InputTracker(scene.object_names)
+        #: The instances' tracks (:mod:`~physics_mapper.mapping.association`), fed by :meth:`add_detections`.
+        self.tracks = InstanceTracks(scene)
+        self.memory = MapMemory()
+        self._tracks_lock = threading.Lock()  # subscriptions associate while a tick expires tracks
+        self._births: list[str] = []
+        self._ends: list[str] = []
         self._checker: PhysicsChecker | None = PhysicsChecker(scene)
         self._search: BranchAndBound | GroupedSearch | None = None
+
+    def add_detections(self, message: Any, received: float) -> DetectionInputs:
+        """A ``Detection3DArray`` received at ``received`` (node clock, s): its detections associated to
+        instances and given to :attr:`inputs`; instances whose tracks ended forget their inputs."""
+        with self._tracks_lock:
+            detected = detection_inputs(message, self.scene, received=received, tracks=self.tracks)
+            for name, poses in detected.objects.items():
+                self.inputs.add_poses(name, poses)
+            if detected.association is not None:
+                self._births += detected.association.born
+                self._ended(detected.association.ended)
+        return detected
+
+    def _ended(self, names: tuple[str, ...]) -> None:
+        for name in names:
+            self.inputs.forget(name)
+        self._ends += names
 
     @property
     def checker(self) -> PhysicsChecker:
@@ -115,16 +159,33 @@ class Mapper:
 
     def tick(self, now: float, settings: MapperSettings) -> TickReport:
         """Snapshot the inputs at ``now`` (seconds) and search until ``settings.search.deadline``."""
-        snapshot = self.inputs.snapshot(now, settings.inputs)
-        hypotheses = snapshot.hypotheses
-        if hypotheses is None:
-            return TickReport(snapshot, None, 0.0, False, settings)
+        with self._tracks_lock:
+            self.tracks.settings = replace(settings.association, max_age=settings.inputs.max_age)
+            self._ended(self.tracks.expire(now))
+            births, ends = tuple(self._births), tuple(self._ends)
+            self._births, self._ends = [], []
+            instances = tuple(self.tracks.instances_per_class().items())
+            tracking = Tracking(births, ends, instances, self.tracks.outside)
+            snapshot = self.inputs.snapshot(now, settings.inputs)
+            hypotheses = searched_hypotheses(
+                snapshot, self.memory, self.tracks.absent_weight, now, settings.inputs.max_age
+            )
+        names = self.scene.object_names
+        waiting = len(snapshot.missing) == len(names) and not self.memory.poses
+        if waiting:
+            return TickReport(snapshot, None, 0.0, False, settings, absent=names, tracking=tracking)
         try:
-            return self._search_tick(snapshot, hypotheses, settings)
+            report = self._search_tick(snapshot, hypotheses, settings)
         except PhysicsEngineError as error:
             self._discard_world()
             fault = f"physics engine failed: {error}; the world is rebuilt and the search starts again at the next tick"
-            return TickReport(snapshot, None, 0.0, False, settings, engine_fault=fault)
+            report = TickReport(snapshot, None, 0.0, False, settings, engine_fault=fault)
+        absent = absent_objects(names, hypotheses, report.result)
+        if report.result is not None and report.result.code is not None:
+            self.memory.remember(names, hypotheses, report.result)
+            with self._tracks_lock:
+                self._ended(self.tracks.reject(absent, now))
+        return replace(report, hypotheses=hypotheses, absent=absent, tracking=tracking)
 
     def _search_tick(
         self, snapshot: InputSnapshot, hypotheses: tuple[RankedHypotheses, ...], settings: MapperSettings

@@ -55,6 +55,8 @@ MAP_STATUS_TOPIC = "~/map_status"
 #: tf2's topics: transforms over time, and transforms that hold at every time (latched).
 TF_TOPIC = "/tf"
 TF_STATIC_TOPIC = "/tf_static"
+#: The map as ``vision_msgs/Detection3DArray``: one Detection3D per object present, its id the object's name.
+OBJECTS_TOPIC = "~/objects"
 DIAGNOSTICS_TOPIC = "/diagnostics"
 #: True poses of every object, in scene object order (written by ``generate``, read by ``replay``).
 GROUND_TRUTH_TOPIC = "/ground_truth"

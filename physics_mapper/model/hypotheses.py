@@ -1,4 +1,11 @@
-"""Weighted pose hypotheses of one object, ranked as the search needs them."""
+"""Weighted pose hypotheses of one object, ranked as the search needs them.
+
+An object that may not be there (an instance not yet confirmed, a silent object) has one more
+hypothesis, *absent* (:func:`absent_hypothesis`): a rank like any other, whose pose is the object's
+parking spot, far above the scene and far from every other spot, where the physics holds it
+massless (:mod:`~physics_mapper.physics.world`): it collides with nothing, never moves, and is
+never published.
+"""
 
 from __future__ import annotations
 
@@ -8,15 +15,30 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from physics_mapper.model.geometry import Pose
+from physics_mapper.model.geometry import IDENTITY, Pose
+
+#: Metres between the parking spots, far above any scene, where objects not in the world wait.
+PARKING_SPACING = 1000.0
 
 
 @dataclass(frozen=True)
 class Hypothesis:
-    """One pose hypothesis and its (unnormalised or normalised) weight."""
+    """One pose hypothesis and its (unnormalised or normalised) weight; ``absent``: the object is not
+    in the world (its pose is then its parking spot, :func:`parking_pose`)."""
 
     pose: Pose
     weight: float
+    absent: bool = False
+
+
+def parking_pose(index: int) -> Pose:
+    """Where object ``index`` (scene order) waits out of the world: (S (index + 1), S, S), S the spacing."""
+    return Pose((PARKING_SPACING * (index + 1), PARKING_SPACING, PARKING_SPACING), IDENTITY)
+
+
+def absent_hypothesis(index: int, weight: float) -> Hypothesis:
+    """Object ``index`` (scene order) is not there, with ``weight``."""
+    return Hypothesis(parking_pose(index), weight, absent=True)
 
 
 def weights_problem(weights: Sequence[float] | NDArray[np.float64], expected_count: int) -> str | None:
@@ -64,7 +86,7 @@ class RankedHypotheses:
             raise ValueError(problem)
         ranked = sorted(hypotheses, key=lambda h: -h.weight)[:keep_at_most]
         total = sum(h.weight for h in ranked)
-        return cls(tuple(Hypothesis(h.pose, h.weight / total) for h in ranked))
+        return cls(tuple(Hypothesis(h.pose, h.weight / total, h.absent) for h in ranked))
 
     def __len__(self) -> int:
         return len(self.hypotheses)
@@ -78,6 +100,14 @@ class RankedHypotheses:
     def weight(self, rank: int) -> float:
         """Normalised weight of the hypothesis of 1-based ``rank``."""
         return self.hypotheses[rank - 1].weight
+
+    def absent_weight(self) -> float:
+        """The normalised weight of the object being absent (0 without an absent hypothesis)."""
+        return sum(h.weight for h in self.hypotheses if h.absent)
+
+    def is_absent(self, rank: int) -> bool:
+        """Whether the hypothesis of 1-based ``rank`` is *absent*."""
+        return self.hypotheses[rank - 1].absent
 
     def pose(self, rank: int) -> Pose:
         """Pose of the hypothesis of 1-based ``rank``."""

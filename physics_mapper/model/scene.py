@@ -316,11 +316,17 @@ class Scene:
 
     def objects_of_class(self, class_id: str) -> tuple[str, ...]:
         """The objects a detection of ``class_id`` may be (its instances, in order); () for an unknown class."""
+        return self._classes.get(class_id, ())
+
+    @cached_property
+    def _classes(self) -> dict[str, tuple[str, ...]]:
+        """Every class id -> its objects: ``class_map``'s, and each unmapped object's own name."""
         classes = dict(self.class_map)
-        if class_id in classes:
-            return classes[class_id]
         mapped = {name for _, names in self.class_map for name in names}
-        return (class_id,) if class_id in self.object_names and class_id not in mapped else ()
+        for name in self.object_names:
+            if name not in mapped and name not in classes:
+                classes[name] = (name,)
+        return classes
 
     def is_tracked(self, class_id: str) -> bool:
         """Whether detections of ``class_id`` are associated to instances across frames

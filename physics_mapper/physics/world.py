@@ -9,6 +9,7 @@ only in long chaotic settlings (one pyramid configuration of 126, settled 5 s, e
 in a fresh world).
 
 Parking. The refinement and the interaction groups work on a subset of the objects: the others
+(and objects whose hypothesis is *absent*, :func:`~physics_mapper.model.hypotheses.absent_hypothesis`)
 wait at their parking spots, far above and far apart, where they touch nothing and are never
 reported, with their mass set to zero, which Bullet treats as fixed: they are never integrated
 and cost almost nothing per step. An object placed again gets its mass and inertia back before
@@ -30,7 +31,8 @@ from __future__ import annotations
 from collections.abc import Iterable, Sequence
 
 from physics_mapper.model.bullet import pybullet
-from physics_mapper.model.geometry import IDENTITY, ORIGIN, Pose, Vector3, compose_poses, inverse_pose
+from physics_mapper.model.geometry import ORIGIN, Pose, Vector3, compose_poses, inverse_pose
+from physics_mapper.model.hypotheses import parking_pose
 from physics_mapper.model.scene import Box, Cylinder, Mesh, Plane, Scene, Shape, Sphere
 
 #: What pybullet raises when a world fails, e.g. once its physics server is disconnected: the
@@ -42,8 +44,6 @@ TIME_STEP = 1.0 / 240.0
 GRAVITY = -9.81  # m/s^2 along z
 #: Iterations of Bullet's constraint solver per step: pybullet's default, which Rule 2 uses.
 SOLVER_ITERATIONS = 50
-#: Metres between the spots, far above any scene, where objects wait between configurations.
-PARKING_SPACING = 1000.0
 
 
 def inertial_frame(shape: Shape) -> Pose | None:
@@ -219,14 +219,15 @@ class PhysicsWorld:
         self, poses: Sequence[Pose], objects: Sequence[int] | None = None, fixed: Sequence[tuple[int, Pose]] = ()
     ) -> None:
         """Put ``objects`` (None: all) at ``poses``, from rest, and the ``fixed`` ones (scene index, pose)
-        massless where given; every other object stays parked, massless."""
+        massless where given; every other object stays parked, massless. An object posed at its
+        parking spot (an *absent* hypothesis) stays there massless: it is not in the world."""
         indices = tuple(self.indices(objects))
         if len(poses) != len(indices):
             raise ValueError(f"{len(poses)} poses for {len(indices)} objects")
         self.save_kept()
         pybullet.restoreState(self._initial_state, physicsClientId=self.client)
         self.empty_contact_caches()
-        self.simulate_only(indices)
+        self.simulate_only(tuple(i for i, pose in zip(indices, poses, strict=True) if pose != parking_pose(i)))
         for index, pose in (*zip(indices, poses, strict=True), *fixed):
             self.set_pose(index, pose)
         self.placed = (*indices, *(index for index, _ in fixed))
@@ -277,9 +278,11 @@ class PhysicsWorld:
         objects are away from their parking spots (default: any may be).
         """
         for index in self.all_objects if placed is None else placed:
-            parking = (PARKING_SPACING * (index + 1), PARKING_SPACING, PARKING_SPACING)
+            parking = parking_pose(index)
             uid = self.object_uids[index]
-            pybullet.resetBasePositionAndOrientation(uid, parking, IDENTITY, physicsClientId=self.client)
+            pybullet.resetBasePositionAndOrientation(
+                uid, parking.position, parking.orientation, physicsClientId=self.client
+            )
         pybullet.performCollisionDetection(physicsClientId=self.client)
         self.placed = ()
 

@@ -14,7 +14,10 @@ default) when p(C) / p(V) < T, V the first valid node found (no node is bounded 
 V is the most probable configuration that resolves every known conflict, once found: every more
 probable one was rejected (:mod:`physics_mapper.search.conflicts`), so invalid first hypotheses do not
 push the valid configuration below T, however many objects have one. Rule 1 is tested first, and
-only collision-free nodes are simulated. Among valid nodes the least total jitter J wins.
+only collision-free nodes are simulated. Among valid nodes the least total jitter J wins; where
+objects may be absent (an *absent* hypothesis, :mod:`physics_mapper.model.hypotheses`), first the
+most probable pattern of existence (:meth:`BranchAndBound.existence`), then the least J: an object
+is left out where no valid configuration holds it, or where being absent is the likelier.
 
 With ``fallback: refine``, once the root has failed a rule and while no node is valid, the
 search makes the refined map of the root (:mod:`physics_mapper.physics.refine`) before it visits
@@ -134,6 +137,7 @@ class BranchAndBound:
         #: p(C) of the first valid node found (the reference of ``bound: resolving``).
         self.first_valid_probability: float | None = None
         self._configurations = math.prod(len(h) for h in self.hypotheses)
+        self._absent_weights = tuple(ranked.absent_weight() for ranked in self.hypotheses)
         self.push(self._root, None)
 
     def probability(self, code: Code) -> float:
@@ -391,12 +395,27 @@ class BranchAndBound:
         else:
             if self.first_valid_probability is None:
                 self.first_valid_probability = candidate.probability
-            if self._best is None or settling.total_jitter < self._best.settling.total_jitter:
+            if self._best is None or self.preference(candidate) < self.preference(self._best):
                 self._best = candidate
             entry = TraceEntry(candidate.code, candidate.probability, "valid", bounded, jitter=settling.total_jitter)
         if settling.stopped is None:
             return entry
         return replace(entry, settle_stop=settling.stopped, settled_time=settling.steps * TIME_STEP)
+
+    def existence(self, code: Code) -> float:
+        """The probability of the configuration's pattern of existence: the product, over objects with an
+        *absent* hypothesis, of w(absent) where ``code`` leaves the object out and 1 - w(absent) where it
+        keeps it (1 when no object may be absent)."""
+        return math.prod(
+            weight if ranked.is_absent(rank) else 1.0 - weight
+            for ranked, weight, rank in zip(self.hypotheses, self._absent_weights, code, strict=True)
+            if weight > 0.0
+        )
+
+    def preference(self, candidate: Candidate) -> tuple[float, float]:
+        """The order of valid candidates, least first: the most probable pattern of existence
+        (:meth:`existence`), then the least jitter (the paper's rule, unchanged where nothing may be absent)."""
+        return (-self.existence(candidate.code), candidate.settling.total_jitter)
 
     def record(self, entry: TraceEntry) -> None:
         """Keep a visited node's trace entry (up to ``trace_limit``) and :meth:`count` it (extension point)."""

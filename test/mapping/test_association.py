@@ -1,6 +1,6 @@
 """Detections of identical instances, associated across frames: the rules of ``mapping.association``.
 
-Arrays are built as rosbags decodes them (the node reads rclpy's by the same attributes).
+Arrays are built as rosbags decodes them (``detection_builders``, a helper module of test/).
 """
 
 from __future__ import annotations
@@ -9,14 +9,13 @@ from typing import Any
 
 import numpy as np
 import pytest
+from detection_builders import array, detection, result
 
-from physics_mapper.bags.storage import TYPESTORE
 from physics_mapper.mapping.association import AssociationSettings, InstanceTracks
-from physics_mapper.mapping.detections import DETECTION_ARRAY, detection_inputs
+from physics_mapper.mapping.detections import detection_inputs
 from physics_mapper.model.scene import Scene
 from physics_mapper.model.scene_files import scene_from_dict
 
-TYPES = TYPESTORE.types
 #: Six 10 cm cubes: four on the floor 1 cm apart, two on top.
 BIN = [(0.0, 0.0, 0.05), (0.11, 0.0, 0.05), (0.0, 0.11, 0.05), (0.11, 0.11, 0.05), (0.0, 0.0, 0.15), (0.11, 0.11, 0.15)]
 
@@ -24,32 +23,6 @@ BIN = [(0.0, 0.0, 0.05), (0.11, 0.0, 0.05), (0.0, 0.11, 0.05), (0.11, 0.11, 0.05
 def bin_scene(count: Any = 6) -> Scene:
     box = {"name": "box", "shape": "box", "size": [0.1, 0.1, 0.1], "mass": 0.2, "count": count}
     return scene_from_dict({"objects": [box], "static": [{"name": "floor", "shape": "plane"}]}, "bin")
-
-
-def result(position: tuple[float, float, float], score: float = 0.9, class_id: str = "box") -> Any:
-    pose = TYPES["geometry_msgs/msg/Pose"](
-        position=TYPES["geometry_msgs/msg/Point"](x=position[0], y=position[1], z=position[2]),
-        orientation=TYPES["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0, w=1.0),
-    )
-    return TYPES["vision_msgs/msg/ObjectHypothesisWithPose"](
-        hypothesis=TYPES["vision_msgs/msg/ObjectHypothesis"](class_id=class_id, score=score),
-        pose=TYPES["geometry_msgs/msg/PoseWithCovariance"](pose=pose, covariance=np.zeros(36)),
-    )
-
-
-def detection(*results: Any, key: str = "") -> Any:
-    header = TYPES["std_msgs/msg/Header"](stamp=TYPES["builtin_interfaces/msg/Time"](sec=1, nanosec=0), frame_id="")
-    box = TYPES["vision_msgs/msg/BoundingBox3D"](
-        center=results[0].pose.pose, size=TYPES["geometry_msgs/msg/Vector3"](x=0.0, y=0.0, z=0.0)
-    )
-    return TYPES["vision_msgs/msg/Detection3D"](header=header, results=list(results), bbox=box, id=key)
-
-
-def array(detections: list[Any], sec: int = 1) -> Any:
-    header = TYPES["std_msgs/msg/Header"](
-        stamp=TYPES["builtin_interfaces/msg/Time"](sec=sec, nanosec=0), frame_id="world"
-    )
-    return TYPES[DETECTION_ARRAY](header=header, detections=detections)
 
 
 def positions_of(inputs: Any) -> dict[str, tuple[float, ...]]:
@@ -70,7 +43,7 @@ def frames(count: int, seed: int = 0, missing: int | None = None, missed_frame: 
             wrong = tuple(np.asarray(true) + np.array([0.03, -0.02, 0.01]))
             first, second = (wrong, true) if rng.random() < 0.3 else (true, wrong)
             detections.append(detection(result(first, 0.6), result(second, 0.3), result(true, 0.1)))
-        rng.shuffle(detections)  # type: ignore[arg-type]
+        rng.shuffle(detections)
         made.append(detections)
     return made
 

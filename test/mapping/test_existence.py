@@ -1,0 +1,158 @@
+"""Existence decided by physics: absent hypotheses for instances that may not be there and for silent
+objects, through the node's ROS-free tick (:class:`Mapper`), with real pybullet."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+from detection_builders import array, detection, result
+
+from physics_mapper.mapping.inputs import InputSettings, check_poses, check_weights
+from physics_mapper.mapping.mapper import Mapper, MapperSettings, TickReport
+from physics_mapper.model.scene import Scene, SearchParams
+from physics_mapper.model.scene_files import scene_from_dict
+
+BOX = {"shape": "box", "size": [0.1, 0.1, 0.1], "mass": 0.2}
+FLOOR = {"name": "floor", "shape": "plane"}
+#: A generous deadline: these tests check what the search decides, not how fast.
+SETTINGS = MapperSettings(SearchParams(deadline=5.0), InputSettings(max_age=1.0), rate_hz=0.1)
+
+
+def make_scene(*objects: dict[str, Any], static: Sequence[dict[str, Any]] = ()) -> Scene:
+    return scene_from_dict({"objects": list(objects), "static": [FLOOR, *static]}, "test")
+
+
+def feed(mapper: Mapper, positions: Sequence[Sequence[float]], time: float) -> None:
+    """One array: a detection per position (two results each: the true pose best, one 5 cm up), in this order."""
+    detections = [detection(result(p, 0.9), result((p[0], p[1], p[2] + 0.05), 0.1)) for p in positions]
+    mapper.add_detections(array(detections), received=time)
+
+
+def present(report: TickReport) -> dict[str, tuple[float, ...]]:
+    """The objects the map holds -> their chosen positions, rounded to the millimetre."""
+    assert report.result is not None and report.result.poses is not None
+    chosen = zip(report.snapshot.objects, report.result.poses, strict=True)
+    return {s.name: tuple(np.round(p.position, 3).tolist()) for s, p in chosen if s.name not in report.absent}
+
+
+FLOOR_BOXES = [(0.0, 0.0, 0.05), (0.3, 0.0, 0.05), (0.6, 0.0, 0.05)]
+
+
+def test_a_floating_false_positive_is_absent_and_the_rest_valid() -> None:
+    mapper = Mapper(make_scene({"name": "box", "count": {"max": 4}, **BOX}))
+    floating = (0.3, 0.3, 0.4)
+    feed(mapper, [floating, *FLOOR_BOXES], 0.0)  # the false positive listed first
+    report = mapper.tick(0.1, SETTINGS)
+    assert report.result is not None and report.result.valid
+    assert report.absent == ("box_1",)  # the first detection's instance: left out, not invalidating the map
+    assert sorted(present(report).values()) == sorted(FLOOR_BOXES)
+    assert report.tracking.births == ("box_1", "box_2", "box_3", "box_4")
+    absent_rank = report.result.code[0] if report.result.code is not None else None
+    assert absent_rank is not None and report.hypotheses[0].is_absent(absent_rank)
+
+
+def test_a_false_positive_inside_a_static_body_is_absent() -> None:
+    wall = {"name": "wall", "shape": "box", "size": [0.1, 0.4, 0.3], "pose": {"position": [0.3, 0.4, 0.15]}}
+    mapper = Mapper(make_scene({"name": "box", "count": {"max": 4}, **BOX}, static=[wall]))
+    feed(mapper, [*FLOOR_BOXES, (0.3, 0.4, 0.05)], 0.0)
+    report = mapper.tick(0.1, SETTINGS)
+    assert report.result is not None and report.result.valid and report.absent == ("box_4",)
+
+
+def test_a_double_detection_of_a_present_box_is_one_instance() -> None:
+    mapper = Mapper(make_scene({"name": "box", "count": {"max": 3}, **BOX}))
+    two = FLOOR_BOXES[:2]
+    for time in (0.0, 0.5):
+        feed(mapper, two, time)
+    mapper.tick(0.6, SETTINGS)
+    feed(mapper, [(0.006, 0.0, 0.05), *two], 1.0)  # box 1 detected twice, 6 mm apart, the copy first
+    report = mapper.tick(1.1, SETTINGS)
+    assert report.tracking.births == ("box_3",)  # the copy matched no instance (box 1's is nearer): a tentative one
+    assert report.result is not None and report.result.valid
+    assert report.absent == ("box_3",) and present(report) == {"box_1": two[0], "box_2": two[1]}
+
+
+def poses_input(positions: Sequence[Sequence[float]], time: float) -> Any:
+    received = check_poses(
+        [((*p,), (0.0, 0.0, 0.0, 1.0)) for p in positions],
+        frame_id="world",
+        expected_frame="world",
+        workspace=SCENE_OF_THREE.workspace,
+        stamp_ns=int(time * 1e9),
+        received=time,
+    )
+    return received.with_weights(check_weights([1.0] * len(positions), received=time))
+
+
+SCENE_OF_THREE = make_scene({"name": "a", **BOX}, {"name": "b", **BOX}, {"name": "c", **BOX})
+BOTTOM, TOP, ALONE = (0.0, 0.0, 0.05), (0.0, 0.0, 0.15), (0.4, 0.0, 0.05)
+
+
+def test_a_silent_named_object_never_stops_the_map_and_is_kept_where_another_rests_on_it() -> None:
+    mapper = Mapper(SCENE_OF_THREE)
+    for name, position in zip("abc", (BOTTOM, TOP, ALONE), strict=True):
+        mapper.inputs.add_poses(name, poses_input([position], 0.0))
+    first = mapper.tick(0.1, SETTINGS)
+    assert first.result is not None and first.result.valid and first.absent == ()
+    for time in (0.8, 1.6, 2.4):  # only b is seen from now on: a and c fall silent after max_age (1 s)
+        mapper.inputs.add_poses("b", poses_input([TOP], time))
+        report = mapper.tick(time + 0.1, SETTINGS)
+        assert report.result is not None and report.result.valid  # the map never stops
+    assert report.absent == ("c",)  # nothing needs c: it leaves the map
+    assert present(report) == {"a": BOTTOM, "b": TOP}  # b rests on a: a is kept where it was
+
+
+def test_a_named_object_never_seen_does_not_stop_the_map_of_the_others() -> None:
+    mapper = Mapper(SCENE_OF_THREE)
+    assert mapper.tick(0.0, SETTINGS).result is None  # nothing seen yet: waiting
+    mapper.inputs.add_poses("c", poses_input([ALONE], 0.1))
+    report = mapper.tick(0.2, SETTINGS)
+    assert report.result is not None and report.result.valid
+    assert report.absent == ("a", "b") and present(report) == {"c": ALONE}
+
+
+def test_an_instance_ends_after_max_age_and_leaves_the_map() -> None:
+    mapper = Mapper(make_scene({"name": "box", "count": 2, **BOX}))
+    for time in (0.0, 0.3, 0.6):
+        feed(mapper, FLOOR_BOXES[:2], time)
+    assert mapper.tick(0.7, SETTINGS).absent == ()
+    ends: list[str] = []
+    for time in (1.0, 1.5, 2.0):
+        feed(mapper, FLOOR_BOXES[:1], time)  # box 2 picked away
+        report = mapper.tick(time + 0.1, SETTINGS)
+        ends += report.tracking.ends
+    assert ends == ["box_2"] and report.absent == ("box_2",)
+    assert report.result is not None and report.result.valid and present(report) == {"box_1": FLOOR_BOXES[0]}
+
+
+def test_no_configuration_only_swaps_identical_instances() -> None:
+    """Each observation is fixed to one instance, so no two visited configurations are the same boxes
+    in the same places under other names (a joint exhaustive search, every configuration visited)."""
+    mapper = Mapper(make_scene({"name": "box", "count": 3, **BOX}))
+    near = [(0.0, 0.0, 0.05), (0.105, 0.0, 0.05), (0.21, 0.0, 0.05)]
+    for time, order in ((0.0, near), (0.2, near[::-1]), (0.4, near[1:] + near[:1])):  # confirmed: always there
+        feed(mapper, order, time)
+    exhaustive = SearchParams(deadline=5.0, strategy="joint", probability_threshold=0.0, bound="absolute")
+    report = mapper.tick(0.5, MapperSettings(exhaustive, InputSettings(max_age=1.0), rate_hz=0.1))
+    assert report.result is not None and report.result.stats.end == "exhausted"
+    trace = report.result.trace
+    assert len(trace) == 2**3  # three instances, two hypotheses each
+    placements = {
+        tuple(sorted(tuple(h.pose(rank).position) for h, rank in zip(report.hypotheses, entry.code, strict=True)))
+        for entry in trace
+    }
+    assert len(placements) == len(trace)  # no configuration is another's with instances swapped
+
+
+def test_a_persistent_impossible_detection_is_never_confirmed() -> None:
+    """A reflection detected in the air in every frame: physics leaves it out each time, so its track stays
+    tentative and a count: K scene keeps a valid map (a confirmed instance of count: K would have no absent)."""
+    mapper = Mapper(make_scene({"name": "box", "count": 4, **BOX}))
+    for step in range(5):
+        feed(mapper, [*FLOOR_BOXES, (0.3, 0.3, 0.4)], 0.5 * step)
+        report = mapper.tick(0.5 * step + 0.1, SETTINGS)
+        assert report.result is not None and report.result.valid
+        assert report.absent == ("box_4",)
+    assert mapper.tracks.tentative("box_4") is False and "box_4" not in mapper.tracks.tracks  # ended by the map
