@@ -141,6 +141,16 @@ def test_a_camera_frame_detection_is_moved_by_the_static_transform(cell: tuple[N
     (valid,) = next(s for s in status if s.header.stamp == stamp_from_nanoseconds(stamp)).status
     assert (valid.level, valid.message) == (DiagnosticStatus.OK, "valid")
     assert values(valid) == {"valid": "true", "fallback": "none", "code": "C1", "objects": "part"}
+    # A PoseArray in the camera frame takes the same way.
+    later = 6 * SECOND
+    header = Header(frame_id="camera_color_optical_frame", stamp=stamp_from_nanoseconds(later))
+    seen = PoseArray(header=header, poses=[Pose(position=Point(x=-0.1, y=0.0, z=0.95), orientation=Quaternion(w=1.0))])
+    client.keep_publishing(
+        lambda: client.publish("part", seen, Float64MultiArray(data=[1.0])),
+        lambda: any(stamp_ns_of(c) == later for c in client.configurations),
+        "a map from the PoseArray",
+    )
+    assert mapped_position(client, later) == pytest.approx((-0.1, 0.0, RESTING), abs=1e-9)
 
 
 @pytest.mark.parametrize("cell", [{}], indirect=True)
@@ -279,3 +289,26 @@ def test_a_renamed_node_runs_with_the_shipped_parameters_file(tmp_path: Path) ->
         log.close()
     assert got == [0.3, 2.0, "none", 0.005, "package://physics_mapper/config/scenes/pyramid.yaml"]
     assert code == 0
+
+
+@pytest.mark.parametrize("cell", [{}], indirect=True)
+def test_poses_dropped_at_a_tick_and_missing_weights_are_logged_once(cell: tuple[NodeProcess, RosClient]) -> None:
+    """Refusals only a tick finds (a pose's quaternion, a pose far outside the workspace, no weights)."""
+    node, client = cell
+    header = Header(frame_id="world", stamp=stamp_from_nanoseconds(2 * SECOND))
+    poses = [
+        Pose(position=Point(z=RESTING), orientation=Quaternion(w=1.0)),
+        Pose(position=Point(z=RESTING), orientation=Quaternion(w=1.7)),
+        Pose(position=Point(x=86.0, z=RESTING), orientation=Quaternion(w=1.0)),
+    ]
+    client.keep_publishing(
+        lambda: client.publish("part", PoseArray(header=header, poses=poses)),
+        lambda: any(stamp_ns_of(c) == 2 * SECOND for c in client.configurations),
+        "a map from the usable pose",
+    )
+    uniform = "part: no weights message: uniform weights, ranked in published order"
+    client.wait_for(lambda: uniform in node.output(), what="the uniform weights' log line")
+    (dropped,) = [line for line in node.output().splitlines() if "part: dropped 2 of 3 poses" in line]
+    assert "poses[1]: quaternion norm 1.7 is not 1" in dropped
+    assert "poses[2]: (86, 0, 0.05) m is outside the workspace" in dropped
+    assert node.output().count(uniform) == 1
