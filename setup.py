@@ -21,7 +21,7 @@ ADAPTERS = "msg_adapters"
 ADAPTER_PACKAGES = [f"{PACKAGE}.{name}" for name in find_packages(include=[ADAPTERS, f"{ADAPTERS}.*"])]
 #: Folders installed under share/physics_mapper/ with their relative paths kept, so that the commands find
 #: them the same way installed or in a checkout (physics_mapper/model/shipped.py).
-SHIPPED = ("config", "test/data")
+SHIPPED = ("config", "test/data", "benchmarks")
 
 
 def shipped_files() -> list[tuple[str, list[str]]]:

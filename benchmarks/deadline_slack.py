@@ -1,10 +1,10 @@
 """How far a node tick's search runs past its deadline, on a problem far too large to finish.
 
 Run: ``.venv/bin/python benchmarks/deadline_slack.py [--ticks N] [--hypotheses M]``. Each
-tick is :meth:`physics_mapper.mapper.Mapper.tick`, the very call whose ``search_time`` the
+tick is :meth:`physics_mapper.mapping.mapper.Mapper.tick`, the very call whose ``search_time`` the
 node reports in its diagnostics; inputs stay unchanged, so every tick resumes the search,
 as in the node. Prints, per deadline, the overrun (search time - deadline) in milliseconds
-beside the documented bound :data:`physics_mapper.mapper.DEADLINE_SLACK`.
+beside the documented bound :data:`physics_mapper.mapping.mapper.DEADLINE_SLACK`.
 """
 
 from __future__ import annotations
@@ -13,12 +13,12 @@ import argparse
 import statistics
 from pathlib import Path
 
-from physics_mapper.bench.problems import COLUMN_SPACING
 from physics_mapper.mapping.inputs import InputSettings, check_poses, check_weights
 from physics_mapper.mapping.mapper import DEADLINE_SLACK, Mapper, MapperSettings
 from physics_mapper.model.geometry import Pose
 from physics_mapper.model.scene import SearchParams
 from physics_mapper.model.scene_files import load_scene
+from physics_mapper.scenarios.problems import COLUMN_SPACING
 
 REPO = Path(__file__).resolve().parent.parent
 DEADLINES = (0.02, 0.05, 0.1, 0.2)  # seconds

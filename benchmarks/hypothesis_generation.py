@@ -1,7 +1,7 @@
 """Cost of simulated perception: particle-filter runs, and a whole ``generate`` of the paper's size.
 
 Run: ``.venv/bin/python benchmarks/hypothesis_generation.py [--repeats N]``. Prints, side by side
-for several particle counts, the median seconds of one :func:`physics_mapper.particle_filter.track`
+for several particle counts, the median seconds of one :func:`physics_mapper.perception.particle_filter.track`
 run on the pyramid (3 cubes, 10 iterations) and per object-iteration; then the wall time and bag
 size of ``physics-mapper generate`` with the paper's Fig. 6 settings (20 runs, 1000 particles).
 """

@@ -11,10 +11,10 @@ import statistics
 from collections.abc import Sequence
 from pathlib import Path
 
-from physics_mapper.bench.problems import floating_problem
 from physics_mapper.model.scene import Problem
 from physics_mapper.model.scene_files import load_scene
 from physics_mapper.ros.node_memory import resident_set_size
+from physics_mapper.scenarios.problems import floating_problem
 
 REPO = Path(__file__).resolve().parent.parent
 PYRAMID_SCENE = REPO / "config" / "scenes" / "pyramid.yaml"

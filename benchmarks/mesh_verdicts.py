@@ -15,7 +15,8 @@ import argparse
 from dataclasses import replace
 from pathlib import Path
 
-from physics_mapper.bench.crowded import Verdict, settled_verdicts
+from crowded import Verdict, settled_verdicts
+
 from physics_mapper.experiments.clutter import DEFAULT_RUNS, SCENE_FILES, SIGMA_POSITION, SIGMA_ROTATION, timed_search
 from physics_mapper.experiments.common import ExperimentOptions, load_experiment_scene
 from physics_mapper.experiments.tracking import tracker_settings

@@ -18,8 +18,8 @@ import argparse
 import math
 
 import numpy as np
+from physics_costs import median_seconds
 
-from physics_mapper.bench.physics_costs import median_seconds
 from physics_mapper.model.geometry import Pose, pose_displacement
 from physics_mapper.model.hypotheses import Hypothesis, RankedHypotheses
 from physics_mapper.model.scene import Box, ObjectModel, Plane, Scene, SearchParams, StaticBody

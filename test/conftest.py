@@ -24,7 +24,7 @@ NOT_SOURCES = {".venv", ".git", "build", "install", "log", "reports", ".mypy_cac
 
 # Property-based tests (test_fuzz.py). `make test` runs the "ci" profile: a fixed set of examples,
 # the same on every run (derandomized: seeded from each test's source), no example database.
-# `HYPOTHESIS_PROFILE=fuzz .venv/bin/pytest test/test_fuzz.py` searches at random, 50 times longer,
+# `HYPOTHESIS_PROFILE=fuzz .venv/bin/pytest test/msg_adapters/test_fuzz.py` searches at random, 50 times longer,
 # and keeps every failure in .hypothesis/ (git-ignored) to try it first on the next run.
 settings.register_profile("ci", max_examples=100, derandomize=True, database=None, deadline=None)
 settings.register_profile("fuzz", max_examples=5_000, deadline=None)

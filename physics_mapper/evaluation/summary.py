@@ -8,7 +8,7 @@ Errors are position errors in metres against ``/ground_truth`` of the three esti
 * ``mean_m``: per object and in total (the sum over objects), averaged over the *scored* snapshots
   (a ground truth and a map), as ``replay`` does; overall, over every scored snapshot of every bag.
 * ``tests``: chosen and settled against C11..1, paired Wilcoxon signed-rank tests
-  (:func:`~physics_mapper.experiments.common.paired_wilcoxon`, as the experiments test): within a
+  (:func:`~physics_mapper.evaluation.statistics.paired_wilcoxon`, as the experiments test): within a
   bag the pairs are its scored snapshots (``unit: snapshot``; they follow one another in time, so
   they are not independent: read p as a guide); overall, the pairs are the bags' mean errors
   (``unit: bag``, independent), or the snapshots when a single bag is scored.

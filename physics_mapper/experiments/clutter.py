@@ -19,7 +19,7 @@ Three estimates are scored against the settled truth, e_i = 100 |p_i - p_i_true|
 Time to answer: wall-clock seconds from the search's start until it first held a map to publish
 (``first map``) and until it first held a valid configuration (``first valid``), to within a slice.
 The totals of C11..1 and of each physics estimate are compared by the paired tests of Fig. 6
-(:func:`~physics_mapper.experiments.common.compare_errors`).
+(:func:`~physics_mapper.evaluation.statistics.compare_errors`).
 """
 
 from __future__ import annotations

@@ -76,7 +76,7 @@ def reproduce_command(name: str, options: ExperimentOptions, *, sized: bool = Tr
 
 
 def position_errors_cm(estimate: Sequence[Pose], truth: Sequence[Pose]) -> tuple[float, ...]:
-    """:func:`physics_mapper.scoring.position_errors` in centimetres: e_i = 100 * |p_i - p_i_true|."""
+    """:func:`physics_mapper.evaluation.scoring.position_errors` in centimetres: e_i = 100 * |p_i - p_i_true|."""
     return tuple(100.0 * error for error in position_errors(estimate, truth))
 
 

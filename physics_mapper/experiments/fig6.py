@@ -19,7 +19,7 @@ the mean per-object error (1/N) sum_i e_i and the total configuration error sum_
 
 The total errors of the two maps are compared by a Wilcoxon signed-rank test on the per-run
 means (paired by run, the headline) and, as the paper does, by a Kruskal-Wallis test on all runs
-and iterations pooled (:func:`~physics_mapper.experiments.common.compare_errors`).
+and iterations pooled (:func:`~physics_mapper.evaluation.statistics.compare_errors`).
 
 The scene's rules (overlap at most 5 mm, jitter at most 1 cm) are much tighter than the
 filter's error, so the same hypotheses are also searched with the rules loosened to

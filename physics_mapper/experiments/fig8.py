@@ -19,7 +19,7 @@ ground truth (the bottom of the groove):
 Errors, centimetres: the position error e = 100 |p - p_true| and its part in the groove's
 cross-section, e_xz = 100 sqrt(dx^2 + dz^2). The groove runs along y, so rolling corrects
 x and z but can never correct y. The estimates' errors are compared with C1's as in Fig. 6
-(:func:`~physics_mapper.experiments.common.compare_errors`).
+(:func:`~physics_mapper.evaluation.statistics.compare_errors`).
 """
 
 from __future__ import annotations

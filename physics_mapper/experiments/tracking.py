@@ -1,7 +1,7 @@
 """The loop shared by Figs. 6 and 8: particle filters give hypotheses, the search picks, errors are scored.
 
 For each run, every object is tracked by its own particle filter
-(:func:`physics_mapper.particle_filter.track`) around the scene's settled ground truth. After
+(:func:`physics_mapper.perception.particle_filter.track`) around the scene's settled ground truth. After
 each iteration two estimates of the scene are scored against that truth:
 
 * without physics, C11..1: every object's most likely hypothesis;
@@ -13,7 +13,7 @@ The filters run once; their hypotheses are searched under each of the given rule
 (:class:`~physics_mapper.model.scene.SearchParams`), so that rule sets are compared on the same hypotheses.
 
 Run k draws from child k of ``numpy.random.SeedSequence(seed)``
-(:func:`~physics_mapper.particle_filter.run_generators`, as ``generate`` does), so a run's numbers
+(:func:`~physics_mapper.perception.particle_filter.run_generators`, as ``generate`` does), so a run's numbers
 do not depend on how many runs were asked for, and ``generate --seed S`` makes the same hypotheses.
 """
 

@@ -108,7 +108,7 @@ class TickReport:
 class Mapper:
     """A scene's physics world, its inputs and the search in progress.
 
-    A world whose engine fails (:data:`~physics_mapper.physics.checker.PhysicsEngineError`) is
+    A world whose engine fails (:data:`~physics_mapper.physics.world.PhysicsEngineError`) is
     discarded with the search that used it; the next tick builds a new one and searches again.
     """
 

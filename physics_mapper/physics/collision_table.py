@@ -17,7 +17,7 @@ at once. Two objects whose bounding balls are apart cannot overlap and are never
 The depths are those :meth:`~physics_mapper.physics.checker.PhysicsChecker.find_collision` sees, bit for
 bit, and the threshold is applied at lookup: the deepest pair beyond ``penetration_threshold`` is
 the collision, equal depths resolved as a collision pass does
-(:func:`~physics_mapper.physics.checker.deepest_collision`). Entries depend
+(:func:`~physics_mapper.physics.collision.deepest_collision`). Entries depend
 on hypotheses only, not on search parameters; :meth:`CollisionTable.updated` drops the entries of
 objects whose hypotheses changed. At most :data:`TABLE_LIMIT` numbers are kept; beyond, the table
 starts over.

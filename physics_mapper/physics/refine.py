@@ -40,7 +40,7 @@ rule, the refinement repairs the most probable configuration instead of rejectin
    (within a step gravity adds at most 0.04 m/s), so that an overlap the depenetration left
    (not converged) is not resolved by Bullet throwing the bodies apart. It stops once every object
    is at rest (``settle_exit: early``, as a fallback's settling in the search:
-   :func:`~physics_mapper.physics.checker.early_exit_rule` with ``complete``). Bullet's solver runs
+   :func:`~physics_mapper.physics.settling.early_exit_rule` with ``complete``). Bullet's solver runs
    :data:`SETTLING_SOLVER_ITERATIONS` iterations per step here, a fifth of Rule 2's: the map needs
    resting contacts, not Rule 2's verdict, and the settling is most of the refinement's cost.
 

@@ -221,7 +221,7 @@ class BranchAndBound:
         next run, which continues its simulation where it stopped
         (:meth:`PhysicsChecker.resume_settling`), so resuming loses nothing: the runs together
         visit the same nodes with the same outcomes as one uninterrupted run. A run that gets
-        to that node simulates at least :data:`~physics_mapper.physics.CLOCK_CHECK_STEPS` steps
+        to that node simulates at least :data:`~physics_mapper.physics.settling.CLOCK_CHECK_STEPS` steps
         of it, so a settling longer than the budget still ends after enough runs.
         """
         start = time.monotonic()

@@ -23,7 +23,7 @@ From an instability (Rule 2), the *blame rule*. Let the settling of configuratio
 beyond ``jitter_threshold`` tau (J_u > tau). Write
 
 - S_p for object p's *swept box* in that settling: the smallest box holding its body at every moment
-  looked at (:attr:`~physics_mapper.physics.checker.Settling.extent`, every 8 steps, 33 ms);
+  looked at (:attr:`~physics_mapper.physics.settling.Settling.extent`, every 8 steps, 33 ms);
 - E_p(h) for p's *stable envelope* at hypothesis h: the box of its body at h
   (:func:`~physics_mapper.model.extents.body_box`) grown by g_p = max(1, r_p / w) tau
   (:func:`~physics_mapper.model.extents.stable_growth`): no point of a body moves further while its

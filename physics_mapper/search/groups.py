@@ -15,7 +15,7 @@ object whose body stays inside its grown box cannot touch an object of another g
 groups' Rule 2 outcomes are those of separate simulations: a scene is valid iff every group is, and J
 is the sum of the groups' J. Settling can move objects further (a ball rolls off a slope, a top cube
 falls off its pile), which the *escape guard* catches: a settling tracks the box its body swept
-(:attr:`~physics_mapper.physics.checker.Settling.extent`), and if that box meets another group's
+(:attr:`~physics_mapper.physics.settling.Settling.extent`), and if that box meets another group's
 volume (:meth:`Grouping.intruded`), the groups concerned are merged and searched again as one.
 """
 

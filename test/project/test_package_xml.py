@@ -50,6 +50,7 @@ INSTALLED = ("physics_mapper",)
 #: Their source folders: msg_adapters/ is installed as physics_mapper.msg_adapters.
 SOURCE_FOLDERS = ("physics_mapper", "msg_adapters")
 TESTS = REPO / "test"
+BENCHMARKS = REPO / "benchmarks"
 
 
 def is_ros_package(module: str) -> bool:
@@ -100,8 +101,9 @@ def missing(found: dict[str, list[str]], allowed: set[str], tag: str) -> list[st
         where = f"{module} (imported by {', '.join(sorted(files)[:3])})"
         if not is_ros_package(module) and module not in PROVIDERS:
             problems.append(
-                f"{where}: no row in PROVIDERS of test/test_package_xml.py; add its rosdep key from rosdistro's "
-                f"rosdep/python.yaml (pip-only libraries end in -pip), then <{tag}>KEY</{tag}> to package.xml"
+                f"{where}: no row in PROVIDERS of test/project/test_package_xml.py; add its rosdep key from "
+                f"rosdistro's rosdep/python.yaml (pip-only libraries end in -pip), then <{tag}>KEY</{tag}> to "
+                "package.xml"
             )
         elif (key := key_of(module)) is not None and key not in allowed:
             problems.append(f"{where}: add <{tag}>{key}</{tag}> to package.xml")
@@ -122,8 +124,9 @@ def test_every_import_of_the_installed_package_is_an_exec_depend() -> None:
 
 
 def test_every_import_of_the_tests_is_a_test_or_exec_depend() -> None:
-    files = sorted(TESTS.glob("*.py"))
-    local = {path.stem for path in files}  # conftest, ros_helpers, ...
+    files = sorted(TESTS.rglob("*.py"))
+    # conftest, ros_helpers, ... and the benchmarks a test imports by name (benchmarks/ on sys.path)
+    local = {path.stem for path in [*files, *BENCHMARKS.glob("*.py")]}
     found = third_party_imports(files, {*INSTALLED, *local})
     assert missing(found, declared("exec_depend") | declared("test_depend"), "test_depend") == []
 
@@ -154,7 +157,7 @@ def test_a_missing_declaration_is_reported_with_the_key_to_add() -> None:
         "nav_msgs (imported by y.py): add <exec_depend>nav_msgs</exec_depend> to package.xml",
         "pybullet (imported by physics_mapper/physics/checker.py): add <exec_depend>python3-pybullet-pip</exec_depend> "
         "to package.xml",
-        "trimesh_like (imported by x.py): no row in PROVIDERS of test/test_package_xml.py; add its rosdep key from "
-        "rosdistro's rosdep/python.yaml (pip-only libraries end in -pip), then <exec_depend>KEY</exec_depend> to "
+        "trimesh_like (imported by x.py): no row in PROVIDERS of test/project/test_package_xml.py; add its rosdep key "
+        "from rosdistro's rosdep/python.yaml (pip-only libraries end in -pip), then <exec_depend>KEY</exec_depend> to "
         "package.xml",
     ]

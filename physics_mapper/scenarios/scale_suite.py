@@ -19,11 +19,11 @@ from typing import Literal
 
 import numpy as np
 
-from physics_mapper.bench.problems import SuiteCase, SuiteProblem
 from physics_mapper.model.geometry import Pose
 from physics_mapper.model.hypotheses import Hypothesis, RankedHypotheses
 from physics_mapper.model.scene import Box, ObjectModel, Plane, Problem, Scene, SearchParams, StaticBody
 from physics_mapper.physics.checker import PhysicsChecker
+from physics_mapper.scenarios.problems import SuiteCase, SuiteProblem
 
 Layout = Literal["singletons", "pairs", "pyramids", "mixed"]
 LAYOUTS: tuple[Layout, ...] = ("singletons", "pairs", "pyramids", "mixed")

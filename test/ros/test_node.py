@@ -38,13 +38,13 @@ from ros_helpers import (
 from std_msgs.msg import Float64MultiArray
 from visualization_msgs.msg import Marker
 
-from physics_mapper.bench.problems import floating_problem
 from physics_mapper.mapping.topics import object_pose_topic, object_settled_pose_topic
 from physics_mapper.model.geometry import Pose
 from physics_mapper.model.scene import Problem
 from physics_mapper.model.scene_files import load_problem, load_scene
 from physics_mapper.msg_adapters.hypotheses import hypotheses_msgs, pose_array_msg
 from physics_mapper.msg_adapters.results import SHAPE_NAMESPACE
+from physics_mapper.scenarios.problems import floating_problem
 
 PYRAMID_SCENE = SCENES / "pyramid.yaml"
 PYRAMID_PROBLEM = PROBLEMS / "pyramid.yaml"

@@ -1,6 +1,6 @@
 """The crowded benchmark: the conflict-directed, the grouped and the joint search on the crowded suite.
 
-Every problem of :mod:`physics_mapper.bench.crowded_suite` has one valid configuration, known by
+Every problem of :mod:`physics_mapper.scenarios.crowded_suite` has one valid configuration, known by
 construction (checked valid with the suite's parameters first): *the answer*. Each search runs
 afresh in slices of :data:`SLICE` seconds of wall-clock time, as the node's ticks would, until its
 result is the answer or :data:`ANSWER_CAP` seconds have passed; the *time to the answer* counts
@@ -10,13 +10,22 @@ settlings), and each configuration it found unstable or valid is settled once mo
 whole ``settle_time``, no early exit), in a fresh world: the *agreement* of its verdicts with full
 settling. Where the paper's search (per group) finishes within :data:`EXHAUSTIVE_CAP` seconds, its
 answer is compared with the conflict-directed one's run to the end, on the suite and on the reduced
-suite (:data:`REDUCED`), where it always finishes.
+suite (:data:`~physics_mapper.scenarios.crowded_suite.REDUCED`), where it always finishes.
 Seconds are wall-clock seconds on this machine.
+
+Run: ``physics-mapper bench crowded [--seeds N] [--quick] [-o DIR]``. Prints the table and the
+targets BENCHMARKS.md records ("Crowded scenes"), and the scale suite checked with the default
+search; with ``-o DIR`` it also writes ``crowded.png`` (time to the answer against N) and
+``crowded_search.png`` (one search, candidate by candidate: ``crowded_picture.py``) into ``DIR``,
+and without it writes no file. Progress goes to stderr.
 """
 
 from __future__ import annotations
 
+import argparse
 import statistics
+import sys
+import time
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -24,19 +33,21 @@ from typing import Literal
 
 import numpy as np
 
-from physics_mapper.bench.crowded_suite import (
-    CROWDED_LAYOUTS,
-    CrowdedCase,
-    CrowdedProblem,
-    crowded_problem,
-    truth_is_valid,
-)
-from physics_mapper.bench.problems import AnswerRun, search_until_answer
-from physics_mapper.bench.scale_suite import ScaleCase, ScaleProblem, scale_problem
+from physics_mapper.model.errors import InputError
 from physics_mapper.model.hypotheses import RankedHypotheses
 from physics_mapper.model.scene import SearchParams
 from physics_mapper.physics.checker import PhysicsChecker
-from physics_mapper.physics.settling import REST_SHARE
+from physics_mapper.scenarios.crowded_suite import (
+    CROWDED_LAYOUTS,
+    REDUCED,
+    CrowdedCase,
+    CrowdedProblem,
+    crowded_problem,
+    same_answer,
+    truth_is_valid,
+)
+from physics_mapper.scenarios.problems import AnswerRun, search_until_answer
+from physics_mapper.scenarios.scale_suite import ScaleCase, ScaleProblem, scale_problem
 from physics_mapper.search.results import SearchResult
 from physics_mapper.search.strategy import make_search
 
@@ -52,20 +63,6 @@ ANSWER_CAP = 1.0
 BUDGETS = (0.2, ANSWER_CAP)
 #: Seconds the paper's search gets to finish, for the agreement column.
 EXHAUSTIVE_CAP = 5.0
-#: How far apart (m + weighted rad) one object's J_i may be in two searches' answers: the world's
-#: history (bodies placed, parked, re-massed in another order) moves Bullet's contact order, and a
-#: settling that stops at rest ends within this of another (5 % of the default jitter threshold,
-#: the early exit's own tolerance: ``REST_SHARE`` x ``jitter_threshold``).
-JITTER_TOLERANCE = REST_SHARE * SearchParams().jitter_threshold
-#: Small problems where the paper's search always finishes (the tests' reduced suite).
-REDUCED = (
-    CrowdedCase("row", 5, 3, 0),
-    CrowdedCase("row", 6, 3, 1),
-    CrowdedCase("wall", 6, 3, 2),
-    CrowdedCase("tower", 6, 3, 3),
-    CrowdedCase("shelf", 6, 3, 4),
-    CrowdedCase("bin", 5, 3, 5),
-)
 
 
 @dataclass(frozen=True)
@@ -146,7 +143,7 @@ def exhaustive_agreement(
     problem: CrowdedProblem | ScaleProblem, cap: float = EXHAUSTIVE_CAP
 ) -> tuple[bool, bool | None]:
     """Whether the paper's search per group finishes within ``cap`` s, and then whether the conflict search
-    run to the end gives its answer (code, validity; every J_i within :data:`JITTER_TOLERANCE`)."""
+    run to the end gives its answer (:func:`~physics_mapper.scenarios.crowded_suite.same_answer`)."""
     scene, hypotheses = problem.problem.scene, problem.problem.hypotheses
     with PhysicsChecker(scene) as checker:
         paper = make_search(checker, hypotheses, params_for("grouped", scene.search))
@@ -156,15 +153,6 @@ def exhaustive_agreement(
     with PhysicsChecker(scene) as checker:
         found = make_search(checker, hypotheses, params_for("conflict", scene.search)).run(None)
     return True, same_answer(found, expected)
-
-
-def same_answer(found: SearchResult, expected: SearchResult) -> bool:
-    """The same code and validity, and every object's J_i within :data:`JITTER_TOLERANCE`."""
-    same = (found.code, found.valid) == (expected.code, expected.valid)
-    if same and found.object_jitters is not None and expected.object_jitters is not None:
-        pairs = zip(found.object_jitters, expected.object_jitters, strict=True)
-        same = all(abs(a - b) <= JITTER_TOLERANCE for a, b in pairs)
-    return same
 
 
 def run_problem(case: CrowdedCase, exhaustive_cap: float = EXHAUSTIVE_CAP) -> ProblemRun:
@@ -354,3 +342,49 @@ def plot_time_to_answer(problems: Sequence[ProblemRun], path: Path) -> None:
     axes.set_title("Crowded suite: conflict-directed vs grouped vs joint search (lines: medians)", fontsize=10)
     axes.legend(fontsize=7)
     figure.savefig(path, dpi=120)
+
+
+def main(argv: Sequence[str] | None = None) -> None:
+    """The crowded suite's table, the targets and the plots (with ``-o``); progress on stderr."""
+    import scale
+    from crowded_picture import plot_search
+
+    parser = argparse.ArgumentParser(prog="physics-mapper bench crowded", description=__doc__)
+    parser.add_argument("--seeds", type=int, default=3, help="problems per (layout, N, M) (default: 3)")
+    parser.add_argument("--quick", action="store_true", help="a small suite (N 10, 20; M 5; 1 seed), to try it out")
+    parser.add_argument(
+        "-o", "--output", type=Path, help="folder for crowded.png and crowded_search.png (default: none)"
+    )
+    args = parser.parse_args(argv)
+    if args.seeds < 1:
+        raise InputError(f"--seeds must be at least 1, got {args.seeds}")
+    cases = suite_cases(sizes=(10, 20), hypotheses=(5,), seeds=1) if args.quick else suite_cases(seeds=args.seeds)
+    started = time.monotonic()
+
+    def progress(done: int, total: int, run: ProblemRun) -> None:
+        times = " ".join(f"{s} {_seconds(run.runs[s].answer_time)}" for s in STRATEGIES)
+        print(f"[{done}/{total} {time.monotonic() - started:.0f} s] {run.case.label}: {times}", file=sys.stderr)
+
+    problems = run_suite(cases, progress)
+    reduced = run_suite(REDUCED, progress)
+    scale_cases = scale.suite_cases(sizes=(3, 6, 10), hypotheses=(5,), seeds=1) if args.quick else scale.suite_cases()
+
+    def scale_progress(done: int, total: int) -> None:
+        print(f"[scale suite {done}/{total} {time.monotonic() - started:.0f} s]", file=sys.stderr)
+
+    checked = scale_check(scale_cases, scale_progress)
+    print(f"{len(problems)} problems, {1 if args.quick else args.seeds} per (layout, N, M); {scale.load_text()}")
+    print("Three numbers: conflict / grouped / joint.")
+    print(figures_table(problems))
+    print()
+    print(targets_text(problems, reduced))
+    print(scale_text(checked))
+    if args.output is not None:
+        args.output.mkdir(parents=True, exist_ok=True)
+        plot_time_to_answer(problems, args.output / "crowded.png")
+        plot_search(args.output / "crowded_search.png")
+        print(f"\nplots: {args.output / 'crowded.png'}, {args.output / 'crowded_search.png'}")
+
+
+if __name__ == "__main__":
+    main()

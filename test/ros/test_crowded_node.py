@@ -15,10 +15,10 @@ import yaml
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from ros_helpers import NodeProcess, RosClient, search_status, values
 
-from physics_mapper.bench.crowded_suite import CrowdedCase, crowded_problem, scene_document
 from physics_mapper.model.geometry import Pose
 from physics_mapper.model.hypotheses import Hypothesis, RankedHypotheses
 from physics_mapper.msg_adapters.hypotheses import hypotheses_msgs
+from physics_mapper.scenarios.crowded_suite import CrowdedCase, crowded_problem, scene_document
 
 CASE = CrowdedCase("bin", 30, 5, 11)
 TICKS = 3

@@ -36,7 +36,7 @@ from physics_mapper.model.names import DERIVED_TOPICS, derived_topics, object_na
 from physics_mapper.model.scene import Mesh, Scene
 from physics_mapper.model.scene_files import SceneError, load_problem, load_scene
 
-REPO = Path(__file__).resolve().parent.parent
+REPO = Path(__file__).resolve().parents[2]
 PYRAMID_PROBLEM = REPO / "config" / "problems" / "pyramid.yaml"
 
 

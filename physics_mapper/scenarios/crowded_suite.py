@@ -31,7 +31,6 @@ from typing import Literal
 
 import numpy as np
 
-from physics_mapper.bench.problems import SuiteCase, SuiteProblem
 from physics_mapper.model.geometry import Pose, quaternion_about_axis, quaternion_multiply
 from physics_mapper.model.hypotheses import Hypothesis, RankedHypotheses
 from physics_mapper.model.scene import (
@@ -46,6 +45,9 @@ from physics_mapper.model.scene import (
     StaticBody,
 )
 from physics_mapper.physics.checker import PhysicsChecker
+from physics_mapper.physics.settling import REST_SHARE
+from physics_mapper.scenarios.problems import SuiteCase, SuiteProblem
+from physics_mapper.search.results import SearchResult
 
 CrowdedLayout = Literal["row", "wall", "tower", "shelf", "bin"]
 CROWDED_LAYOUTS: tuple[CrowdedLayout, ...] = ("row", "wall", "tower", "shelf", "bin")
@@ -248,3 +250,28 @@ def problem_document(problem: Problem) -> dict[str, object]:
         for model, ranked in zip(problem.scene.objects, problem.hypotheses, strict=True)
     }
     return {**scene_document(problem.scene), "hypotheses": hypotheses}
+
+
+#: How far apart (m + weighted rad) one object's J_i may be in two searches' answers: the world's
+#: history (bodies placed, parked, re-massed in another order) moves Bullet's contact order, and a
+#: settling that stops at rest ends within this of another (5 % of the default jitter threshold,
+#: the early exit's own tolerance: ``REST_SHARE`` x ``jitter_threshold``).
+JITTER_TOLERANCE = REST_SHARE * SearchParams().jitter_threshold
+#: Small problems where the paper's search always finishes (the tests' reduced suite).
+REDUCED = (
+    CrowdedCase("row", 5, 3, 0),
+    CrowdedCase("row", 6, 3, 1),
+    CrowdedCase("wall", 6, 3, 2),
+    CrowdedCase("tower", 6, 3, 3),
+    CrowdedCase("shelf", 6, 3, 4),
+    CrowdedCase("bin", 5, 3, 5),
+)
+
+
+def same_answer(found: SearchResult, expected: SearchResult) -> bool:
+    """The same code and validity, and every object's J_i within :data:`JITTER_TOLERANCE`."""
+    same = (found.code, found.valid) == (expected.code, expected.valid)
+    if same and found.object_jitters is not None and expected.object_jitters is not None:
+        pairs = zip(found.object_jitters, expected.object_jitters, strict=True)
+        same = all(abs(a - b) <= JITTER_TOLERANCE for a, b in pairs)
+    return same

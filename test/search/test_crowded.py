@@ -1,7 +1,7 @@
 """The conflict-directed search (``strategy: conflict``) against the paper's search on crowded scenes.
 
 Real pybullet throughout. The reduced suite is the crowded benchmark's generator
-(``physics_mapper.bench.crowded_suite``) at sizes where the paper's search, per group, finishes:
+(``physics_mapper.scenarios.crowded_suite``) at sizes where the paper's search, per group, finishes:
 packed scenes whose only valid configuration is known by construction.
 """
 
@@ -19,14 +19,6 @@ import yaml
 from core_builders import cli, cube, floor_scene, solve_json, unrotated
 from mesh_builders import box_mesh, floor_scene_dict, load_inline, mesh_object, write_mesh
 
-from physics_mapper.bench.crowded import JITTER_TOLERANCE, REDUCED, same_answer
-from physics_mapper.bench.crowded_suite import (
-    CrowdedCase,
-    CrowdedProblem,
-    crowded_problem,
-    problem_document,
-    truth_is_valid,
-)
 from physics_mapper.model.geometry import Pose
 from physics_mapper.model.hypotheses import Hypothesis, RankedHypotheses
 from physics_mapper.model.scene import Bound, Box, SearchParams
@@ -38,6 +30,16 @@ from physics_mapper.physics.settling import (
     EarlyExit,
     Settling,
     early_exit_rule,
+)
+from physics_mapper.scenarios.crowded_suite import (
+    JITTER_TOLERANCE,
+    REDUCED,
+    CrowdedCase,
+    CrowdedProblem,
+    crowded_problem,
+    problem_document,
+    same_answer,
+    truth_is_valid,
 )
 from physics_mapper.search.conflict_directed import TRIAL_SOLVER_ITERATIONS, ConflictGroupSearch, ConflictSearch
 from physics_mapper.search.conflicts import Conflict, ConflictStore

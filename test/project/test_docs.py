@@ -6,16 +6,26 @@
   :func:`physics_mapper.cli.build_parser`, and every ``--option`` written after it (same code span,
   or same command line of a code block) is one of that subcommand's options; an inline
   ```--option``` on its own is an option of some subcommand, or of another tool named in
-  :data:`OTHER_TOOLS_OPTIONS`;
+  :data:`OTHER_TOOLS_OPTIONS`; after ``physics-mapper bench NAME``, the options are those of the
+  benchmark ``benchmarks/NAME.py`` (its ``--help``);
 - the parameter table of ``docs/node.md`` names exactly the node's parameters
   (``scene_file`` and :data:`physics_mapper.ros.node.PARAMETERS`);
-- the README stays a short guide, and its first ``python`` block runs from the repository root.
+- the README stays a short guide, and its first ``python`` block runs from the repository root;
+- every dotted name of the package (``physics_mapper.mapping.mapper.Mapper.tick``) written in the
+  docs, ``BENCHMARKS.md`` or a docstring (of the package, ``msg_adapters/``, ``benchmarks/``,
+  ``test/``) names a module, or something a module defines.
 """
 
 from __future__ import annotations
 
 import argparse
+import ast
+import functools
+import importlib
+import importlib.util
 import re
+import subprocess
+import sys
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -27,6 +37,13 @@ from physics_mapper.cli import build_parser
 README = REPO / "README.md"
 DOCS = sorted((REPO / "docs").glob("*.md"))
 PAGES = [README, *DOCS]
+#: Where dotted names are written: the pages, BENCHMARKS.md, and the docstrings of these folders' files.
+NAMING_PAGES = [*PAGES, REPO / "BENCHMARKS.md"]
+DOCSTRING_FOLDERS = ("physics_mapper", "msg_adapters", "benchmarks", "test")
+#: A dotted name of the package; one after a ``/`` or ``-`` is part of a file name (``launch/...``).
+DOTTED_NAME = re.compile(r"(?<![\w./-])physics_mapper(?:\.[A-Za-z_]\w*)+")
+#: File names that read like dotted names (``physics_mapper.launch.py``, ``physics_mapper.rviz``).
+FILE_SUFFIXES = (".py", ".rviz")
 README_MAX_LINES = 260
 #: Options of other tools (ROS, pip, colcon, rosdep, Ray) that the docs write on their own.
 OTHER_TOOLS_OPTIONS = {
@@ -46,6 +63,8 @@ FENCE = re.compile(r"^```")
 LINK = re.compile(r"!?\[[^\]]*\]\(([^)\s]+)\)")
 INLINE_CODE = re.compile(r"`([^`\n]+)`")
 COMMAND = re.compile(r"physics-mapper\s+([a-z][a-z_-]*)")
+#: ``physics-mapper bench NAME``: the benchmark's name.
+BENCHMARK = re.compile(r"physics-mapper\s+bench\s+([a-z][a-z0-9_]*)")
 OPTION = re.compile(r"(?<![\w-])(--[a-z][a-z0-9-]*)")
 
 
@@ -166,22 +185,49 @@ def written_commands(text: str) -> Iterator[tuple[str, list[str]]]:
         yield match.group(1), options
 
 
+@functools.cache
+def benchmark_options(name: str) -> frozenset[str] | None:
+    """The options of the benchmark ``benchmarks/NAME.py`` (from its ``--help``), or None for no such benchmark."""
+    script = REPO / "benchmarks" / f"{name}.py"
+    if not script.is_file():
+        return None
+    shown = subprocess.run(
+        [sys.executable, str(script), "--help"], capture_output=True, text=True, timeout=120, check=False
+    )
+    assert shown.returncode == 0, shown.stderr
+    return frozenset(OPTION.findall(shown.stdout))
+
+
+def benchmarks_named(page: Path) -> set[str]:
+    """The benchmarks a page runs with ``physics-mapper bench NAME``."""
+    return {name for text in command_texts(page) for name in BENCHMARK.findall(text)}
+
+
 @pytest.mark.parametrize("page", PAGES, ids=page_id)
 def test_every_command_and_option_written_exists(page: Path) -> None:
     known = subcommands()
     wrong = []
     for text in command_texts(page):
+        named = BENCHMARK.findall(text)
         for command, options in written_commands(text):
             if command not in known:
                 wrong.append(f"physics-mapper {command}: no such command")
                 continue
-            wrong += [f"physics-mapper {command} {o}: no such option" for o in options if o not in known[command]]
+            allowed = set(known[command])
+            if command == "bench" and named:
+                benchmark = benchmark_options(named.pop(0))
+                if benchmark is None:
+                    wrong.append(f"physics-mapper bench: no benchmark in {text!r}")
+                    continue
+                allowed |= benchmark
+            wrong += [f"physics-mapper {command} {o}: no such option" for o in options if o not in allowed]
     assert wrong == []
 
 
 @pytest.mark.parametrize("page", PAGES, ids=page_id)
 def test_every_option_written_alone_exists(page: Path) -> None:
-    every_option = set().union(*subcommands().values()) | OTHER_TOOLS_OPTIONS
+    benchmarks = [benchmark_options(name) or frozenset() for name in benchmarks_named(page)]
+    every_option = set().union(*subcommands().values(), *benchmarks) | OTHER_TOOLS_OPTIONS
     prose, _ = prose_and_code(page.read_text())
     alone = {span.split()[0].split("=")[0] for line in prose for span in INLINE_CODE.findall(line)}
     assert sorted(o for o in alone if OPTION.fullmatch(o) and o not in every_option) == []
@@ -262,3 +308,59 @@ def test_the_layout_page_names_every_module() -> None:
         and not _layout_lists(path.parent.name, path.stem, layout)
     ]
     assert missing == []
+
+
+def docstrings(path: Path) -> Iterator[str]:
+    """The module's, classes' and functions' docstrings of a Python file."""
+    for node in ast.walk(ast.parse(path.read_text(), str(path))):
+        if isinstance(node, ast.Module | ast.ClassDef | ast.FunctionDef | ast.AsyncFunctionDef):
+            text = ast.get_docstring(node, clean=False)
+            if text:
+                yield text
+
+
+def dotted_names() -> dict[str, set[str]]:
+    """Every dotted name of the package written in the pages and docstrings, and where."""
+    texts = {page_id(page): page.read_text() for page in NAMING_PAGES}
+    for folder in DOCSTRING_FOLDERS:
+        for path in sorted((REPO / folder).rglob("*.py")):
+            texts[page_id(path)] = "\n".join(docstrings(path))
+    found: dict[str, set[str]] = {}
+    for where, text in texts.items():
+        for name in DOTTED_NAME.findall(text):
+            if not name.endswith(FILE_SUFFIXES):
+                found.setdefault(name, set()).add(where)
+    return found
+
+
+def resolves(name: str) -> bool:
+    """Whether ``name`` is a module of the package, or an attribute (at any depth) of one."""
+    parts = name.split(".")
+    if parts[-1] == "__main__":  # importing it runs the command line
+        return importlib.util.find_spec(name) is not None
+    for length in range(len(parts), 0, -1):
+        try:
+            found: object = importlib.import_module(".".join(parts[:length]))
+        except ModuleNotFoundError:
+            continue
+        for attribute in parts[length:]:
+            if not hasattr(found, attribute):
+                return False
+            found = getattr(found, attribute)
+        return True
+    return False
+
+
+def test_every_dotted_name_written_resolves() -> None:
+    unresolved = {name: sorted(where) for name, where in dotted_names().items() if not resolves(name)}
+    assert unresolved == {}
+
+
+def test_the_name_check_sees_a_name_that_moved() -> None:
+    assert resolves("physics_mapper.mapping.mapper.Mapper.tick")
+    assert resolves("physics_mapper.__main__") and resolves("physics_mapper.msg_adapters.results")
+    assert not resolves("physics_mapper.mapper.Mapper.tick")  # the module moved to mapping/
+    assert not resolves("physics_mapper.mapping.mapper.Mapper.no_such_method")
+    assert DOTTED_NAME.findall("see physics_mapper.scoring; launch/physics_mapper.launch.py") == [
+        "physics_mapper.scoring"
+    ]

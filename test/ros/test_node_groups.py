@@ -13,10 +13,10 @@ from pathlib import Path
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from ros_helpers import NodeProcess, RosClient, search_status, values
 
-from physics_mapper.bench.scale_suite import CUBE_EDGE, CUBE_MASS, ScaleCase, scale_problem
 from physics_mapper.model.geometry import Pose
 from physics_mapper.model.hypotheses import Hypothesis, RankedHypotheses
 from physics_mapper.msg_adapters.hypotheses import hypotheses_msgs
+from physics_mapper.scenarios.scale_suite import CUBE_EDGE, CUBE_MASS, ScaleCase, scale_problem
 
 CASE = ScaleCase("singletons", 20, 3, 7)
 CHANGING = "cube_00"

@@ -140,7 +140,7 @@ def test_installed_shipped_files_mirror_the_checkout(workspace: Path) -> None:
 def test_installed_commands_find_their_files_from_another_directory(workspace: Path, tmp_path: Path) -> None:
     """bench's default problem and experiment's scenes come from the share directory, not the working directory."""
     share = workspace.resolve() / "install" / PACKAGE / "share" / PACKAGE
-    bench = run_installed(workspace, "bench --repeats 1", cwd=tmp_path)
+    bench = run_installed(workspace, "bench physics_costs --repeats 1", cwd=tmp_path)
     assert bench.returncode == 0, bench.stderr
     assert bench.stdout.startswith(f"{share}/config/problems/pyramid.yaml: 3 objects")
     experiment = run_installed(workspace, "experiment peg -o out --runs 1", cwd=tmp_path)

@@ -1,8 +1,8 @@
 """The grouped search: Algorithm 1 per interaction group, against the paper's joint search.
 
-Real pybullet throughout. The reduced suite is the benchmark's generator (``physics_mapper.bench.
-scale_suite``) at small sizes, where the joint search finishes: piles of cubes whose only valid
-configuration is known by construction.
+Real pybullet throughout. The reduced suite is the benchmark's generator
+(``physics_mapper.scenarios.scale_suite``) at small sizes, where the joint search finishes: piles of
+cubes whose only valid configuration is known by construction.
 """
 
 from __future__ import annotations
@@ -15,7 +15,6 @@ import pytest
 from conftest import PROBLEMS
 from core_builders import ON_FLOOR, cube, far_apart_cubes, floor_hypotheses, floor_scene, ranked, unrotated
 
-from physics_mapper.bench.scale_suite import ScaleCase, ScaleProblem, scale_problem
 from physics_mapper.mapping.inputs import InputSettings
 from physics_mapper.mapping.mapper import Mapper, MapperSettings, TickReport
 from physics_mapper.model.geometry import pose_displacement
@@ -27,6 +26,7 @@ from physics_mapper.physics.checker import PhysicsChecker
 from physics_mapper.physics.collision import Collision
 from physics_mapper.physics.collision_table import CollisionTable
 from physics_mapper.physics.settling import REST_SHARE, PartialSettling
+from physics_mapper.scenarios.scale_suite import ScaleCase, ScaleProblem, scale_problem
 from physics_mapper.search.branch_and_bound import BranchAndBound
 from physics_mapper.search.grouped import GroupedSearch
 from physics_mapper.search.report import result_dict, trace_tree

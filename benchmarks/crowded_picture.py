@@ -14,9 +14,9 @@ import math
 from dataclasses import replace
 from pathlib import Path
 
-from physics_mapper.bench.crowded_suite import CUBE_EDGE, CrowdedCase, crowded_problem
 from physics_mapper.model.geometry import rotation_angle
 from physics_mapper.physics.checker import PhysicsChecker
+from physics_mapper.scenarios.crowded_suite import CUBE_EDGE, CrowdedCase, crowded_problem
 from physics_mapper.search.strategy import make_search
 
 #: The search the docs show: a wall of 10 cubes two high, 5 hypotheses each.

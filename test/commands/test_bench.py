@@ -1,0 +1,92 @@
+"""``physics-mapper bench``: the benchmarks of ``benchmarks/``, their input errors, and where they write."""
+
+from __future__ import annotations
+
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+from conftest import PROBLEMS, REPO
+from core_builders import PHYSICS_MAPPER, cli
+
+from physics_mapper.model.scene_files import load_problem
+
+sys.path.insert(0, str(REPO / "benchmarks"))  # the benchmarks import each other by name, as scripts do
+from physics_costs import measure
+
+#: What a benchmark run may change in the checkout: nothing but caches and build folders.
+NOT_CHECKOUT = {".git", ".venv", "build", "install", "log", ".mypy_cache", ".ruff_cache", ".pytest_cache"}
+
+
+def test_measure_times_every_operation_and_searches_exhaustively() -> None:
+    problem = load_problem(PROBLEMS / "stack.yaml")
+    costs = measure(problem, repeats=2)
+    # Figures only, no timing assertions: the machines are noisy.
+    assert min(costs.collision_check, costs.settle, costs.rebuilt_world_check, costs.search) > 0.0
+    assert costs.persistent_world_check == costs.collision_check + costs.settle
+    assert costs.search_stats.finished and costs.search_stats.visited > 0  # the queue emptied (T bounds the stack)
+
+
+def test_bench_lists_the_benchmarks_and_not_the_modules_they_share() -> None:
+    completed = cli("bench")
+    assert completed.returncode == 0, completed.stderr
+    listed = completed.stdout.split()
+    assert {"physics_costs", "scale", "crowded", "mesh_costs", "deadline_slack"} <= set(listed)
+    assert not {"live_node", "crowded_picture"} & set(listed)
+    assert listed == sorted(path.stem for path in (REPO / "benchmarks").glob("*.py") if path.stem in listed)
+
+
+def test_bench_physics_costs_prints_each_figure() -> None:
+    completed = cli("bench", "physics_costs", str(PROBLEMS / "pyramid.yaml"), "--repeats", "2")
+    assert completed.returncode == 0, completed.stderr
+    out = completed.stdout
+    for label in (
+        "collision check (Rule 1)",
+        "settle (Rule 2)",
+        "world rebuilt each time",
+        "persistent world speed-up",
+    ):
+        assert re.search(rf"{re.escape(label)}.*: +[0-9.]+ (us|ms|x)", out), label
+    assert re.search(r"exhaustive search .* 125 visited", out)
+
+
+def test_bench_refuses_bad_repeats_missing_files_and_unknown_benchmarks() -> None:
+    completed = cli("bench", "physics_costs", "--repeats", "0")
+    assert completed.returncode == 2
+    assert completed.stderr.strip() == "physics-mapper bench: error: --repeats must be at least 1, got 0"
+    completed = cli("bench", "physics_costs", "no/such.yaml")
+    assert completed.returncode == 2
+    assert completed.stderr.strip().endswith("no/such.yaml: cannot read file: No such file or directory")
+    completed = cli("bench", "no_such_benchmark")
+    assert completed.returncode == 2
+    assert completed.stderr.startswith("physics-mapper bench: error: no benchmark 'no_such_benchmark'; the benchmarks")
+    completed = cli("bench", "scale", "--no-such-option")
+    assert completed.returncode == 2
+    assert "unrecognized arguments: --no-such-option" in completed.stderr
+
+
+def checkout_files() -> dict[Path, float]:
+    """Every file of the checkout but caches and build folders, with its modification time."""
+    files = {}
+    for path in REPO.rglob("*"):
+        relative = path.relative_to(REPO)
+        if relative.parts[0] in NOT_CHECKOUT or "__pycache__" in relative.parts or not path.is_file():
+            continue
+        files[relative] = path.stat().st_mtime
+    return files
+
+
+def test_bench_without_o_writes_nothing_in_the_checkout_and_with_o_its_plots(tmp_path: Path) -> None:
+    before = checkout_files()
+    command = [PHYSICS_MAPPER, "bench", "scale", "--quick", "--node-minutes", "0"]
+    completed = subprocess.run(command, cwd=REPO, capture_output=True, text=True, timeout=280, check=False)
+    assert completed.returncode == 0, completed.stderr
+    assert "plots:" not in completed.stdout
+    assert checkout_files() == before
+    completed = subprocess.run(
+        [*command, "-o", "plots"], cwd=tmp_path, capture_output=True, text=True, timeout=280, check=False
+    )
+    assert completed.returncode == 0, completed.stderr
+    assert sorted(path.name for path in (tmp_path / "plots").iterdir()) == ["scale.png", "scale_groups.png"]
+    assert checkout_files() == before
