@@ -411,7 +411,7 @@ class ObjectInputs:
         if in_use is None:
             why = pending or "; ".join(why for _, why in refusals)
             if not why:  # nothing received yet: waiting, not failing
-                return ObjectStatus(self.name, Level.WARN, "no PoseArray received yet", None, None, tuple(details))
+                return ObjectStatus(self.name, Level.WARN, "no hypotheses received yet", None, None, tuple(details))
             return ObjectStatus(self.name, Level.ERROR, why, None, None, tuple(details))
         age = now - in_use.poses.received
         details += [("hypotheses in use", str(len(in_use.hypotheses))), ("age [s]", f"{age:.2f}")]

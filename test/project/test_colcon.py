@@ -98,7 +98,7 @@ def run_the_installed_node(workspace: Path, tmp_path: Path, namespace: str) -> N
     search = search_status(diagnostics)
     assert search is not None
     assert search.message == "waiting for hypotheses of: cube_left, cube_right, cube_top"
-    assert object_status(diagnostics, "cube_top").message == "no PoseArray received yet"
+    assert object_status(diagnostics, "cube_top").message == "no hypotheses received yet"
     installed_scene = workspace / "install" / PACKAGE / "share" / PACKAGE / "config" / "scenes" / "pyramid.yaml"
     assert f"scene {installed_scene}:" in output
     assert code == 0, output

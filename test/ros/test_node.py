@@ -144,7 +144,7 @@ def test_nothing_is_published_until_every_object_has_hypotheses(fresh_pyramid: R
     assert search is not None
     assert search.message == "waiting for hypotheses of: cube_left, cube_right, cube_top"
     assert search.level == DiagnosticStatus.WARN  # waiting is not a failure
-    assert object_status(diagnostics, "cube_top").message == "no PoseArray received yet"
+    assert object_status(diagnostics, "cube_top").message == "no hypotheses received yet"
     problem = load_problem(PYRAMID_PROBLEM)
     waiting = publish_until_diagnosed(
         client,
