@@ -28,7 +28,7 @@ $(VISION_MSGS): $(STAMP) $(wildcard test/vision_msgs/*) $(wildcard test/vision_m
 
 # tf2_msgs neither: the tests build its TFMessage (/tf, /tf_static) the same way (test/tf2_msgs/).
 TF2_MSGS := $(VENV)/.tf2_msgs
-$(TF2_MSGS): $(STAMP) test/vision_msgs/build.sh $(wildcard test/tf2_msgs/*) $(wildcard test/tf2_msgs/msg/*.msg)
+$(TF2_MSGS): $(STAMP) test/vision_msgs/build.sh test/vision_msgs/pypi_wheel_targets.cmake $(wildcard test/tf2_msgs/*) $(wildcard test/tf2_msgs/msg/*.msg)
 	test/vision_msgs/build.sh $(VENV) build/tf2_msgs test/tf2_msgs
 	touch $@
 

@@ -12,12 +12,13 @@ started later gets the next tick's).
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseArray, PoseStamped
+from rclpy.node import Node
 from rclpy.publisher import Publisher
 from visualization_msgs.msg import MarkerArray
 
@@ -46,6 +47,11 @@ class TfOutput:
     enabled: bool
     prefix: str
     settled: bool
+
+    @staticmethod
+    def of(values: Mapping[str, Any]) -> TfOutput:
+        """From the node's parameter values."""
+        return TfOutput(bool(values["publish_tf"]), str(values["tf_prefix"]), values["tf_pose"] == "settled")
 
 
 @dataclass
@@ -120,12 +126,10 @@ def map_publishers(
     publisher: Callable[..., Publisher],
     object_names: Sequence[str],
     diagnostics: NodeDiagnostics,
-    *,
-    node_name: str,
-    hardware_id: str,
+    node: Node,
 ) -> MapPublishers:
     """The map's publishers, made by ``publisher`` (message type, topic[, QoS]): the map, its status, its
-    markers, each object's poses, and /tf where tf2_msgs is installed."""
+    markers, each object's poses, and /tf where tf2_msgs is installed; ``node``'s names name the map status."""
     try:
         from tf2_msgs.msg import TFMessage
     except ImportError:
@@ -142,7 +146,7 @@ def map_publishers(
             for name in object_names
         ],
         diagnostics=diagnostics,
-        status_name=f"{node_name}: map",
-        hardware_id=hardware_id,
+        status_name=f"{node.get_name()}: map",
+        hardware_id=node.get_fully_qualified_name(),
         tf=tf,
     )

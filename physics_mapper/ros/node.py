@@ -6,14 +6,14 @@ publishes the map, another at ``diagnostics_period`` publishes ``/diagnostics``.
 ``ros2 run physics_mapper node --ros-args -p scene_file:=<path>`` or, without a ROS installation,
 ``physics-mapper node --ros-args ...``. Topic names and QoS are in :mod:`physics_mapper.mapping.topics`.
 
-Messages become inputs stamped with their arrival (:mod:`physics_mapper.ros.node_inputs`); the
-parameters are declared, validated and read in :mod:`physics_mapper.ros.parameters`; the scene loads
-while the node spins (:mod:`physics_mapper.ros.node_scene`); the outputs are published by
-:mod:`physics_mapper.ros.map_publishers` and :mod:`physics_mapper.ros.node_diagnostics`; the managed node is
-:mod:`physics_mapper.ros.managed_node`, the process :mod:`physics_mapper.ros.run_node`. The node spins
-single-threaded; its subscriptions and its timers are in separate callback groups and the input
-tracker is locked, so a multi-threaded executor works too (BENCHMARKS.md, "Input flood", measured both).
-SIGINT and SIGTERM stop it cleanly at any moment, exit code 0 (:class:`~physics_mapper.ros.spinning.SignalStop`).
+Messages become inputs stamped with their arrival (:mod:`physics_mapper.ros.node_inputs`), moved from sensor frames
+into the scene's (:mod:`physics_mapper.ros.node_frames`); the parameters are declared, validated and read in
+:mod:`physics_mapper.ros.parameters`; the scene loads while the node spins (:mod:`physics_mapper.ros.node_scene`); the
+outputs are published by :mod:`physics_mapper.ros.map_publishers` and :mod:`physics_mapper.ros.node_diagnostics`; the
+managed node is :mod:`physics_mapper.ros.managed_node`, the process :mod:`physics_mapper.ros.run_node`. The node spins
+single-threaded; its subscriptions and its timers are in separate callback groups and the input tracker is locked, so
+a multi-threaded executor works too (BENCHMARKS.md, "Input flood", measured both). SIGINT and SIGTERM stop it cleanly
+at any moment, exit code 0 (:class:`~physics_mapper.ros.spinning.SignalStop`).
 """
 
 from __future__ import annotations
@@ -56,13 +56,7 @@ from physics_mapper.ros.node_diagnostics import WATCH_PERIOD, NodeDiagnostics
 from physics_mapper.ros.node_frames import SensorFrames
 from physics_mapper.ros.node_inputs import InputHandlers, InputNotes
 from physics_mapper.ros.node_scene import load_scene_spinning, resolve_scene_path
-from physics_mapper.ros.parameters import (
-    PARAMETERS,
-    SCENE_FILE_DESCRIPTOR,
-    NodeParameters,
-    parameters_problem,
-)
-from physics_mapper.ros.parameters import settings as parameter_settings
+from physics_mapper.ros.parameters import PARAMETERS, SCENE_FILE_DESCRIPTOR, NodeParameters, parameters_problem
 from physics_mapper.ros.qos import DIAGNOSTICS_QOS, MAP_QOS, input_qos
 from physics_mapper.ros.spinning import SignalStop
 
@@ -110,8 +104,7 @@ class MapperNodeBase(Node):
         self._node_parameters.drop_unknown_parameters(unknown)
         self._mapper = Mapper(scene)
         reliability = cast(InputReliability, values["input_reliability"])
-        self._frames = SensorFrames(self, scene, self._input_notes.log_once)
-        self._frames.set_timeout(float(values["transform_timeout"]))
+        self._frames = SensorFrames(self, scene, self._input_notes.log_once, float(values["transform_timeout"]))
         self._entities += self._frames.subscribe(self._inputs_group)
         handlers = InputHandlers(self, self._mapper, self._input_notes, self._frames)
         topics = [topic for name in scene.object_names for topic in self._subscribe(handlers, name, reliability)]
@@ -120,13 +113,7 @@ class MapperNodeBase(Node):
         diagnostics = NodeDiagnostics(
             self, self._mapper, self._node_parameters, diagnostics_pub, best_effort=reliability == "best_effort"
         )
-        self._outputs = map_publishers(
-            self._map_publisher,
-            scene.object_names,
-            diagnostics,
-            node_name=self.get_name(),
-            hardware_id=self.get_fully_qualified_name(),
-        )
+        self._outputs = map_publishers(self._map_publisher, scene.object_names, diagnostics, self)
         self._logger.info(
             f"scene {scene_path}: objects {', '.join(scene.object_names)} in frame {scene.frame_id!r}; "
             f"listening on {', '.join(topics)} ({reliability})"
@@ -140,13 +127,6 @@ class MapperNodeBase(Node):
         return self._mapper
 
     @property
-    def frames(self) -> SensorFrames:
-        """The sensor frames of the configured node."""
-        if self._frames is None:
-            raise RuntimeError("the node is not configured")
-        return self._frames
-
-    @property
     def outputs(self) -> MapPublishers:
         """The output publishers of the configured node."""
         if self._outputs is None:
@@ -156,8 +136,7 @@ class MapperNodeBase(Node):
     def start_ticking(self) -> None:
         """Start the tick timer (``rate_hz``) and the diagnostics timer (``diagnostics_period``)."""
         values = self._node_parameters.parameter_values()
-        # Latched: RViz shows the fixed bodies before the first map (each map repeats them), a consumer
-        # the object names and that there is no map yet.
+        # Latched, before the first map (each map repeats them): RViz shows the fixed bodies, a consumer the names.
         self.outputs.markers.publish(static_markers_msg(self.mapper.scene, stamp_ns=self._now_ns()))
         self.outputs.publish_status(None, self.mapper.scene, self._now_ns())
         diagnostics = self.outputs.diagnostics
@@ -185,7 +164,6 @@ class MapperNodeBase(Node):
                 self._destroy_publisher(entity)
         self._entities = []
         self._outputs = None
-        self._frames = None
         if self._mapper is not None:
             self._mapper.close()
             self._mapper = None
@@ -202,18 +180,10 @@ class MapperNodeBase(Node):
     # --- parameters -----------------------------------------------------------------------------
 
     def _on_set_parameters(self, parameters: list[Parameter]) -> SetParametersResult:
-        """Refuse a change that leaves the combination of values invalid, and any change of a read-only
-        parameter; accepted ones apply at the next tick.
-
-        Before the node is configured there is no combination to judge yet: a value set then is
-        judged when :meth:`configure` declares the parameters.
-        """
-        read_only = self._node_parameters.read_only_problem(parameters)
-        if read_only is not None:
-            return SetParametersResult(successful=False, reason=read_only)
-        if self._mapper is None:
-            return SetParametersResult(successful=True)
-        problem = self._node_parameters.change_problem(parameters)
+        """Refuse read-only and invalid changes (judged at :meth:`configure` before it); others apply next tick."""
+        problem = self._node_parameters.read_only_problem(parameters)
+        if problem is None and self._mapper is not None:
+            problem = self._node_parameters.change_problem(parameters)
         return SetParametersResult(successful=problem is None, reason=problem or "")
 
     def _on_parameters_set(self, parameters: list[Parameter]) -> None:
@@ -294,20 +264,15 @@ class MapperNodeBase(Node):
 
     def _tick(self) -> None:
         start = time.monotonic()
-        values = self._node_parameters.parameter_values()
-        settings = parameter_settings(values)
-        now = self._now_ns() / NANOSECONDS_PER_SECOND
-        self.frames.set_timeout(float(values["transform_timeout"]))
-        self.frames.flush(now)  # inputs whose wait for a transform is over are refused before the snapshot
+        values, settings = self._node_parameters.parameter_values(), self._node_parameters.settings()
+        if self._frames is not None:  # inputs whose wait for a transform is over are refused before the snapshot
+            self._frames.flush(float(values["transform_timeout"]))
         with self._stop.interruptible():  # a signal stops a search at once
-            report = self.mapper.tick(now, settings)
-        for status in report.snapshot.objects:  # what only a tick finds: dropped poses, uniform weights
-            for note in status.notes:
-                self._input_notes.log_once(status.name, note)
+            report = self.mapper.tick(self._now_ns() / NANOSECONDS_PER_SECOND, settings)
+        self._input_notes.log_tick(report.snapshot)
         diagnostics = self.outputs.diagnostics
         diagnostics.record(report)
-        tf = TfOutput(bool(values["publish_tf"]), str(values["tf_prefix"]), values["tf_pose"] == "settled")
-        self.outputs.publish_map(report, self.mapper.scene, tf)
+        self.outputs.publish_map(report, self.mapper.scene, TfOutput.of(values))
         tick_time = time.monotonic() - start
         diagnostics.ticks.record(
             start=start,

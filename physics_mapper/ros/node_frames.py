@@ -18,6 +18,7 @@ from typing import Any
 from rclpy.node import Node
 
 from physics_mapper.mapping.frames import LookupFailure, Transform, TransformBuffer, TransformWait
+from physics_mapper.mapping.stamps import NANOSECONDS_PER_SECOND
 from physics_mapper.mapping.topics import TF_STATIC_TOPIC, TF_TOPIC
 from physics_mapper.model.scene import Scene
 from physics_mapper.msg_adapters.transforms import fixed_frame_transform, stamped_transforms
@@ -33,14 +34,14 @@ MAX_WAITING_INPUTS = 100
 class SensorFrames:
     """Transforms into the scene's frame for the inputs of one configured node (thread-safe)."""
 
-    def __init__(self, node: Node, scene: Scene, log_once: Callable[[str, str], None]) -> None:
+    def __init__(self, node: Node, scene: Scene, log_once: Callable[[str, str], None], timeout: float) -> None:
         self._node = node
         self._target = scene.frame_id
         self._log_once = log_once
         self._lock = threading.Lock()
         self._buffer = TransformBuffer()
         self._waiting: TransformWait[Completion] = TransformWait(scene.frame_id, MAX_WAITING_INPUTS)
-        self._timeout = 0.0
+        self._timeout = timeout  # transform_timeout, seconds
         for problem in self._buffer.add_all((fixed_frame_transform(f) for f in scene.frames), static=True):
             log_once("frames", problem)
 
@@ -63,7 +64,7 @@ class SensorFrames:
                 refusals = self._buffer.add_all(stamped_transforms(message), static=static)
             for refusal in refusals:
                 self._log_once(TF_STATIC_TOPIC if static else TF_TOPIC, refusal)
-            self.flush(self._now())
+            self.flush()
 
         return on_transforms
 
@@ -84,16 +85,15 @@ class SensorFrames:
         unresolved = {frame: f.reason for frame, f in found.items() if isinstance(f, LookupFailure)}
         complete(transforms, unresolved)
 
-    def flush(self, now: float) -> None:
-        """Complete the waiting inputs whose transforms arrived or whose wait is over."""
+    def flush(self, timeout: float | None = None) -> None:
+        """Complete the waiting inputs whose transforms arrived or whose wait is over, now on the node's
+        clock (``timeout``: a new ``transform_timeout``, seconds)."""
+        now = self._now()
         with self._lock:
+            self._timeout = self._timeout if timeout is None else timeout
             ready = self._waiting.ready(self._buffer, now, self._timeout)
         for resolved in ready:
             resolved.item(resolved.transforms, resolved.unresolved)
 
-    def set_timeout(self, seconds: float) -> None:
-        """``transform_timeout``: how long an input waits for its transforms."""
-        self._timeout = seconds
-
     def _now(self) -> float:
-        return float(self._node.get_clock().now().nanoseconds) / 1e9
+        return self._node.get_clock().now().nanoseconds / NANOSECONDS_PER_SECOND

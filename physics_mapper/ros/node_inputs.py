@@ -21,7 +21,7 @@ from std_msgs.msg import Float64MultiArray
 
 from physics_mapper.mapping.detections import DETECTIONS_TOPIC, DetectionInputs, detection_frames, detection_inputs
 from physics_mapper.mapping.frames import Transform, moved_into
-from physics_mapper.mapping.inputs import MessageKind, ReceivedPoses
+from physics_mapper.mapping.inputs import InputSnapshot, MessageKind, ReceivedPoses
 from physics_mapper.mapping.mapper import Mapper
 from physics_mapper.mapping.stamps import NANOSECONDS_PER_SECOND, to_nanoseconds
 from physics_mapper.msg_adapters.hypotheses import received_pose_array, received_weights
@@ -50,6 +50,12 @@ class InputNotes:
             self._logger.warning(f"{name}: {what}")
         else:
             self._logger.warning(f"{name}: {what}", throttle_duration_sec=1.0)
+
+    def log_tick(self, snapshot: InputSnapshot) -> None:
+        """What only a tick finds about an object's hypotheses (dropped poses, uniform weights), once each."""
+        for status in snapshot.objects:
+            for note in status.notes:
+                self.log_once(status.name, note)
 
 
 class InputHandlers:
