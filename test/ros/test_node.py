@@ -493,8 +493,8 @@ def test_deadline_changed_at_run_time_takes_effect_and_invalid_values_are_refuse
 def test_params_file_configures_the_node_and_unknown_keys_are_named(tmp_path: Path) -> None:
     """The shipped parameters file, plus two misspelt keys (and one -p) that a user would want to hear about."""
     shipped = yaml.safe_load((REPO / "config" / "params" / "node.yaml").read_text())
-    expected = shipped["/**/physics_mapper"]["ros__parameters"]
-    shipped["/**/physics_mapper"]["ros__parameters"] = {**expected, "deadlne": 0.1, "rate": 5.0}
+    expected = shipped["/**"]["ros__parameters"]
+    shipped["/**"]["ros__parameters"] = {**expected, "deadlne": 0.1, "rate": 5.0}
     params_file = tmp_path / "params.yaml"
     params_file.write_text(yaml.safe_dump(shipped))
     log = (tmp_path / "node.log").open("w")
