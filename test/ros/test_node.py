@@ -273,7 +273,9 @@ BAD_INPUTS = {
     "one_bad_pose_of_two": BadInput(
         raw_pose_array(TOP, ((0.0, 0.0, 0.3), (0.0, 0.0, 0.0, 0.0))), [0.5, 0.5], "dropped 1 of 2 poses"
     ),
-    "wrong_frame": BadInput(raw_pose_array(TOP, frame="camera"), [1.0], "frame_id 'camera' is not the scene frame"),
+    "wrong_frame": BadInput(
+        raw_pose_array(TOP, frame="camera"), [1.0], "PoseArray refused: no transform from 'camera' to 'world'"
+    ),
     "outside_workspace": BadInput(
         raw_pose_array(((0.0, 0.0, 1e15), TOP[1])), [1.0], "poses[0]: (0, 0, 1e+15) m is outside the workspace"
     ),
