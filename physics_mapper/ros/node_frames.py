@@ -6,7 +6,8 @@ input whose poses are in another frame than the scene's is handed in with the fr
 a completion; it completes at once when every transform is known at its stamp, or waits
 (:class:`~physics_mapper.mapping.frames.TransformWait`) until the transforms arrive or
 ``transform_timeout`` seconds pass, and is then refused with the lookup's reason (logged, and in
-the object's diagnostics).
+the object's diagnostics). Inputs in sensor frames complete in the order they arrived: one behind
+a waiting input waits too, so that older hypotheses never replace newer ones.
 """
 
 from __future__ import annotations
@@ -78,9 +79,14 @@ class SensorFrames:
         with self._lock:
             found = {frame: self._buffer.lookup(self._target, frame, stamp_ns) for frame in needed}
             failures = [f for f in found.values() if isinstance(f, LookupFailure)]
-            if failures and all(f.may_arrive for f in failures) and self._timeout > 0.0:
+            # Behind inputs still waiting, so that inputs complete in the order they arrived.
+            late = bool(failures) and all(f.may_arrive for f in failures)
+            wait = self._timeout > 0.0 and (late or len(self._waiting) > 0)
+            if wait:
                 self._waiting.add(complete, needed, stamp_ns, received)
-                return
+        if wait:
+            self.flush()
+            return
         transforms = {frame: t for frame, t in found.items() if isinstance(t, Transform)}
         unresolved = {frame: f.reason for frame, f in found.items() if isinstance(f, LookupFailure)}
         complete(transforms, unresolved)
