@@ -8,11 +8,14 @@ STAMP := $(VENV)/.installed
 
 venv: $(STAMP)
 
+# The editable install finds physics_mapper.msg_adapters in msg_adapters/ through setuptools' finder, which
+# always warns that a folder named like the package in the working directory may shadow it: that folder is
+# the package itself, so this one informational warning is filtered (by its text) for that command.
 $(STAMP): requirements.txt requirements-dev.txt requirements-ray.txt setup.py
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/pip install --quiet --upgrade pip
 	$(BIN)/pip install --quiet -r requirements-dev.txt
-	$(BIN)/pip install --quiet --no-deps --no-build-isolation -e .
+	PYTHONWARNINGS="ignore:Editable installation" $(BIN)/pip install --quiet --no-deps --no-build-isolation -e .
 	touch $(STAMP)
 
 lint: venv

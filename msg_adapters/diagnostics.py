@@ -93,7 +93,9 @@ def _search_level_and_message(report: TickReport) -> tuple[Level, str]:
     if result is None:  # waiting is the normal state before an estimator starts: not an error
         return Level.WARN, f"waiting for hypotheses of: {', '.join(report.snapshot.missing)}"
     if result.valid:
-        return Level.OK, f"valid {code_text(result.code)}, p(C)={result.probability:.4g}, J={result.jitter:.4g}"
+        left_out = f"; left out: {', '.join(report.absent)}" if report.absent else ""
+        text = f"valid {code_text(result.code)}, p(C)={result.probability:.4g}, J={result.jitter:.4g}{left_out}"
+        return Level.OK, text
     if result.refinement is not None:
         refined = f"{code_text(result.code)} refined ({refinement_text(result.refinement)}) and settled"
         return Level.WARN, f"no valid configuration; fallback refine: {refined}, J={result.jitter:.4g}"
@@ -153,7 +155,26 @@ def search_values(report: TickReport) -> list[tuple[str, str]]:
         names = tuple(o.name for o in report.snapshot.objects)
         values += [(_group_key(group), _group_state(group, names)) for group in groups]
         values += [(f"conflicts of {_group_key(group)}", _group_conflicts(group)) for group in groups]
+    values += instance_values(report)
     values += [(f"input {o.name}", f"{o.level.name}: {o.message}") for o in report.snapshot.objects]
+    return values
+
+
+def instance_values(report: TickReport) -> list[tuple[str, str]]:
+    """What the map left out and what the association of instances did: ``absent`` (the objects the map
+    leaves out, ``none``), and where the scene has classes of instances, ``instances <class>`` (instances
+    with a track), ``births`` and ``ends`` (since the previous tick) and ``detections outside every gate``
+    (since the start)."""
+    tracking = report.tracking
+    values = [("absent", ", ".join(report.absent) or "none")]
+    if not tracking.instances:
+        return values
+    values += [(f"instances {class_id}", str(count)) for class_id, count in tracking.instances]
+    values += [
+        ("births", ", ".join(tracking.births) or "none"),
+        ("ends", ", ".join(tracking.ends) or "none"),
+        ("detections outside every gate", str(tracking.outside)),
+    ]
     return values
 
 

@@ -6,11 +6,14 @@ Marker namespaces (``ns``), each with ``id`` = the body's index in its scene lis
   file by a URI RViz resolves, scaled); green at the chosen poses, orange at the settled poses
   of a fallback;
 * ``labels``: a text ``name`` / ``J=`` above each object;
+* an object the map leaves out (*absent*) gets DELETE markers in both namespaces;
 * ``static``: the fixed bodies (floor, walls, table, tray) in grey, so RViz shows the whole scene;
   a plane as a thin square of :data:`PLANE_MARKER_SIZE` whose top face is the plane.
 """
 
 from __future__ import annotations
+
+from collections.abc import Sequence
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PoseArray, PoseStamped, Vector3
@@ -37,16 +40,22 @@ LABEL_COLOR = ColorRGBA(r=1.0, g=1.0, b=1.0, a=1.0)
 STATIC_COLOR = ColorRGBA(r=0.6, g=0.6, b=0.62, a=0.6)
 
 
-def configuration_msgs(result: SearchResult, *, frame_id: str, stamp_ns: int) -> tuple[PoseArray, PoseArray] | None:
-    """The chosen poses and their settled poses, in scene object order; None if nothing was chosen.
+def configuration_msgs(
+    result: SearchResult, *, frame_id: str, stamp_ns: int, present: Sequence[int] | None = None
+) -> tuple[PoseArray, PoseArray] | None:
+    """The chosen poses and their settled poses of the objects the map holds (``present``, scene indices;
+    None: every object), in scene object order; None if nothing was chosen.
 
-    ``stamp_ns``: the header stamp, integer nanoseconds (the newest input stamp used).
+    ``stamp_ns``: the header stamp, integer nanoseconds (the newest input stamp used). Objects the map
+    leaves out (*absent*) are not in the arrays: with instances that come and go, the arrays hold the
+    present ones in scene order (``~/objects`` names them).
     """
     if result.poses is None or result.settled_poses is None:
         return None
+    kept = range(len(result.poses)) if present is None else present
     return (
-        pose_array_msg(result.poses, frame_id=frame_id, stamp_ns=stamp_ns),
-        pose_array_msg(result.settled_poses, frame_id=frame_id, stamp_ns=stamp_ns),
+        pose_array_msg([result.poses[i] for i in kept], frame_id=frame_id, stamp_ns=stamp_ns),
+        pose_array_msg([result.settled_poses[i] for i in kept], frame_id=frame_id, stamp_ns=stamp_ns),
     )
 
 
@@ -56,14 +65,21 @@ NO_MAP_YET = "no map yet"
 
 
 def map_status_msg(
-    result: SearchResult | None, scene: Scene, *, name: str, hardware_id: str, stamp_ns: int
+    result: SearchResult | None,
+    scene: Scene,
+    *,
+    name: str,
+    hardware_id: str,
+    stamp_ns: int,
+    present: Sequence[int] | None = None,
 ) -> DiagnosticArray:
     """What the map published with the same stamp is: one status, OK for a valid map, WARN for a fallback.
 
     Its message is ``valid``, ``fallback settled`` or ``fallback refine`` (``no map yet`` before the
     first); its keys: ``valid`` (``true``/``false``), ``fallback`` (``none``, ``settled``,
-    ``refine``), ``code`` (the configuration's code, ``-`` without one) and ``objects``: the object
-    names, comma-separated, in the order of ``~/configuration``'s poses.
+    ``refine``), ``code`` (the configuration's code, ``-`` without one) and ``objects``: the names
+    of the objects ``present`` (scene indices; None: every object), comma-separated, in the order of
+    ``~/configuration``'s poses.
     """
     if result is None or result.poses is None:
         level, message, fallback, code = DiagnosticStatus.WARN, NO_MAP_YET, "none", "-"
@@ -76,25 +92,35 @@ def map_status_msg(
         KeyValue(key="valid", value="true" if result is not None and result.valid else "false"),
         KeyValue(key="fallback", value=fallback),
         KeyValue(key="code", value=code),
-        KeyValue(key="objects", value=",".join(scene.object_names)),
+        KeyValue(key="objects", value=",".join(_present_names(scene, present))),
     ]
     status = DiagnosticStatus(level=level, name=name, message=message, hardware_id=hardware_id, values=values)
     return DiagnosticArray(header=Header(stamp=stamp_from_nanoseconds(stamp_ns)), status=[status])
 
 
+def _present_names(scene: Scene, present: Sequence[int] | None) -> list[str]:
+    """The names of the objects ``present`` (scene indices; None: every object), in ``~/configuration``'s order."""
+    names = scene.object_names
+    return list(names) if present is None else [names[index] for index in present]
+
+
 def object_pose_msgs(
-    result: SearchResult, *, frame_id: str, stamp_ns: int
-) -> tuple[tuple[PoseStamped, PoseStamped], ...] | None:
-    """Per object, in scene order, its chosen and its settled pose; None if nothing was chosen.
+    result: SearchResult, *, frame_id: str, stamp_ns: int, present: Sequence[int] | None = None
+) -> tuple[tuple[PoseStamped, PoseStamped] | None, ...] | None:
+    """Per object, in scene order, its chosen and its settled pose (None for an object not in ``present``,
+    scene indices; None: every object is); None if nothing was chosen.
 
     Same header as :func:`configuration_msgs`: a consumer of one object gets the map's frame and stamp.
     """
     if result.poses is None or result.settled_poses is None:
         return None
     header = Header(frame_id=frame_id, stamp=stamp_from_nanoseconds(stamp_ns))
+    kept = set(range(len(result.poses)) if present is None else present)
     return tuple(
         (PoseStamped(header=header, pose=pose_msg(chosen)), PoseStamped(header=header, pose=pose_msg(settled)))
-        for chosen, settled in zip(result.poses, result.settled_poses, strict=True)
+        if index in kept
+        else None
+        for index, (chosen, settled) in enumerate(zip(result.poses, result.settled_poses, strict=True))
     )
 
 
@@ -159,21 +185,32 @@ def static_markers_msg(scene: Scene, *, stamp_ns: int) -> MarkerArray:
     )
 
 
-def markers_msg(result: SearchResult, scene: Scene, *, stamp_ns: int) -> MarkerArray:
-    """One marker per object in its true shape, a text label ``name J=...``, and the fixed bodies.
+def markers_msg(
+    result: SearchResult, scene: Scene, *, stamp_ns: int, present: Sequence[int] | None = None
+) -> MarkerArray:
+    """One marker per object present in its true shape, a text label ``name J=...``, and the fixed bodies.
 
     A valid configuration is drawn green at its chosen poses; a fallback orange at its settled
     poses, the corrected estimate. J is the object's jitter J_i. The fixed
-    bodies come with every map, since RViz keeps only the last latched MarkerArray. Empty if
-    nothing was chosen. Headers are stamped ``stamp_ns`` (integer nanoseconds).
+    bodies come with every map, since RViz keeps only the last latched MarkerArray. An object not in
+    ``present`` (scene indices; None: every object is), one the map leaves out, gets DELETE markers
+    for its shape and label, so RViz drops it once it left. Empty if nothing was chosen. Headers are
+    stamped ``stamp_ns`` (integer nanoseconds).
     """
     if result.poses is None or result.settled_poses is None or result.object_jitters is None:
         return MarkerArray()
     poses = result.settled_poses if result.fallback_used else result.poses
     header = Header(frame_id=scene.frame_id, stamp=stamp_from_nanoseconds(stamp_ns))
     jitters = result.object_jitters
+    kept = set(range(len(poses)) if present is None else present)
     markers = []
     for index, (model, pose) in enumerate(zip(scene.objects, poses, strict=True)):
+        if index not in kept:
+            markers += [
+                Marker(header=header, ns=namespace, id=index, action=Marker.DELETE)
+                for namespace in (SHAPE_NAMESPACE, LABEL_NAMESPACE)
+            ]
+            continue
         shape = Marker(header=header, ns=SHAPE_NAMESPACE, id=index, action=Marker.ADD, pose=pose_msg(pose))
         _shape(shape, model.shape)
         shape.color = VALID_COLOR if result.valid else FALLBACK_COLOR

@@ -29,13 +29,17 @@ saw, and keeps no order across frames. The rules that give each detection of a *
   (one without a track): the one whose ended track was last within the gate of the detection (an
   instance seen again after a long miss keeps its name), else a never-tracked one, in scene
   order, else the one whose track ended longest ago. With no free instance it is counted as
-  outside every gate and not used (``count: {max: K}`` stops at K).
+  outside every gate and not used (``count: {max: K}`` stops at K). Detections born together
+  take their instances in the order of their best results' positions (x, then y, then z), not of
+  the array: even a first frame names the same boxes the same way however it is ordered.
+- **Confirmation.** A track is *tentative* until it was matched ``confirm_hits`` times and some
+  map held its instance (:meth:`InstanceTracks.keep`): a detection physics finds no place for, a
+  reflection in the air seen in every frame, is never confirmed by repeating itself.
 - **Misses and ends.** An instance no detection matched keeps its own state and hypotheses; it
-  never takes another's. A tentative track (matched fewer than ``confirm_hits`` times) ends at
-  its first miss, and when the map leaves its instance out (:meth:`InstanceTracks.reject`: a
-  detection physics finds no place for is never confirmed by repeating itself); a confirmed one
-  ends when unmatched for more than ``max_age`` seconds. An ended track frees its instance, and
-  the instance's hypotheses are forgotten.
+  never takes another's. A tentative track ends at its first miss, and when a finished search
+  leaves its instance out (:meth:`InstanceTracks.reject`; a search the deadline stopped is no
+  verdict); a confirmed one ends when unmatched for more than ``max_age`` seconds. An ended track
+  frees its instance, and the instance's hypotheses are forgotten.
 - **Existence.** An instance that may not be there, a tentative track or an instance of a
   ``count: {max: K}`` entry, has a weight for *absent*:
   w_absent = prod_k (1 - c_k) over its track's (newest 20) matched detections, c_k the detection's best
@@ -101,6 +105,10 @@ class Observation:
         """The index of the best-scored result (the first of equal ones)."""
         return int(np.argmax(self.scores))
 
+    def place(self) -> tuple[float, ...]:
+        """Where its best-scored result is, (x, y, z) in metres: the order in which new tracks are born."""
+        return tuple(self.positions[self.best].tolist())
+
     def nearest(self, point: NDArray[np.float64]) -> tuple[int, float]:
         """The result nearest ``point`` and its distance (m)."""
         distances = np.linalg.norm(self.positions - point, axis=1)
@@ -117,6 +125,7 @@ class Track:
     key: str = ""
     hits: int = 0
     confidences: list[float] = field(default_factory=list)
+    kept: bool = False  # some map held its instance
 
     @property
     def position(self) -> NDArray[np.float64]:
@@ -185,17 +194,26 @@ class InstanceTracks:
         return default_gate(self._shapes[self.scene.objects_of_class(class_id)[0]])
 
     def tentative(self, name: str) -> bool:
+        """Whether ``name`` has a track not confirmed yet: matched fewer than ``confirm_hits`` times, or never
+        held by a map (:meth:`keep`)."""
         track = self.tracks.get(name)
-        return track is not None and track.hits < self.settings.confirm_hits
+        return track is not None and (track.hits < self.settings.confirm_hits or not track.kept)
 
     def absent_weight(self, name: str) -> float | None:
         """The weight of ``name`` being absent, or None if it is certainly there while tracked."""
         track = self.tracks.get(name)
         if track is None:
             return None
-        if name in self.scene.optional or track.hits < self.settings.confirm_hits:
+        if name in self.scene.optional or self.tentative(name):
             return track.absent_weight()
         return None
+
+    def keep(self, names: Sequence[str]) -> None:
+        """Note that a map holds the instances ``names``: their tracks may be confirmed."""
+        for name in names:
+            track = self.tracks.get(name)
+            if track is not None:
+                track.kept = True
 
     def instances_per_class(self) -> dict[str, int]:
         """Tracked classes -> their instances with a track."""
@@ -213,9 +231,9 @@ class InstanceTracks:
         return ended
 
     def reject(self, names: Sequence[str], now: float) -> tuple[str, ...]:
-        """End the tentative tracks of ``names``, instances the map left out at ``now``: physics found no
-        place for them, so they are not confirmed by being detected again there (a persistent false
-        positive stays tentative, with its *absent*). Returns the names whose tracks ended."""
+        """End the tentative tracks of ``names``, instances a finished search left out at ``now``
+        (:func:`~physics_mapper.mapping.existence.left_out_by_physics`): physics found no place for them.
+        Returns the names whose tracks ended."""
         ended = tuple(name for name in names if self.tentative(name))
         for name in ended:
             self._end(name, now)
@@ -243,7 +261,8 @@ class InstanceTracks:
                 self._update(name, observation, now)
                 assigned[observation.index] = name
                 matched.add(name)
-            for observation in (o for o in of_class if o.index not in assigned):
+            unmatched = sorted((o for o in of_class if o.index not in assigned), key=Observation.place)
+            for observation in unmatched:
                 free = self._free(names, observation, self.gate(class_id))
                 if free is None:
                     outside[class_id] = outside.get(class_id, 0) + 1

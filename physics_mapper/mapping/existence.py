@@ -92,6 +92,16 @@ def searched_hypotheses(
     return tuple(searched)
 
 
+def left_out_by_physics(
+    names: tuple[str, ...], hypotheses: tuple[RankedHypotheses, ...], result: SearchResult | None
+) -> tuple[str, ...]:
+    """The objects a *finished* search's map leaves out (none while the deadline stops it: its choice is
+    the best so far, not physics' verdict)."""
+    if result is None or result.code is None or not result.stats.finished:
+        return ()
+    return absent_objects(names, hypotheses, result)
+
+
 def absent_objects(
     names: tuple[str, ...], hypotheses: tuple[RankedHypotheses, ...], result: SearchResult | None
 ) -> tuple[str, ...]:

@@ -19,7 +19,7 @@ from rclpy.event_handler import QoSMessageLostInfo
 from rclpy.node import Node
 from std_msgs.msg import Float64MultiArray
 
-from physics_mapper.mapping.detections import DETECTIONS_TOPIC, DetectionInputs, detection_frames, detection_inputs
+from physics_mapper.mapping.detections import DETECTIONS_TOPIC, DetectionInputs, detection_frames
 from physics_mapper.mapping.frames import Transform, moved_into
 from physics_mapper.mapping.inputs import InputSnapshot, MessageKind, ReceivedPoses
 from physics_mapper.mapping.mapper import Mapper
@@ -92,6 +92,9 @@ class InputHandlers:
     def _add(self, name: str, received: ReceivedPoses) -> None:
         """Hand object ``name``'s poses to the tracker; log a refusal, or a frame taken for the scene's."""
         self._mapper.inputs.add_poses(name, received)
+        self._log_refusal(name, received)
+
+    def _log_refusal(self, name: str, received: ReceivedPoses) -> None:
         if received.frame_assumed:
             frame = self._mapper.scene.frame_id
             self._notes.log_once(name, f"a {received.source} without a frame_id is taken in the scene frame {frame!r}")
@@ -110,24 +113,28 @@ class InputHandlers:
         return on_weights
 
     def detections(self) -> Callable[[Any, Mapping[str, Any]], None]:
-        """The ``detections`` handler: its results are the hypotheses of the objects their class ids name."""
-        scene = self._mapper.scene
+        """The ``detections`` handler: its results are the hypotheses of the objects their class ids name,
+        a class of instances's detections associated to instances (:meth:`Mapper.add_detections`), once
+        their frames are moved into the scene's."""
 
         def on_detections(msg: Any, info: Mapping[str, Any]) -> None:
             received = self.received(info)
 
             def complete(transforms: Mapping[str, Transform], unresolved: Mapping[str, str]) -> None:
-                detected = detection_inputs(msg, scene, received=received, transforms=transforms, unresolved=unresolved)
-                self._add_detections(detected)
+                detected = self._mapper.add_detections(
+                    msg, received=received, transforms=transforms, unresolved=unresolved
+                )
+                self._log_detections(detected)
 
             stamp = msg.header.stamp
             self._frames.resolve(detection_frames(msg), to_nanoseconds(stamp.sec, stamp.nanosec), received, complete)
 
         return on_detections
 
-    def _add_detections(self, detected: DetectionInputs) -> None:
+    def _log_detections(self, detected: DetectionInputs) -> None:
+        """What the mapper made of a Detection3DArray: each refusal and note, once."""
         for name, received in detected.objects.items():
-            self._add(name, received)
+            self._log_refusal(name, received)
         for note in detected.unused:
             self._notes.log_once(DETECTIONS_TOPIC, note)
 

@@ -18,6 +18,7 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.time_source import USE_SIM_TIME_NAME
 
+from physics_mapper.mapping.association import AssociationSettings
 from physics_mapper.mapping.inputs import InputSettings
 from physics_mapper.mapping.mapper import DEFAULT_RATE_HZ, MapperSettings, mapper_settings_problem
 from physics_mapper.mapping.topics import INPUT_RELIABILITIES
@@ -67,6 +68,15 @@ PARAMETERS = (
     ParameterSpec("max_hypotheses_per_object", "hypotheses kept per object (the heaviest)", 100, (1, 100000)),
     ParameterSpec("max_age", "seconds after which received hypotheses are stale", 10.0, (0.01, 86400.0)),
     ParameterSpec("require_weights", "refuse PoseArrays without a weights message instead of uniform weights", False),
+    ParameterSpec(
+        "association_gate",
+        "metres beyond which a detection never matches an instance (0: half the smallest extent of its shape)",
+        0.0,
+        (0.0, 10.0),
+    ),
+    ParameterSpec(
+        "confirm_hits", "detections that confirm an instance's track (before, it may be absent)", 3, (1, 1000)
+    ),
     ParameterSpec(
         "diagnostics_period",
         "seconds between two /diagnostics messages (the map topics follow rate_hz)",
@@ -127,7 +137,10 @@ def settings(values: Mapping[str, Any]) -> MapperSettings:
         max_hypotheses=int(values["max_hypotheses_per_object"]),
         require_weights=bool(values["require_weights"]),
     )
-    return MapperSettings(search, inputs, float(values["rate_hz"]))
+    association = AssociationSettings(
+        gate=float(values["association_gate"]), confirm_hits=int(values["confirm_hits"]), max_age=inputs.max_age
+    )
+    return MapperSettings(search, inputs, float(values["rate_hz"]), association)
 
 
 def parameters_problem(values: Mapping[str, Any]) -> str | None:

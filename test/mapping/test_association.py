@@ -57,6 +57,7 @@ def identities(scene: Scene, arrays: list[list[Any]], tracks: InstanceTracks) ->
     seen = []
     for frame, detections in enumerate(arrays):
         inputs = detection_inputs(array(detections), scene, received=float(frame), tracks=tracks)
+        tracks.keep(list(inputs.objects))  # as a map holding every instance detected would
         seen.append({name: nearest_box(tuple(p.poses[-1, :3])) for name, p in inputs.objects.items()})
     return seen
 
@@ -69,6 +70,15 @@ def test_shuffled_order_keeps_identities() -> None:
     assert sorted(first.values()) == list(range(6))  # each box one instance
     assert all(frame == first for frame in seen)
     assert tracks.births == 6 and tracks.ends == 0
+
+
+def test_a_first_frame_names_the_boxes_the_same_way_in_any_order() -> None:
+    scene = bin_scene()
+    (first,) = frames(1, seed=5)
+    named = [
+        identities(scene, [order], InstanceTracks(scene))[0] for order in (first, first[::-1], first[2:] + first[:2])
+    ]
+    assert named[0] == named[1] == named[2]
 
 
 def test_a_stable_id_wins_over_distance() -> None:
@@ -103,6 +113,7 @@ def test_an_instance_ends_after_max_age_and_its_name_is_free_again() -> None:
     tracks = InstanceTracks(scene, AssociationSettings(max_age=1.0, confirm_hits=1))
     a, b = (0.0, 0.0, 0.05), (0.3, 0.0, 0.05)
     detection_inputs(array([detection(result(a)), detection(result(b))]), scene, received=0.0, tracks=tracks)
+    tracks.keep(["box_1", "box_2"])  # a map held both: confirmed
     kept = detection_inputs(array([detection(result(a))]), scene, received=0.9, tracks=tracks)
     assert kept.association is not None and kept.association.ended == () and "box_2" in tracks.tracks
     ended = detection_inputs(array([detection(result(a))]), scene, received=1.5, tracks=tracks)
@@ -116,6 +127,7 @@ def test_a_tentative_track_ends_at_its_first_miss() -> None:
     a, floating = (0.0, 0.0, 0.05), (0.5, 0.0, 0.4)
     for time in (0.0, 0.5, 1.0):
         detection_inputs(array([detection(result(a))]), scene, received=time, tracks=tracks)
+        tracks.keep(["box_1"])
     detection_inputs(array([detection(result(a)), detection(result(floating))]), scene, received=1.5, tracks=tracks)
     assert tracks.tentative("box_2") and tracks.absent_weight("box_2") == pytest.approx(0.1)
     assert tracks.absent_weight("box_1") is None  # a confirmed instance of count: K exists

@@ -4,11 +4,13 @@ objects, through the node's ROS-free tick (:class:`Mapper`), with real pybullet.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
 from detection_builders import array, detection, result
 
+from physics_mapper.mapping.existence import left_out_by_physics, silent_absent_weight
 from physics_mapper.mapping.inputs import InputSettings, check_poses, check_weights
 from physics_mapper.mapping.mapper import Mapper, MapperSettings, TickReport
 from physics_mapper.model.scene import Scene, SearchParams
@@ -46,11 +48,12 @@ def test_a_floating_false_positive_is_absent_and_the_rest_valid() -> None:
     feed(mapper, [floating, *FLOOR_BOXES], 0.0)  # the false positive listed first
     report = mapper.tick(0.1, SETTINGS)
     assert report.result is not None and report.result.valid
-    assert report.absent == ("box_1",)  # the first detection's instance: left out, not invalidating the map
-    assert sorted(present(report).values()) == sorted(FLOOR_BOXES)
-    assert report.tracking.births == ("box_1", "box_2", "box_3", "box_4")
-    absent_rank = report.result.code[0] if report.result.code is not None else None
-    assert absent_rank is not None and report.hypotheses[0].is_absent(absent_rank)
+    assert sorted(present(report).values()) == sorted(FLOOR_BOXES)  # the rest valid
+    (left_out,) = report.absent  # the floating one: left out, not invalidating the map
+    index = report.snapshot.names.index(left_out)
+    assert report.hypotheses[index].pose(1).position == floating
+    assert report.result.code is not None and report.hypotheses[index].is_absent(report.result.code[index])
+    assert sorted(report.tracking.births) == ["box_1", "box_2", "box_3", "box_4"]
 
 
 def test_a_false_positive_inside_a_static_body_is_absent() -> None:
@@ -58,7 +61,9 @@ def test_a_false_positive_inside_a_static_body_is_absent() -> None:
     mapper = Mapper(make_scene({"name": "box", "count": {"max": 4}, **BOX}, static=[wall]))
     feed(mapper, [*FLOOR_BOXES, (0.3, 0.4, 0.05)], 0.0)
     report = mapper.tick(0.1, SETTINGS)
-    assert report.result is not None and report.result.valid and report.absent == ("box_4",)
+    assert report.result is not None and report.result.valid
+    (left_out,) = report.absent
+    assert report.hypotheses[report.snapshot.names.index(left_out)].pose(1).position == (0.3, 0.4, 0.05)
 
 
 def test_a_double_detection_of_a_present_box_is_one_instance() -> None:
@@ -134,8 +139,9 @@ def test_no_configuration_only_swaps_identical_instances() -> None:
     near = [(0.0, 0.0, 0.05), (0.105, 0.0, 0.05), (0.21, 0.0, 0.05)]
     for time, order in ((0.0, near), (0.2, near[::-1]), (0.4, near[1:] + near[:1])):  # confirmed: always there
         feed(mapper, order, time)
+        mapper.tick(time + 0.1, SETTINGS)
     exhaustive = SearchParams(deadline=5.0, strategy="joint", probability_threshold=0.0, bound="absolute")
-    report = mapper.tick(0.5, MapperSettings(exhaustive, InputSettings(max_age=1.0), rate_hz=0.1))
+    report = mapper.tick(0.6, MapperSettings(exhaustive, InputSettings(max_age=1.0), rate_hz=0.1))
     assert report.result is not None and report.result.stats.end == "exhausted"
     trace = report.result.trace
     assert len(trace) == 2**3  # three instances, two hypotheses each
@@ -154,5 +160,24 @@ def test_a_persistent_impossible_detection_is_never_confirmed() -> None:
         feed(mapper, [*FLOOR_BOXES, (0.3, 0.3, 0.4)], 0.5 * step)
         report = mapper.tick(0.5 * step + 0.1, SETTINGS)
         assert report.result is not None and report.result.valid
-        assert report.absent == ("box_4",)
-    assert mapper.tracks.tentative("box_4") is False and "box_4" not in mapper.tracks.tracks  # ended by the map
+        assert report.absent == ("box_3",)  # the one at (0.3, 0.3): born third, by position
+    assert "box_3" not in mapper.tracks.tracks  # ended by the map at every tick: never confirmed
+
+
+def test_a_silent_object_s_absent_weight_starts_at_one_half_and_grows() -> None:
+    weights = [silent_absent_weight(silence, max_age=2.0) for silence in (0.0, 1.0, 2.0, 10.0)]
+    assert weights[0] == 0.5 and weights == sorted(weights) and weights[-1] > 0.99
+
+
+def test_only_a_finished_search_leaves_an_instance_out_for_good() -> None:
+    """A tentative instance left out by a search the deadline stopped keeps its track (its choice is the best
+    so far, not a verdict); left out by a finished search, its track ends."""
+    mapper = Mapper(make_scene({"name": "box", "count": {"max": 4}, **BOX}))
+    feed(mapper, [*FLOOR_BOXES, (0.3, 0.3, 0.4)], 0.0)
+    report = mapper.tick(0.1, SETTINGS)
+    assert report.result is not None and report.result.stats.finished and len(report.absent) == 1
+    names, result = report.snapshot.names, report.result
+    assert left_out_by_physics(names, report.hypotheses, result) == report.absent
+    stopped = replace(result, stats=replace(result.stats, end=None))  # as if the deadline had come first
+    assert left_out_by_physics(names, report.hypotheses, stopped) == ()
+    assert report.absent[0] not in mapper.tracks.tracks  # the finished search ended it

@@ -261,10 +261,27 @@ def test_each_object_gets_its_chosen_and_settled_pose_with_the_map_s_header(mixe
     per_object = object_pose_msgs(mixed_result, frame_id="table", stamp_ns=REALISTIC_STAMP_NS)
     configurations = configuration_msgs(mixed_result, frame_id="table", stamp_ns=REALISTIC_STAMP_NS)
     assert per_object is not None and configurations is not None and len(per_object) == len(MIXED.objects)
-    for index, (chosen, settled) in enumerate(per_object):
+    for index, poses in enumerate(per_object):
+        assert poses is not None
+        chosen, settled = poses
         assert chosen.header == settled.header == configurations[0].header
         assert chosen.pose == configurations[0].poses[index]
         assert settled.pose == configurations[1].poses[index]
+
+
+def test_an_object_the_map_leaves_out_is_in_no_array_and_its_markers_are_deleted(mixed_result: object) -> None:
+    from physics_mapper.search.results import SearchResult
+
+    assert isinstance(mixed_result, SearchResult) and mixed_result.poses is not None
+    present = tuple(range(1, len(MIXED.objects)))  # the first object left out
+    configurations = configuration_msgs(mixed_result, frame_id="table", stamp_ns=REALISTIC_STAMP_NS, present=present)
+    per_object = object_pose_msgs(mixed_result, frame_id="table", stamp_ns=REALISTIC_STAMP_NS, present=present)
+    assert configurations is not None and per_object is not None
+    assert len(configurations[0].poses) == len(present) and per_object[0] is None
+    assert all(poses is not None for poses in per_object[1:])
+    markers = markers_msg(mixed_result, MIXED, stamp_ns=REALISTIC_STAMP_NS, present=present).markers
+    deleted = [(m.ns, m.id) for m in markers if m.action == Marker.DELETE]
+    assert deleted == [(SHAPE_NAMESPACE, 0), (LABEL_NAMESPACE, 0)]
 
 
 def test_a_realistic_stamp_goes_from_input_to_outputs_exactly(mixed_result: object) -> None:

@@ -137,7 +137,9 @@ def level_of(msg: DiagnosticArray, name: str) -> bytes:
 # --- feeding, results, diagnostics, markers (pyramid node) ---------------------------------
 
 
-def test_nothing_is_published_until_every_object_has_hypotheses(fresh_pyramid: Running) -> None:
+def test_nothing_is_published_until_some_object_has_hypotheses_and_a_missing_one_stops_no_map(
+    fresh_pyramid: Running,
+) -> None:
     client = fresh_pyramid.client
     diagnostics = client.next_diagnostics(lambda d: True)
     search = search_status(diagnostics)
@@ -145,17 +147,19 @@ def test_nothing_is_published_until_every_object_has_hypotheses(fresh_pyramid: R
     assert search.message == "waiting for hypotheses of: cube_left, cube_right, cube_top"
     assert search.level == DiagnosticStatus.WARN  # waiting is not a failure
     assert object_status(diagnostics, "cube_top").message == "no hypotheses received yet"
+    assert client.configurations == []
     problem = load_problem(PYRAMID_PROBLEM)
-    waiting = publish_until_diagnosed(
+    mapped = publish_until_diagnosed(
         client,
         lambda: publish_problem(client, problem, stamp_ns=100 * 10**9, only=("cube_left", "cube_right")),  # no cube_top
-        lambda d: all(level_of(d, name) == DiagnosticStatus.OK for name in ("cube_left", "cube_right")),
-        "cube_left and cube_right in use",
+        lambda d: values(search_status(d) or DiagnosticStatus()).get("absent") == "cube_top",
+        "a map of cube_left and cube_right",
     )
-    search = search_status(waiting)
-    assert search is not None and search.message == "waiting for hypotheses of: cube_top"
-    assert object_status(waiting, "cube_top").level == DiagnosticStatus.WARN
-    assert client.configurations == []
+    search = search_status(mapped)
+    assert search is not None and search.message.startswith("valid ") and search.message.endswith("left out: cube_top")
+    assert object_status(mapped, "cube_top").level == DiagnosticStatus.WARN
+    client.wait_for(lambda: any(stamp_ns_of(c) == 100 * 10**9 for c in client.configurations), what="the map")
+    assert len(next(c for c in client.configurations if stamp_ns_of(c) == 100 * 10**9).poses) == 2
 
 
 def test_a_realistic_input_stamp_comes_back_exactly_on_the_outputs(pyramid: Running) -> None:
@@ -199,14 +203,17 @@ def test_configuration_equals_what_solve_finds(pyramid: Running) -> None:
     assert values(search)["best code"] == "C" + "".join(map(str, solved["code"]))
     configuration, settled = client.configurations[-1], client.settled[-1]
     assert configuration.header.frame_id == settled.header.frame_id == "world"
-    for msg, key in ((configuration, "poses"), (settled, "settled_poses")):
+    # The chosen poses are hypotheses, exactly. The settled ones agree to micrometres: the node's world
+    # has held objects absent (massless) while their inputs came in one by one, and Bullet solves the
+    # contacts of a body whose mass changed in another order (physics/world.py).
+    for msg, key, tolerance in ((configuration, "poses", 1e-9), (settled, "settled_poses", 1e-4)):
         assert len(msg.poses) == len(OBJECTS)
         for name, pose in zip(OBJECTS, msg.poses, strict=True):
             expected = solved[key][name]
             got_position = [pose.position.x, pose.position.y, pose.position.z]
             got_orientation = [pose.orientation.x, pose.orientation.y, pose.orientation.z, pose.orientation.w]
-            assert got_position == pytest.approx(expected["position"], abs=1e-9)
-            assert got_orientation == pytest.approx(expected["orientation"], abs=1e-9)
+            assert got_position == pytest.approx(expected["position"], abs=tolerance)
+            assert got_orientation == pytest.approx(expected["orientation"], abs=tolerance * 10)
 
 
 def test_diagnostics_hold_the_spec_keys(fed_pyramid: Running) -> None:
@@ -312,13 +319,18 @@ def test_bad_input_gets_a_diagnostic_and_the_next_good_message_recovers(fed_pyra
     assert bad.diagnostic not in object_status(recovered, "cube_top").message
 
 
-def test_stale_hypotheses_stop_the_map_until_fresh_ones_arrive(fed_pyramid: Running) -> None:
+def test_stale_hypotheses_leave_the_map_until_fresh_ones_arrive(fed_pyramid: Running) -> None:
     client = fed_pyramid.client
     assert client.set_parameter("max_age", 1.0) == (True, "")
     try:
-        stale = client.next_diagnostics(lambda d: object_status(d, "cube_top").message.startswith("stale:"))
+        stale = client.next_diagnostics(
+            lambda d: (
+                object_status(d, "cube_top").message.startswith("stale:")
+                and values(search_status(d) or DiagnosticStatus()).get("absent") == "cube_left, cube_right, cube_top"
+            )
+        )
         search = search_status(stale)
-        assert search is not None and search.message.startswith("waiting for hypotheses of: cube_left")
+        assert search is not None and search.message.startswith("valid ")  # silent, and nothing needs them: dropped
         publish_until_configured(client, load_problem(PYRAMID_PROBLEM), stamp_ns=time.time_ns())
     finally:
         assert client.set_parameter("max_age", 60.0) == (True, "")

@@ -1,0 +1,95 @@
+"""A bin of identical boxes fed to the node over real DDS as an estimator sees it: shuffled arrays,
+no ids; ``~/objects`` (``vision_msgs/Detection3DArray``) names each box by its instance, frame after
+frame. vision_msgs comes from ``make .venv/.vision_msgs`` (``test/vision_msgs/``)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+from geometry_msgs.msg import Point, Pose, PoseWithCovariance, Quaternion, Vector3
+from ros_helpers import NodeProcess, RosClient
+from std_msgs.msg import Header
+from vision_msgs.msg import BoundingBox3D, Detection3D, Detection3DArray, ObjectHypothesis, ObjectHypothesisWithPose
+
+from physics_mapper.mapping.topics import OBJECTS_TOPIC, output_topic
+from physics_mapper.msg_adapters.hypotheses import nanoseconds_from_stamp, stamp_from_nanoseconds
+from physics_mapper.ros.qos import MAP_QOS
+
+NAMESPACE = "/bin_camera"
+#: Twelve 10 cm boxes, 4 x 3 on the floor, 1 cm apart.
+BOXES = [(0.11 * (i % 4), 0.11 * (i // 4), 0.05) for i in range(12)]
+FRAMES = 20
+SCENE = """\
+frame_id: world
+static:
+  - {name: floor, shape: plane}
+objects:
+  - {name: box, count: 12, shape: box, size: [0.1, 0.1, 0.1], mass: 0.2}
+"""
+
+
+def result(position: np.ndarray, score: float) -> ObjectHypothesisWithPose:
+    x, y, z = (float(v) for v in position)
+    pose = Pose(position=Point(x=x, y=y, z=z), orientation=Quaternion(x=0.0, y=0.0, z=0.0, w=1.0))
+    return ObjectHypothesisWithPose(
+        hypothesis=ObjectHypothesis(class_id="box", score=score), pose=PoseWithCovariance(pose=pose)
+    )
+
+
+def frame(index: int, rng: np.random.Generator) -> Detection3DArray:
+    """Every box detected once, in a new order, 2 mm of noise across and 0.5 mm in height (within Rule 1's
+    5 mm), a second result 5 cm up; no ids."""
+    header = Header(stamp=stamp_from_nanoseconds(stamp_of(index)), frame_id="world")
+    detections = []
+    for centre in BOXES:
+        true = np.asarray(centre) + rng.normal(0.0, (0.002, 0.002, 0.0005))
+        results = [result(true, 0.8), result(true + np.array([0.0, 0.0, 0.05]), 0.2)]
+        box = BoundingBox3D(center=results[0].pose.pose, size=Vector3(x=0.1, y=0.1, z=0.1))
+        detections.append(Detection3D(header=header, results=results, bbox=box, id=""))
+    order = rng.permutation(len(detections))
+    return Detection3DArray(header=header, detections=[detections[i] for i in order])
+
+
+def stamp_of(index: int) -> int:
+    return (index + 1) * 1_000_000_000
+
+
+def nearest_box(detection: Detection3D) -> int:
+    p = detection.results[0].pose.pose.position
+    return int(np.argmin([np.linalg.norm(np.array([p.x, p.y, p.z]) - np.asarray(c)) for c in BOXES]))
+
+
+def test_a_bin_of_identical_boxes_keeps_every_identity_over_shuffled_arrays(tmp_path: Path) -> None:
+    scene = tmp_path / "bin.yaml"
+    scene.write_text(SCENE)
+    parameters = {"rate_hz": 4.0, "deadline": 0.2, "max_age": 60.0, "association_gate": 0.04, "confirm_hits": 2}
+    node = NodeProcess(scene, parameters, tmp_path / "node.log", NAMESPACE)
+    client = RosClient(NAMESPACE)
+    maps: dict[int, Detection3DArray] = {}
+    rng = np.random.default_rng(31)
+    try:
+        publisher = client.node.create_publisher(Detection3DArray, "detections", 10)
+
+        def on_objects(msg: Detection3DArray) -> None:
+            maps[nanoseconds_from_stamp(msg.header.stamp)] = msg
+
+        client.node.create_subscription(Detection3DArray, output_topic(OBJECTS_TOPIC, NAMESPACE), on_objects, MAP_QOS)
+        for index in range(FRAMES):
+            message = frame(index, rng)
+            client.keep_publishing(
+                lambda message=message: publisher.publish(message),  # type: ignore[misc]
+                lambda index=index: stamp_of(index) in maps,  # type: ignore[misc]
+                f"the map of frame {index}",
+            )
+    finally:
+        client.close()
+        assert node.stop() == 0, node.output()
+    assert "unknown parameters" not in node.output()  # the association's parameters are the node's
+    identities = [{d.id: nearest_box(d) for d in maps[stamp_of(index)].detections} for index in range(FRAMES)]
+    assert sorted(identities[0]) == sorted(f"box_{k}" for k in range(1, 13))
+    assert sorted(identities[0].values()) == list(range(12))  # each box one instance
+    assert all(seen == identities[0] for seen in identities)  # and the same one in every frame
+    first = maps[stamp_of(0)].detections[0]
+    assert first.results[0].hypothesis.class_id == "box"
+    assert (first.bbox.size.x, first.bbox.size.y, first.bbox.size.z) == (0.1, 0.1, 0.1)
