@@ -387,7 +387,7 @@ FILE_COMMANDS: dict[str, Callable[[Path, Path], list[str]]] = {
     "solve": lambda bad, tmp: ["solve", str(bad)],
     "solve, problem naming the scene": lambda bad, tmp: ["solve", str(problem_naming(bad, tmp))],
     "publish": lambda bad, tmp: ["publish", str(bad)],
-    "bench": lambda bad, tmp: ["bench", str(bad)],
+    "bench": lambda bad, tmp: ["bench", "physics_costs", str(bad)],
     "generate": lambda bad, tmp: ["generate", str(bad), "-o", str(tmp / "bag")],
     "replay --offline": lambda bad, tmp: ["replay", str(REPO / "test/data/pyramid"), "--scene", str(bad), "--offline"],
     "replay": lambda bad, tmp: ["replay", str(REPO / "test/data/pyramid"), "--scene", str(bad)],
