@@ -171,6 +171,15 @@ def default_gate(shape: ObjectShape) -> float:
     return 0.5 * float(np.min(high - low))
 
 
+def _nearest_distances(points: NDArray[np.float64], observations: Sequence[Observation]) -> NDArray[np.float64]:
+    """(P x O) metres: from each of ``points`` (P x 3) to the nearest result of each observation, at once."""
+    counts = [len(o.positions) for o in observations]
+    results = np.concatenate([o.positions for o in observations])
+    distances = np.linalg.norm(points[:, None, :] - results[None, :, :], axis=2)
+    starts = np.concatenate(([0], np.cumsum(counts)[:-1]))
+    return np.asarray(np.minimum.reduceat(distances, starts, axis=1), dtype=np.float64)
+
+
 class InstanceTracks:
     """The tracks of a scene's tracked classes (module docstring); not thread-safe."""
 
@@ -182,6 +191,7 @@ class InstanceTracks:
         self._ended_at: dict[str, float] = {}
         self._last_position: dict[str, NDArray[np.float64]] = {}  # where each ended track was
         self._shapes = {model.name: model.shape for model in scene.objects}
+        self._default_gates: dict[str, float] = {}
         #: Counts since the start: tracks born and ended, detections matched to nothing.
         self.births = 0
         self.ends = 0
@@ -191,7 +201,9 @@ class InstanceTracks:
         """The class's gate, metres."""
         if self.settings.gate > 0.0:
             return self.settings.gate
-        return default_gate(self._shapes[self.scene.objects_of_class(class_id)[0]])
+        if class_id not in self._default_gates:
+            self._default_gates[class_id] = default_gate(self._shapes[self.scene.objects_of_class(class_id)[0]])
+        return self._default_gates[class_id]
 
     def tentative(self, name: str) -> bool:
         """Whether ``name`` has a track not confirmed yet: matched fewer than ``confirm_hits`` times, or never
@@ -295,8 +307,8 @@ class InstanceTracks:
         free = [n for n in names if n not in taken]
         if not rest or not free:
             return pairs
-        predicted = [self.tracks[n].predicted(now, self.settings.process_noise) for n in free]
-        costs = np.array([[o.nearest(p)[1] for o in rest] for p in predicted])
+        predicted = np.array([self.tracks[n].predicted(now, self.settings.process_noise) for n in free])
+        costs = _nearest_distances(predicted, rest)
         gate = self.gate(class_id)
         costs[costs > gate] = _FORBIDDEN
         rows, columns = linear_sum_assignment(costs)

@@ -107,16 +107,20 @@ class _Detection:
         )
 
 
-def _read(detection: Any, index: int, array_frame: str, scene: Scene, notes: list[str]) -> _Detection | None:
-    """A detection's results as arrays, one class kept (module docstring), or None if none is usable."""
+def _read(
+    detection: Any, index: int, array_frame: str, scene: Scene, notes: list[str], unknown: set[str]
+) -> _Detection | None:
+    """A detection's results as arrays, one class kept (module docstring), or None if none is usable;
+    class ids of no scene object are added to ``unknown``."""
     results = list(detection.results)
     classes = [str(result.hypothesis.class_id) for result in results]
     scores = np.fromiter((float(result.hypothesis.score) for result in results), np.float64, len(results))
     usable = np.isfinite(scores) & (scores >= 0.0)
     for position in np.flatnonzero(~usable).tolist():
         notes.append(f"detection {index}: result {position} refused: score {scores[position]:g}")
-    known = np.array([bool(scene.objects_of_class(c)) for c in classes], dtype=bool)
-    usable &= known
+    known_classes = {c: bool(scene.objects_of_class(c)) for c in set(classes)}
+    unknown.update(c for c, known in known_classes.items() if not known)
+    usable &= np.fromiter((known_classes[c] for c in classes), bool, len(classes))
     if not usable.any():
         if not results:
             notes.append(f"detection {index} refused: no results")
@@ -193,7 +197,8 @@ def detection_inputs(
     """
     notes: list[str] = []
     array_frame = str(message.header.frame_id)
-    read = [_read(d, index, array_frame, scene, notes) for index, d in enumerate(message.detections)]
+    unknown: set[str] = set()
+    read = [_read(d, index, array_frame, scene, notes, unknown) for index, d in enumerate(message.detections)]
     refusals: dict[int, str] = {}
     detections = []
     for detection in (d for d in read if d is not None):
@@ -201,8 +206,6 @@ def detection_inputs(
         detections.append(moved.expanded(notes) if refusal is None else moved)
         if refusal is not None:
             refusals[detection.index] = refusal
-    unknown = {str(r.hypothesis.class_id) for d in message.detections for r in d.results}
-    unknown = {c for c in unknown if not scene.objects_of_class(c)}
     notes[:0] = [f"class id {class_id!r} is no object of the scene" for class_id in sorted(unknown)]
     stamp = message.header.stamp
     stamp_ns = to_nanoseconds(stamp.sec, stamp.nanosec)
