@@ -88,6 +88,8 @@ class _Detection:
 
     def expanded(self, notes: list[str]) -> _Detection:
         """Each result's covariance as its weight and alternatives (:func:`expand`), bad ones noted."""
+        if not self.covariances.any():  # no estimator's covariance: the results as they are
+            return self
         poses: list[NDArray[np.float64]] = []
         scores: list[float] = []
         for position, (pose, score, covariance) in enumerate(
