@@ -53,9 +53,10 @@ _RESOLUTION = np.diag([POSITION_RESOLUTION**2] * 3 + [ROTATION_RESOLUTION**2] * 
 WeightedPose = tuple[NDArray[np.float64], float]
 
 
-def covariance_matrix(values: Sequence[float] | NDArray[np.float64]) -> NDArray[np.float64]:
-    """The 36 row-major values of a ``PoseWithCovariance.covariance`` as a 6x6 matrix."""
-    return np.asarray(values, dtype=np.float64).reshape(6, 6)
+def covariance_matrices(values: Sequence[Sequence[float] | NDArray[np.float64]]) -> NDArray[np.float64]:
+    """The 36 row-major values of each of several ``PoseWithCovariance.covariance`` as (M, 6, 6) matrices,
+    read in one numpy call."""
+    return np.array(values, dtype=np.float64).reshape(-1, 6, 6)
 
 
 def is_absent(covariance: NDArray[np.float64]) -> bool:

@@ -44,7 +44,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from physics_mapper.mapping.association import FrameAssociation, InstanceTracks, Observation
-from physics_mapper.mapping.covariance import covariance_matrix, covariance_problem, expand, is_absent
+from physics_mapper.mapping.covariance import covariance_matrices, covariance_problem, expand, is_absent
 from physics_mapper.mapping.frames import Transform, rotate_covariance, transform_poses
 from physics_mapper.mapping.inputs import POSE_COLUMNS, PoseBlock, ReceivedPoses, check_poses, check_weights
 from physics_mapper.mapping.stamps import to_nanoseconds
@@ -138,7 +138,7 @@ def _read(
         )
     positions = np.flatnonzero(kept).tolist()
     poses = np.array([_pose_row(results[p].pose.pose) for p in positions], dtype=np.float64).reshape(-1, POSE_COLUMNS)
-    covariances = np.array([covariance_matrix(results[p].pose.covariance) for p in positions]).reshape(-1, 6, 6)
+    covariances = covariance_matrices([results[p].pose.covariance for p in positions])
     frame = str(detection.header.frame_id) or array_frame
     return _Detection(index, chosen, frame, str(detection.id), poses, scores[kept], covariances)
 

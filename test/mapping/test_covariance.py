@@ -10,7 +10,7 @@ from scipy.spatial.transform import Rotation
 
 from physics_mapper.mapping.covariance import (
     MAX_ALTERNATIVES,
-    covariance_matrix,
+    covariance_matrices,
     covariance_problem,
     covariance_weight,
     expand,
@@ -84,5 +84,7 @@ def test_an_unusable_covariance_is_named_and_gives_the_mean_alone(values: np.nda
 def test_the_message_layout_is_row_major() -> None:
     values = [0.0] * 36
     values[6 * 2 + 3] = values[6 * 3 + 2] = 0.5  # z with rotation about x
-    matrix = covariance_matrix(values)
+    (matrix, zero) = covariance_matrices([values, np.zeros(36)])
     assert matrix[2, 3] == matrix[3, 2] == 0.5
+    assert not zero.any()
+    assert covariance_matrices([]).shape == (0, 6, 6)
