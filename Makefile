@@ -29,9 +29,15 @@ $(VISION_MSGS): $(STAMP) $(wildcard test/vision_msgs/*) $(wildcard test/vision_m
 	test/vision_msgs/build.sh $(VENV) build/vision_msgs
 	touch $@
 
+# tf2_msgs neither: the tests build its TFMessage (/tf, /tf_static) the same way (test/tf2_msgs/).
+TF2_MSGS := $(VENV)/.tf2_msgs
+$(TF2_MSGS): $(STAMP) test/vision_msgs/build.sh test/vision_msgs/pypi_wheel_targets.cmake $(wildcard test/tf2_msgs/*) $(wildcard test/tf2_msgs/msg/*.msg)
+	test/vision_msgs/build.sh $(VENV) build/tf2_msgs test/tf2_msgs
+	touch $@
+
 # UTF-8 mode: the tests read and compare the UTF-8 text the package writes (reports, solve --tree),
 # whatever the machine's locale (LC_ALL=C turns it on by itself; a Latin-1 locale does not).
-test: venv lint $(VISION_MSGS)
+test: venv lint $(VISION_MSGS) $(TF2_MSGS)
 	PYTHONUTF8=1 $(BIN)/pytest
 
 # Starts the node on the pyramid scene, replays the shipped pyramid bag into it, prints the error

@@ -1,9 +1,19 @@
-"""ament_python package definition: `colcon build` on a ROS machine, `pip install -e .` here."""
+"""ament_python package definition: `colcon build` on a ROS machine, `pip install -e .` here.
 
-import sys
+``ros2 run physics_mapper node`` runs ``<prefix>/lib/physics_mapper/node``. Console scripts cannot
+be put there by every kind of build: setup.cfg's ``[install]``/``[develop]`` script dirs move them
+for ``setup.py install`` and ``develop`` (colcon), but a wheel (pip, any PEP 517 build) puts them
+in ``bin/``, where a script named ``node`` shadows Node.js. So ``node`` and ``managed_node`` are
+data files of ``lib/physics_mapper/`` (``scripts/``, executable, ``#!/usr/bin/env python3``: the
+``python3`` of the sourced ROS environment), the same for every build; the one console script,
+``physics-mapper``, has a name of its own wherever it lands.
+"""
+
+import os
+import string
 from pathlib import Path
 
-from setuptools import find_packages, setup
+from setuptools import Command, find_packages, setup
 
 PACKAGE = "physics_mapper"
 #: The top-level folder of message adapters, installed as the subpackage physics_mapper.msg_adapters.
@@ -24,20 +34,54 @@ def shipped_files() -> list[tuple[str, list[str]]]:
     return list(folders.items())
 
 
-def console_scripts():
-    """``physics-mapper`` always; ``ros2 run``'s ``node`` and ``managed_node`` only for colcon.
+#: ``ros2 run``'s executables, installed as data into ``lib/physics_mapper/`` by every kind of build.
+ROS2_RUN_SCRIPTS = ("scripts/node", "scripts/managed_node")
 
-    ``ros2 run physics_mapper node`` runs ``<prefix>/lib/physics_mapper/node``, where setup.cfg puts
-    the scripts of colcon's ``setup.py install`` and ``develop``. A wheel (``pip install``) would put
-    them in ``bin/``, where a script named ``node`` shadows Node.js; there ``physics-mapper node`` runs it.
+
+class SymlinkDevelop(Command):
+    """``setup.py develop`` as ``colcon build --symlink-install`` calls it, for setuptools >= 80.
+
+    colcon runs ``setup.py develop --editable --build-directory DIR --no-deps`` in its build folder
+    (where it has symlinked setup.py, setup.cfg and the packages), and ``develop --uninstall`` to
+    undo it; setuptools 80 turned ``develop`` into a call to ``pip install -e`` without these
+    options (colcon/colcon-core#696: "option --editable not recognized"). This command does what
+    the old one did for colcon: the egg-info beside the symlinked packages (on colcon's
+    ``PYTHONPATH``; it holds the entry points the scripts load) and the entry scripts, written by
+    ``install_scripts`` (as for ``setup.py install``) into setup.cfg's ``[develop] script_dir``.
+    colcon itself symlinks the data files and puts the build folder on ``PYTHONPATH``.
     """
-    scripts = ["physics-mapper = physics_mapper.cli:main"]
-    if {"install", "develop"} & set(sys.argv[1:]):
-        scripts += [
-            "node = physics_mapper.commands.node:main",
-            "managed_node = physics_mapper.commands.node:main_managed",
-        ]
-    return scripts
+
+    description = "colcon's symlink install: egg-info in place and the entry scripts"
+    user_options = [
+        ("editable", "e", "accepted for colcon (the packages are used in place)"),
+        ("build-directory=", "b", "accepted for colcon (nothing is built)"),
+        ("no-deps", "N", "accepted for colcon (dependencies are never installed)"),
+        ("uninstall", "u", "remove the entry scripts"),
+        ("script-dir=", "s", "folder of the entry scripts ($base: the installation prefix)"),
+    ]
+    boolean_options = ["editable", "no-deps", "uninstall"]
+
+    def initialize_options(self):
+        self.editable = self.no_deps = self.uninstall = False
+        self.build_directory = self.script_dir = None
+
+    def finalize_options(self):
+        if self.script_dir is not None:
+            base = self.get_finalized_command("install").install_base
+            self.script_dir = string.Template(self.script_dir).substitute(base=base)
+
+    def run(self):
+        self.run_command("egg_info")
+        scripts = self.reinitialize_command("install_scripts")
+        scripts.install_dir = self.script_dir
+        scripts.ensure_finalized()
+        if self.uninstall:
+            for name in self.distribution.entry_points["console_scripts"]:
+                script = os.path.join(scripts.install_dir, name.split("=")[0].strip())
+                if os.path.exists(script):
+                    os.remove(script)
+            return
+        self.run_command("install_scripts")
 
 
 def requirements(file_name):
@@ -61,6 +105,7 @@ setup(
         ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE}"]),
         (f"share/{PACKAGE}", ["package.xml"]),
         (f"share/{PACKAGE}/launch", [str(path) for path in sorted(Path("launch").glob("*.launch.py"))]),
+        (f"lib/{PACKAGE}", list(ROS2_RUN_SCRIPTS)),
         *shipped_files(),
     ],
     install_requires=["setuptools"],
@@ -71,5 +116,8 @@ setup(
     maintainer_email="physics-mapper@example.com",
     description="Physically consistent multi-object 3D maps from weighted pose hypotheses.",
     license="Apache-2.0",
-    entry_points={"console_scripts": console_scripts()},
+    # The command line; setup.cfg puts it in lib/physics_mapper for colcon (``ros2 run physics_mapper
+    # physics-mapper``), a wheel in bin/ (``physics-mapper`` on PATH).
+    entry_points={"console_scripts": ["physics-mapper = physics_mapper.cli:main"]},
+    cmdclass={"develop": SymlinkDevelop},
 )

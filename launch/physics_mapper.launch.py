@@ -3,16 +3,23 @@
 Arguments (``name:=value``): ``scene_file`` (path or ``package://`` URL), ``params_file`` (a
 parameters YAML, default the shipped ``config/params/node.yaml``), ``namespace``, ``node_name``,
 ``detections_topic`` (the pose estimator's ``vision_msgs/Detection3DArray`` topic, remapped onto the
-node's ``detections``), ``managed`` (``true`` starts the lifecycle node, which waits
-unconfigured for ``ros2 lifecycle set``).
+node's ``detections``), ``use_sim_time`` (``true``: the node's clock is ``/clock``), ``log_level``
+(``debug``, ``info``, ``warn``, ``error``, ``fatal``), ``managed`` (``true`` starts the lifecycle
+node) and ``autostart`` (with ``managed:=true``: configure it, then activate it once it is
+inactive, as nav2's lifecycle manager does; ``false`` leaves it unconfigured for ``ros2 lifecycle set``).
 """
 
 from launch import LaunchDescription
-from launch.actions import DeclareLaunchArgument
+from launch.actions import DeclareLaunchArgument, EmitEvent, RegisterEventHandler
 from launch.conditions import IfCondition, UnlessCondition
-from launch.substitutions import LaunchConfiguration, PathJoinSubstitution
+from launch.events import matches_action
+from launch.substitutions import AndSubstitution, LaunchConfiguration, PathJoinSubstitution
 from launch_ros.actions import LifecycleNode, Node
+from launch_ros.descriptions import ParameterValue
+from launch_ros.event_handlers import OnStateTransition
+from launch_ros.events.lifecycle import ChangeState
 from launch_ros.substitutions import FindPackageShare
+from lifecycle_msgs.msg import Transition
 
 PACKAGE = "physics_mapper"
 
@@ -23,8 +30,10 @@ def generate_launch_description() -> LaunchDescription:
     namespace = LaunchConfiguration("namespace")
     node_name = LaunchConfiguration("node_name")
     managed = LaunchConfiguration("managed")
+    autostart = AndSubstitution(managed, LaunchConfiguration("autostart"))
     remappings = [("detections", LaunchConfiguration("detections_topic"))]
-    parameters = [params_file, {"scene_file": scene_file}]
+    use_sim_time = ParameterValue(LaunchConfiguration("use_sim_time"), value_type=bool)
+    parameters = [params_file, {"scene_file": scene_file, "use_sim_time": use_sim_time}]
     # The same node either way: plain, or managed (a lifecycle node).
     node = {
         "package": PACKAGE,
@@ -32,8 +41,10 @@ def generate_launch_description() -> LaunchDescription:
         "namespace": namespace,
         "parameters": parameters,
         "remappings": remappings,
+        "ros_arguments": ["--log-level", LaunchConfiguration("log_level")],
         "output": "screen",
     }
+    managed_node = LifecycleNode(executable="managed_node", condition=IfCondition(managed), **node)
     return LaunchDescription(
         [
             DeclareLaunchArgument(
@@ -51,8 +62,41 @@ def generate_launch_description() -> LaunchDescription:
             DeclareLaunchArgument(
                 "detections_topic", default_value="detections", description="the estimator's Detection3DArray topic"
             ),
+            DeclareLaunchArgument("use_sim_time", default_value="false", description="true: the clock is /clock"),
+            DeclareLaunchArgument(
+                "log_level", default_value="info", description="debug, info, warn, error or fatal"
+            ),
             DeclareLaunchArgument("managed", default_value="false", description="start the lifecycle node"),
+            DeclareLaunchArgument(
+                "autostart",
+                default_value="true",
+                description="with managed:=true, configure and activate the lifecycle node",
+            ),
             Node(executable="node", condition=UnlessCondition(managed), **node),
-            LifecycleNode(executable="managed_node", condition=IfCondition(managed), **node),
+            managed_node,
+            # autostart: configure once the process is up, activate once configured (nav2's lifecycle manager's order).
+            RegisterEventHandler(
+                OnStateTransition(
+                    target_lifecycle_node=managed_node,
+                    start_state="configuring",  # not after a deactivate: the user's, kept
+                    goal_state="inactive",
+                    entities=[
+                        EmitEvent(
+                            event=ChangeState(
+                                lifecycle_node_matcher=matches_action(managed_node),
+                                transition_id=Transition.TRANSITION_ACTIVATE,
+                            )
+                        )
+                    ],
+                ),
+                condition=IfCondition(autostart),
+            ),
+            EmitEvent(
+                event=ChangeState(
+                    lifecycle_node_matcher=matches_action(managed_node),
+                    transition_id=Transition.TRANSITION_CONFIGURE,
+                ),
+                condition=IfCondition(autostart),
+            ),
         ]
     )

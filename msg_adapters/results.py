@@ -15,6 +15,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PoseArray, PoseStamped, Vector3
 from std_msgs.msg import ColorRGBA, Header
 from visualization_msgs.msg import Marker, MarkerArray
@@ -22,6 +23,7 @@ from visualization_msgs.msg import Marker, MarkerArray
 from physics_mapper.model.geometry import Pose, compose_poses
 from physics_mapper.model.scene import Box, Cylinder, Mesh, Plane, Scene, Shape, Sphere
 from physics_mapper.msg_adapters.hypotheses import pose_array_msg, pose_msg, stamp_from_nanoseconds
+from physics_mapper.search.report import code_text
 from physics_mapper.search.results import SearchResult
 
 #: Marker namespaces (see the module docstring), ``id`` = the body's index in its scene list.
@@ -55,6 +57,51 @@ def configuration_msgs(
         pose_array_msg([result.poses[i] for i in kept], frame_id=frame_id, stamp_ns=stamp_ns),
         pose_array_msg([result.settled_poses[i] for i in kept], frame_id=frame_id, stamp_ns=stamp_ns),
     )
+
+
+#: ``~/map_status``'s message for a valid map, and before the first map.
+VALID_MAP = "valid"
+NO_MAP_YET = "no map yet"
+
+
+def map_status_msg(
+    result: SearchResult | None,
+    scene: Scene,
+    *,
+    name: str,
+    hardware_id: str,
+    stamp_ns: int,
+    present: Sequence[int] | None = None,
+) -> DiagnosticArray:
+    """What the map published with the same stamp is: one status, OK for a valid map, WARN for a fallback.
+
+    Its message is ``valid``, ``fallback settled`` or ``fallback refine`` (``no map yet`` before the
+    first); its keys: ``valid`` (``true``/``false``), ``fallback`` (``none``, ``settled``,
+    ``refine``), ``code`` (the configuration's code, ``-`` without one) and ``objects``: the names
+    of the objects ``present`` (scene indices; None: every object), comma-separated, in the order of
+    ``~/configuration``'s poses.
+    """
+    if result is None or result.poses is None:
+        level, message, fallback, code = DiagnosticStatus.WARN, NO_MAP_YET, "none", "-"
+    elif result.valid:
+        level, message, fallback, code = DiagnosticStatus.OK, VALID_MAP, "none", code_text(result.code)
+    else:
+        fallback = str(result.fallback or "settled")
+        level, message, code = DiagnosticStatus.WARN, f"fallback {fallback}", code_text(result.code)
+    values = [
+        KeyValue(key="valid", value="true" if result is not None and result.valid else "false"),
+        KeyValue(key="fallback", value=fallback),
+        KeyValue(key="code", value=code),
+        KeyValue(key="objects", value=",".join(_present_names(scene, present))),
+    ]
+    status = DiagnosticStatus(level=level, name=name, message=message, hardware_id=hardware_id, values=values)
+    return DiagnosticArray(header=Header(stamp=stamp_from_nanoseconds(stamp_ns)), status=[status])
+
+
+def _present_names(scene: Scene, present: Sequence[int] | None) -> list[str]:
+    """The names of the objects ``present`` (scene indices; None: every object), in ``~/configuration``'s order."""
+    names = scene.object_names
+    return list(names) if present is None else [names[index] for index in present]
 
 
 def object_pose_msgs(

@@ -24,14 +24,14 @@ import yaml
 from physics_mapper.mapping.association import AssociationSettings
 from physics_mapper.mapping.inputs import InputSettings
 from physics_mapper.mapping.mapper import DEFAULT_RATE_HZ, MapperSettings, mapper_settings_problem
-from physics_mapper.mapping.topics import NODE_NAME
 from physics_mapper.model.errors import InputError
 from physics_mapper.model.scene import SearchParams
 from physics_mapper.model.scene_files import search_with_overrides
 from physics_mapper.model.yaml_files import FileError, parse_yaml
 
-#: Key of a parameters file's section that applies to the node by its name in any namespace.
-PARAMS_FILE_NODE_KEY = f"/**/{NODE_NAME}"
+#: Key of a parameters file's section: every node it is given to, whatever its name and namespace
+#: (a key naming the node would be silently ignored by a node renamed with ``-r __node:=...``).
+PARAMS_FILE_NODE_KEY = "/**"
 #: A node tick's period is at least its deadline divided by this (see :func:`node_rate_hz`).
 DEADLINE_SHARE_OF_TICK = 0.9
 

@@ -17,10 +17,17 @@ a ``score`` and a pose. The rules that make them hypotheses:
   each detection goes to one instance by the rules of :mod:`~physics_mapper.mapping.association`
   (ids, gated distance to each instance's filtered position, optimal assignment), never by its
   place in the array; its results are that instance's hypotheses.
-- Poses are in the detection's header frame, or the array's if the detection names none; the
-  scene's frame is required, as for PoseArrays (a tracked detection in another frame is refused
-  before it is matched). An object absent from an array keeps the hypotheses it has (until they
-  are older than ``max_age``).
+- **Frames.** Poses are in the detection's header frame, or the array's if the detection names
+  none (:func:`detection_frames`). A frame other than the scene's is moved into the scene's frame
+  by the transform the caller looked up at the array's stamp (``transforms``, see
+  :mod:`~physics_mapper.mapping.frames`), covariances rotating with their poses; a frame with no
+  transform refuses its detections, with the lookup's reason where there is one
+  (``unresolved``). An object absent from an array keeps the hypotheses it has (until they are
+  older than ``max_age``).
+- **Covariance.** Each result's ``PoseWithCovariance`` covariance weights it and supplies
+  alternatives (:func:`~physics_mapper.mapping.covariance.expand`): its score times the
+  covariance's weight, and up to 24 poses along the covariance's principal axes. A zero
+  covariance leaves the result as it is; an unusable one is noted and left out of the weight.
 
 Messages are read by attribute, so rclpy's messages and those rosbags decodes from a bag give the
 same inputs (:func:`detection_inputs`). Each result's numbers are read once into one array per
@@ -29,14 +36,16 @@ detection; the checks then run on arrays.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-from dataclasses import dataclass, field
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from physics_mapper.mapping.association import FrameAssociation, InstanceTracks, Observation
+from physics_mapper.mapping.covariance import covariance_matrices, covariance_problem, expand, is_absent
+from physics_mapper.mapping.frames import Transform, rotate_covariance, transform_poses
 from physics_mapper.mapping.inputs import POSE_COLUMNS, PoseBlock, ReceivedPoses, check_poses, check_weights
 from physics_mapper.mapping.stamps import to_nanoseconds
 from physics_mapper.model.limits import MAX_QUOTED_TEXT, clipped
@@ -70,6 +79,34 @@ class _Detection:
     key: str
     poses: PoseBlock  # (M, 7)
     scores: NDArray[np.float64]
+    covariances: NDArray[np.float64]  # (M, 6, 6), in ``frame``
+
+    def moved(self, transform: Transform, frame: str) -> _Detection:
+        """This detection in ``frame``, the target of ``transform``: poses moved, covariances rotated."""
+        covariances = np.array([rotate_covariance(transform, c) for c in self.covariances]).reshape(-1, 6, 6)
+        return replace(self, frame=frame, poses=transform_poses(transform, self.poses), covariances=covariances)
+
+    def expanded(self, notes: list[str]) -> _Detection:
+        """Each result's covariance as its weight and alternatives (:func:`expand`), bad ones noted."""
+        if not self.covariances.any():  # no estimator's covariance: the results as they are
+            return self
+        poses: list[NDArray[np.float64]] = []
+        scores: list[float] = []
+        for position, (pose, score, covariance) in enumerate(
+            zip(self.poses, self.scores.tolist(), self.covariances, strict=True)
+        ):
+            problem = None if is_absent(covariance) else covariance_problem(covariance)
+            if problem is not None:
+                notes.append(f"detection {self.index}: result {position}: {problem}, not used")
+            for alternative, weight in expand(pose, covariance, score):
+                poses.append(alternative)
+                scores.append(weight)
+        return replace(
+            self,
+            poses=np.array(poses, dtype=np.float64).reshape(-1, POSE_COLUMNS),
+            scores=np.array(scores, dtype=np.float64),
+            covariances=np.zeros((len(poses), 6, 6)),
+        )
 
 
 def _read(
@@ -99,11 +136,30 @@ def _read(
         notes.append(
             f"detection {index}: results of class {left} left out (one detection is one object; {chosen!r} scored best)"
         )
-    poses = np.array(
-        [_pose_row(results[position].pose.pose) for position in np.flatnonzero(kept).tolist()], dtype=np.float64
-    ).reshape(-1, POSE_COLUMNS)
+    positions = np.flatnonzero(kept).tolist()
+    poses = np.array([_pose_row(results[p].pose.pose) for p in positions], dtype=np.float64).reshape(-1, POSE_COLUMNS)
+    covariances = covariance_matrices([results[p].pose.covariance for p in positions])
     frame = str(detection.header.frame_id) or array_frame
-    return _Detection(index, chosen, frame, str(detection.id), poses, scores[kept])
+    return _Detection(index, chosen, frame, str(detection.id), poses, scores[kept], covariances)
+
+
+def detection_frames(message: Any) -> set[str]:
+    """The frames a ``Detection3DArray``'s poses are in: each detection's, or the array's where it names none."""
+    array_frame = str(message.header.frame_id)
+    return {str(detection.header.frame_id) or array_frame for detection in message.detections}
+
+
+def _in_scene_frame(
+    detection: _Detection, scene: Scene, transforms: Mapping[str, Transform], unresolved: Mapping[str, str]
+) -> tuple[_Detection, str | None]:
+    """The detection in the scene's frame where a transform moves it there; or why it cannot be."""
+    if detection.frame in ("", scene.frame_id):
+        return detection, None
+    transform = transforms.get(detection.frame)
+    if transform is not None:
+        return detection.moved(transform, scene.frame_id), None
+    quoted = clipped(detection.frame, MAX_QUOTED_TEXT)
+    return detection, unresolved.get(detection.frame, f"frame_id {quoted!r} is not the scene frame {scene.frame_id!r}")
 
 
 def _pose_row(pose: Any) -> tuple[float, ...]:
@@ -111,11 +167,11 @@ def _pose_row(pose: Any) -> tuple[float, ...]:
     return (p.x, p.y, p.z, q.x, q.y, q.z, q.w)
 
 
-def _observation(detection: _Detection, scene: Scene, notes: list[str]) -> Observation | None:
-    """A tracked class's detection as an observation to associate, or None (a note) if it is refused."""
-    if detection.frame not in ("", scene.frame_id):
-        why = f"frame_id {clipped(detection.frame, MAX_QUOTED_TEXT)!r} is not the scene frame {scene.frame_id!r}"
-        notes.append(f"detection {detection.index} refused: {why}")
+def _observation(detection: _Detection, notes: list[str], refusal: str | None) -> Observation | None:
+    """A tracked class's detection (in the scene's frame) as an observation to associate, or None (a
+    note) if it is refused: ``refusal`` says why its frame could not be moved into the scene's."""
+    if refusal is not None:
+        notes.append(f"detection {detection.index} refused: {refusal}")
         return None
     finite = np.isfinite(detection.poses).all(axis=1)
     if not finite.any():
@@ -127,17 +183,31 @@ def _observation(detection: _Detection, scene: Scene, notes: list[str]) -> Obser
 
 
 def detection_inputs(
-    message: Any, scene: Scene, *, received: float, tracks: InstanceTracks | None = None
+    message: Any,
+    scene: Scene,
+    *,
+    received: float,
+    tracks: InstanceTracks | None = None,
+    transforms: Mapping[str, Transform] | None = None,
+    unresolved: Mapping[str, str] | None = None,
 ) -> DetectionInputs:
     """A ``Detection3DArray`` (rclpy's or rosbags') received at ``received`` seconds, as per-object inputs.
 
     ``tracks`` are the instances' tracks, kept from array to array (None: new ones, as for a first array).
+    ``transforms``: for frames other than the scene's (:func:`detection_frames`), the transform into
+    the scene's frame at the array's stamp; ``unresolved``: for frames without one, why.
     """
     notes: list[str] = []
     array_frame = str(message.header.frame_id)
     unknown: set[str] = set()
     read = [_read(d, index, array_frame, scene, notes, unknown) for index, d in enumerate(message.detections)]
-    detections = [d for d in read if d is not None]
+    refusals: dict[int, str] = {}
+    detections = []
+    for detection in (d for d in read if d is not None):
+        moved, refusal = _in_scene_frame(detection, scene, transforms or {}, unresolved or {})
+        detections.append(moved.expanded(notes) if refusal is None else moved)
+        if refusal is not None:
+            refusals[detection.index] = refusal
     notes[:0] = [f"class id {class_id!r} is no object of the scene" for class_id in sorted(unknown)]
     stamp = message.header.stamp
     stamp_ns = to_nanoseconds(stamp.sec, stamp.nanosec)
@@ -146,7 +216,7 @@ def detection_inputs(
     association = None
     if tracked:
         tracks = tracks if tracks is not None else InstanceTracks(scene)
-        observations = [o for o in (_observation(d, scene, notes) for d in tracked) if o is not None]
+        observations = [o for o in (_observation(d, notes, refusals.get(d.index)) for d in tracked) if o is not None]
         association = tracks.associate(observations, received)
         by_index = {d.index: d for d in tracked}
         for index, instance in association.assigned.items():
@@ -172,6 +242,9 @@ def detection_inputs(
             received=received,
             source="detection",
         )
+        refused = [refusals[d.index] for d in found if d.index in refusals]
+        if refused:  # the lookup's reason, rather than the frame's name alone
+            poses = replace(poses, refusal=refused[0])
         scores = np.concatenate([d.scores for d in found])
         objects[name] = poses.with_weights(check_weights(scores, received=received))
     return DetectionInputs(objects, tuple(notes), association)

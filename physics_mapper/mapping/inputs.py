@@ -106,6 +106,8 @@ class ReceivedPoses:
     (an empty frame_id) and was taken in the scene's. ``weights``: weights that came in the same
     message (a detection's scores), which no separate weights message then pairs with. ``source``
     names the message in refusals: ``PoseArray``, or ``detection`` for a Detection3D's results.
+    ``frame_id``: the frame the message named (a sensor frame is moved into the scene's by
+    :func:`~physics_mapper.mapping.frames.moved_into`).
     """
 
     stamp_ns: int
@@ -116,6 +118,7 @@ class ReceivedPoses:
     frame_assumed: bool = False
     weights: ReceivedWeights | None = None
     source: str = "PoseArray"
+    frame_id: str = ""
 
     @property
     def count(self) -> int:
@@ -169,12 +172,13 @@ def check_poses(
     """
     poses = pose_block(raw_poses)
     assumed = frame_id == ""
+    received_as = ReceivedPoses(stamp_ns, received, poses, workspace, source=source, frame_id=frame_id)
     if frame_id != expected_frame and not assumed:
         refusal = f"frame_id {clipped(frame_id, MAX_QUOTED_TEXT)!r} is not the scene frame {expected_frame!r}"
-        return ReceivedPoses(stamp_ns, received, poses, workspace, refusal, source=source)
+        return replace(received_as, refusal=refusal)
     if len(poses) == 0:
-        return ReceivedPoses(stamp_ns, received, poses, workspace, f"empty {source}", assumed, source=source)
-    return ReceivedPoses(stamp_ns, received, poses, workspace, frame_assumed=assumed, source=source)
+        return replace(received_as, refusal=f"empty {source}", frame_assumed=assumed)
+    return replace(received_as, frame_assumed=assumed)
 
 
 def check_weights(values: Sequence[float] | NDArray[np.float64], *, received: float) -> ReceivedWeights:
@@ -201,7 +205,11 @@ class InUse:
 
 @dataclass(frozen=True)
 class ObjectStatus:
-    """One object's input state at a tick: what the search uses (or None) and why."""
+    """One object's input state at a tick: what the search uses (or None) and why.
+
+    ``notes``: the warnings about the hypotheses in use, each a fixed text (uniform weights,
+    dropped poses, kept the heaviest), which the node logs once each.
+    """
 
     name: str
     level: Level
@@ -209,6 +217,7 @@ class ObjectStatus:
     hypotheses: RankedHypotheses | None
     stamp_ns: int | None  # header stamp of the PoseArray in use, nanoseconds
     details: tuple[tuple[str, str], ...]
+    notes: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -441,7 +450,7 @@ class ObjectInputs:
         if in_use is None:
             why = pending or "; ".join(why for _, why in refusals)
             if not why:  # nothing received yet: waiting, not failing
-                return ObjectStatus(self.name, Level.WARN, "no PoseArray received yet", None, None, tuple(details))
+                return ObjectStatus(self.name, Level.WARN, "no hypotheses received yet", None, None, tuple(details))
             return ObjectStatus(self.name, Level.ERROR, why, None, None, tuple(details))
         age = now - in_use.poses.received
         details += [("hypotheses in use", str(len(in_use.hypotheses))), ("age [s]", f"{age:.2f}")]
@@ -462,7 +471,9 @@ class ObjectInputs:
             notes.append(lost)
         level = Level.WARN if notes else Level.OK
         message = "; ".join(notes) if notes else f"{len(in_use.hypotheses)} hypotheses, weighted"
-        return ObjectStatus(self.name, level, message, in_use.hypotheses, in_use.poses.stamp_ns, tuple(details))
+        return ObjectStatus(
+            self.name, level, message, in_use.hypotheses, in_use.poses.stamp_ns, tuple(details), in_use.notes
+        )
 
 
 #: Seconds the node's clock may seem to go back without being taken as a jump: receive times are

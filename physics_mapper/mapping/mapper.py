@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import threading
 import time
+from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from typing import Any
 
@@ -24,6 +25,7 @@ from physics_mapper.mapping.existence import (
     left_out_by_physics,
     searched_hypotheses,
 )
+from physics_mapper.mapping.frames import Transform
 from physics_mapper.mapping.inputs import InputSettings, InputSnapshot, InputTracker
 from physics_mapper.model.hypotheses import RankedHypotheses
 from physics_mapper.model.scene import Scene, SearchParams, search_params_problem
@@ -130,11 +132,25 @@ class Mapper:
         self._checker: PhysicsChecker | None = PhysicsChecker(scene)
         self._search: BranchAndBound | GroupedSearch | None = None
 
-    def add_detections(self, message: Any, received: float) -> DetectionInputs:
+    def add_detections(
+        self,
+        message: Any,
+        received: float,
+        transforms: Mapping[str, Transform] | None = None,
+        unresolved: Mapping[str, str] | None = None,
+    ) -> DetectionInputs:
         """A ``Detection3DArray`` received at ``received`` (node clock, s): its detections associated to
-        instances and given to :attr:`inputs`; instances whose tracks ended forget their inputs."""
+        instances and given to :attr:`inputs`; instances whose tracks ended forget their inputs.
+        ``transforms`` and ``unresolved``: its sensor frames into the scene's (:func:`detection_inputs`)."""
         with self._tracks_lock:
-            detected = detection_inputs(message, self.scene, received=received, tracks=self.tracks)
+            detected = detection_inputs(
+                message,
+                self.scene,
+                received=received,
+                tracks=self.tracks,
+                transforms=transforms,
+                unresolved=unresolved,
+            )
             for name, poses in detected.objects.items():
                 self.inputs.add_poses(name, poses)
             if detected.association is not None:

@@ -35,6 +35,9 @@ class TopicQos:
 
 MAP_TOPIC_QOS = TopicQos(reliable=True, transient_local=True, depth=1)
 DIAGNOSTICS_TOPIC_QOS = TopicQos(reliable=True, transient_local=False, depth=10)
+#: tf2's listener and broadcaster QoS: /tf reliable and volatile, /tf_static latched, depth 100 both.
+TF_TOPIC_QOS = TopicQos(reliable=True, transient_local=False, depth=100)
+TF_STATIC_TOPIC_QOS = TopicQos(reliable=True, transient_local=True, depth=100)
 _BEST_EFFORT_INPUT_QOS = TopicQos(reliable=False, transient_local=False, depth=10)
 
 
@@ -47,6 +50,11 @@ def input_topic_qos(reliability: InputReliability = "best_effort") -> TopicQos:
 CONFIGURATION_TOPIC = "~/configuration"
 SETTLED_TOPIC = "~/settled_configuration"
 MARKERS_TOPIC = "~/markers"
+#: Latched beside the map: whether it is valid or a fallback, and the object names in the map's order.
+MAP_STATUS_TOPIC = "~/map_status"
+#: tf2's topics: transforms over time, and transforms that hold at every time (latched).
+TF_TOPIC = "/tf"
+TF_STATIC_TOPIC = "/tf_static"
 #: The map as ``vision_msgs/Detection3DArray``: one Detection3D per object present, its id the object's name.
 OBJECTS_TOPIC = "~/objects"
 DIAGNOSTICS_TOPIC = "/diagnostics"

@@ -180,6 +180,16 @@ class StaticBody:
 
 
 @dataclass(frozen=True)
+class FixedFrame:
+    """A sensor frame fixed in the cell (the scene file's ``frames:``): ``pose`` is frame ``name``'s
+    pose in frame ``parent``, as a static transform ``parent -> name`` on ``/tf_static`` would give it."""
+
+    name: str
+    parent: str
+    pose: Pose
+
+
+@dataclass(frozen=True)
 class ObjectModel:
     """A movable rigid body; ``mass`` in kg, Coulomb ``friction`` coefficient.
 
@@ -291,6 +301,8 @@ class Scene:
     class_map: tuple[tuple[str, tuple[str, ...]], ...] = ()
     #: Objects that exist only once detected (the instances of ``count: {max: K}`` entries).
     optional: frozenset[str] = frozenset()
+    #: Fixed sensor frames (``frames:``), for cells without TF.
+    frames: tuple[FixedFrame, ...] = ()
     #: Warnings about what the file asks for (an extreme mass ratio), each as ``file: key: what``.
     notes: tuple[str, ...] = field(default=(), compare=False)
 

@@ -49,6 +49,7 @@ from physics_mapper.model.scene import (
     STATIC_SHAPES,
     Box,
     Cylinder,
+    FixedFrame,
     Mesh,
     ObjectModel,
     Plane,
@@ -447,7 +448,39 @@ def search_with_overrides(
     return _read_search(_Reader(source), merged, key)
 
 
-_SCENE_KEYS = ("frame_id", "static", "objects", "search", "ground_truth", "workspace", "class_map")
+_SCENE_KEYS = ("frame_id", "static", "objects", "search", "ground_truth", "workspace", "class_map", "frames")
+#: Fixed sensor frames a scene file may declare at most.
+MAX_FIXED_FRAMES = 1000
+
+
+def _read_frames(reader: _Reader, value: Any, key: str, scene_frame: str) -> tuple[FixedFrame, ...]:
+    """``frames:`` frame name -> ``{parent, position, orientation}`` (parent: the scene's frame by default).
+
+    A parent may be another fixed frame, the scene's frame, or a frame that ``/tf`` gives (a
+    camera calibrated to a robot's flange); the parents must not loop.
+    """
+    data = reader.mapping(value, key)
+    if len(data) > MAX_FIXED_FRAMES:
+        raise reader.fail(key, f"{len(data)} frames (at most {MAX_FIXED_FRAMES})")
+    frames = []
+    for name, item in data.items():
+        at = f"{key}.{name}"
+        reader.name(name, key)
+        entry = reader.mapping(item, at)
+        reader.known_keys(entry, at, ("parent", "position", "orientation"))
+        parent = reader.name(entry.get("parent", scene_frame), f"{at}.parent")
+        if name == scene_frame:
+            raise reader.fail(at, f"the scene's frame {scene_frame!r} is the root, not a fixed frame")
+        pose = _read_pose(reader, {k: v for k, v in entry.items() if k != "parent"}, at)
+        frames.append(FixedFrame(name, parent, pose))
+    parents = {frame.name: frame.parent for frame in frames}
+    for frame in frames:
+        seen = [frame.name]
+        while seen[-1] in parents:
+            seen.append(parents[seen[-1]])
+            if seen[-1] in seen[:-1]:
+                raise reader.fail(f"{key}.{frame.name}", f"the parents loop: {' -> '.join(seen)}")
+    return tuple(frames)
 
 
 def _read_class_map(
@@ -532,6 +565,7 @@ def scene_from_dict(
     object_names = [o.name for o in objects]
     class_map = _read_class_map(reader, top.get("class_map", {}), "class_map", object_names, counted)
     optional = frozenset(o.name for entry in entries if entry.optional for o in entry.objects)
+    frames = _read_frames(reader, top.get("frames", {}), "frames", frame_id)
     scene = Scene(
         objects,
         static,
@@ -541,6 +575,7 @@ def scene_from_dict(
         explicit_workspace=workspace,
         class_map=class_map,
         optional=optional,
+        frames=frames,
         notes=tuple(reader.notes),
     )
     for model, pose in zip(objects, truth or (), strict=False):

@@ -6,14 +6,14 @@ publishes the map, another at ``diagnostics_period`` publishes ``/diagnostics``.
 ``ros2 run physics_mapper node --ros-args -p scene_file:=<path>`` or, without a ROS installation,
 ``physics-mapper node --ros-args ...``. Topic names and QoS are in :mod:`physics_mapper.mapping.topics`.
 
-Messages become inputs stamped with their arrival (:mod:`physics_mapper.ros.node_inputs`); the
-parameters are declared, validated and read in :mod:`physics_mapper.ros.parameters`; the scene loads
-while the node spins (:mod:`physics_mapper.ros.node_scene`); the outputs are published by
-:mod:`physics_mapper.ros.map_publishers` and :mod:`physics_mapper.ros.node_diagnostics`; the managed node is
-:mod:`physics_mapper.ros.managed_node`, the process :mod:`physics_mapper.ros.run_node`. The node spins
-single-threaded; its subscriptions and its timers are in separate callback groups and the input
-tracker is locked, so a multi-threaded executor works too (BENCHMARKS.md, "Input flood", measured both).
-SIGINT and SIGTERM stop it cleanly at any moment, exit code 0 (:class:`~physics_mapper.ros.spinning.SignalStop`).
+Messages become inputs stamped with their arrival (:mod:`physics_mapper.ros.node_inputs`), moved from sensor frames
+into the scene's (:mod:`physics_mapper.ros.node_frames`); the parameters are declared, validated and read in
+:mod:`physics_mapper.ros.parameters`; the scene loads while the node spins (:mod:`physics_mapper.ros.node_scene`); the
+outputs are published by :mod:`physics_mapper.ros.map_publishers` and :mod:`physics_mapper.ros.node_diagnostics`; the
+managed node is :mod:`physics_mapper.ros.managed_node`, the process :mod:`physics_mapper.ros.run_node`. The node spins
+single-threaded; its subscriptions and its timers are in separate callback groups and the input tracker is locked, so
+a multi-threaded executor works too (BENCHMARKS.md, "Input flood", measured both). SIGINT and SIGTERM stop it cleanly
+at any moment, exit code 0 (:class:`~physics_mapper.ros.spinning.SignalStop`).
 """
 
 from __future__ import annotations
@@ -51,8 +51,9 @@ from physics_mapper.mapping.topics import (
 )
 from physics_mapper.model.errors import InputError
 from physics_mapper.msg_adapters.results import static_markers_msg
-from physics_mapper.ros.map_publishers import MapPublishers, map_publishers
+from physics_mapper.ros.map_publishers import MapPublishers, TfOutput, map_publishers
 from physics_mapper.ros.node_diagnostics import WATCH_PERIOD, NodeDiagnostics
+from physics_mapper.ros.node_frames import SensorFrames
 from physics_mapper.ros.node_inputs import InputHandlers, InputNotes
 from physics_mapper.ros.node_scene import load_scene_spinning, resolve_scene_path
 from physics_mapper.ros.parameters import PARAMETERS, SCENE_FILE_DESCRIPTOR, NodeParameters, parameters_problem
@@ -80,6 +81,7 @@ class MapperNodeBase(Node):
         self._node_parameters = NodeParameters(self)
         self._mapper: Mapper | None = None
         self._outputs: MapPublishers | None = None
+        self._frames: SensorFrames | None = None
         self._entities: list[Subscription | Publisher] = []
         self._tick_timers: dict[str, Timer] = {}  # by job: "tick", "diagnostics", "watch"
         self._by_wall_clock = False  # the tick and diagnostics timers (several /clock sources)
@@ -103,14 +105,16 @@ class MapperNodeBase(Node):
         self._node_parameters.drop_unknown_parameters(unknown)
         self._mapper = Mapper(scene)
         reliability = cast(InputReliability, values["input_reliability"])
-        handlers = InputHandlers(self, self._mapper, self._input_notes)
+        self._frames = SensorFrames(self, scene, self._input_notes.log_once, float(values["transform_timeout"]))
+        self._entities += self._frames.subscribe(self._inputs_group)
+        handlers = InputHandlers(self, self._mapper, self._input_notes, self._frames)
         topics = [topic for name in scene.object_names for topic in self._subscribe(handlers, name, reliability)]
         topics += self._subscribe_detections(handlers, reliability)
         diagnostics_pub = self._map_publisher(DiagnosticArray, DIAGNOSTICS_TOPIC, DIAGNOSTICS_QOS)
         diagnostics = NodeDiagnostics(
             self, self._mapper, self._node_parameters, diagnostics_pub, best_effort=reliability == "best_effort"
         )
-        self._outputs = map_publishers(self._map_publisher, scene.object_names, diagnostics)
+        self._outputs = map_publishers(self._map_publisher, scene.object_names, diagnostics, self)
         self._logger.info(
             f"scene {scene_path}: objects {', '.join(scene.object_names)} in frame {scene.frame_id!r}; "
             f"listening on {', '.join(topics)} ({reliability})"
@@ -133,8 +137,9 @@ class MapperNodeBase(Node):
     def start_ticking(self) -> None:
         """Start the tick timer (``rate_hz``), the diagnostics timer (``diagnostics_period``) and the watch."""
         values = self._node_parameters.parameter_values()
-        # Latched: RViz shows the fixed bodies before the first map (each map repeats them).
+        # Latched, before the first map (each map repeats them): RViz shows the fixed bodies, a consumer the names.
         self.outputs.markers.publish(static_markers_msg(self.mapper.scene, stamp_ns=self._now_ns()))
+        self.outputs.publish_status(None, self.mapper.scene, self._now_ns())
         # The watch runs by wall clock: with use_sim_time the other timers wait for /clock, and a missing one
         # must be reported.
         self._tick_timers = {"watch": self.create_timer(WATCH_PERIOD, self._watch, clock=wall_clock())}
@@ -194,14 +199,10 @@ class MapperNodeBase(Node):
     # --- parameters -----------------------------------------------------------------------------
 
     def _on_set_parameters(self, parameters: list[Parameter]) -> SetParametersResult:
-        """Refuse a change that leaves the combination of values invalid; accepted ones apply at the next tick.
-
-        While the node is still declaring its parameters (:meth:`configure`) there is no combination
-        to judge yet.
-        """
-        if self._mapper is None:
-            return SetParametersResult(successful=True)
-        problem = self._node_parameters.change_problem(parameters)
+        """Refuse read-only and invalid changes (judged at :meth:`configure` before it); others apply next tick."""
+        problem = self._node_parameters.read_only_problem(parameters)
+        if problem is None and self._mapper is not None:
+            problem = self._node_parameters.change_problem(parameters)
         return SetParametersResult(successful=problem is None, reason=problem or "")
 
     def _on_parameters_set(self, parameters: list[Parameter]) -> None:
@@ -282,12 +283,15 @@ class MapperNodeBase(Node):
 
     def _tick(self) -> None:
         start = time.monotonic()
-        settings = self._node_parameters.settings()
+        values, settings = self._node_parameters.parameter_values(), self._node_parameters.settings()
+        if self._frames is not None:  # inputs whose wait for a transform is over are refused before the snapshot
+            self._frames.flush(float(values["transform_timeout"]))
         with self._stop.interruptible():  # a signal stops a search at once
             report = self.mapper.tick(self._now_ns() / NANOSECONDS_PER_SECOND, settings)
+        self._input_notes.log_tick(report.snapshot)
         diagnostics = self.outputs.diagnostics
         diagnostics.record(report)
-        self.outputs.publish_map(report, self.mapper.scene)
+        self.outputs.publish_map(report, self.mapper.scene, TfOutput.of(values))
         tick_time = time.monotonic() - start
         diagnostics.ticks.record(
             start=start,

@@ -2,25 +2,31 @@
 
 Each handler puts a message through its adapter (:mod:`physics_mapper.msg_adapters.hypotheses`,
 :mod:`physics_mapper.mapping.detections`) into the mapper's input tracker, stamped with the time
-the middleware received it, and logs what became of a refused message once per object and note.
+the middleware received it, and logs what became of a refused message once per object and note,
+in the words of its input (``PoseArray refused``, ``detection refused``). Poses in a sensor frame
+go into the tracker once :class:`~physics_mapper.ros.node_frames.SensorFrames` has moved them
+into the scene's frame, or refused when no transform came in time.
 """
 
 from __future__ import annotations
 
 import time
 from collections.abc import Callable, Mapping
+from dataclasses import replace
 from typing import Any
 
 from rclpy.event_handler import QoSMessageLostInfo
 from rclpy.node import Node
 from std_msgs.msg import Float64MultiArray
 
-from physics_mapper.mapping.detections import DETECTIONS_TOPIC
-from physics_mapper.mapping.inputs import MessageKind
+from physics_mapper.mapping.detections import DETECTIONS_TOPIC, DetectionInputs, detection_frames
+from physics_mapper.mapping.frames import Transform, moved_into
+from physics_mapper.mapping.inputs import InputSnapshot, MessageKind, ReceivedPoses
 from physics_mapper.mapping.mapper import Mapper
-from physics_mapper.mapping.stamps import NANOSECONDS_PER_SECOND
+from physics_mapper.mapping.stamps import NANOSECONDS_PER_SECOND, to_nanoseconds
 from physics_mapper.model.limits import clipped, printable
 from physics_mapper.msg_adapters.hypotheses import received_pose_array, received_weights
+from physics_mapper.ros.node_frames import SensorFrames
 
 #: Distinct input notes (object, text) logged in full before they are throttled.
 MAX_LOGGED_INPUT_NOTES = 1000
@@ -51,29 +57,55 @@ class InputNotes:
         else:
             self._logger.warning(f"{name}: {what}", throttle_duration_sec=1.0)
 
+    def log_tick(self, snapshot: InputSnapshot) -> None:
+        """What only a tick finds about an object's hypotheses (dropped poses, uniform weights), once each."""
+        for status in snapshot.objects:
+            for note in status.notes:
+                self.log_once(status.name, note)
+
 
 class InputHandlers:
     """The subscription callbacks of ``node``, feeding ``mapper``'s inputs; each gets the message info."""
 
-    def __init__(self, node: Node, mapper: Mapper, notes: InputNotes) -> None:
+    def __init__(self, node: Node, mapper: Mapper, notes: InputNotes, frames: SensorFrames) -> None:
         self._node = node
         self._mapper = mapper
         self._notes = notes
+        self._frames = frames
 
     def poses(self, name: str) -> Callable[[bytes, Mapping[str, Any]], None]:
         """Object ``name``'s serialised PoseArray handler."""
-        scene, inputs = self._mapper.scene, self._mapper.inputs
+        scene = self._mapper.scene
         frame, workspace = scene.frame_id, scene.workspace
 
         def on_poses(raw: bytes, info: Mapping[str, Any]) -> None:
             received = received_pose_array(raw, expected_frame=frame, workspace=workspace, received=self.received(info))
-            inputs.add_poses(name, received)
-            if received.frame_assumed:
-                self._notes.log_once(name, f"a PoseArray without a frame_id is taken in the scene frame {frame!r}")
-            if received.refusal is not None:
-                self._notes.log_once(name, f"PoseArray refused: {received.refusal}")
+            if received.frame_id in ("", frame):
+                self._add(name, received)
+                return
+
+            def complete(transforms: Mapping[str, Transform], unresolved: Mapping[str, str]) -> None:
+                transform = transforms.get(received.frame_id)
+                if transform is not None:
+                    self._add(name, moved_into(received, transform, frame))
+                else:
+                    self._add(name, replace(received, refusal=unresolved.get(received.frame_id, received.refusal)))
+
+            self._frames.resolve({received.frame_id}, received.stamp_ns, received.received, complete)
 
         return on_poses
+
+    def _add(self, name: str, received: ReceivedPoses) -> None:
+        """Hand object ``name``'s poses to the tracker; log a refusal, or a frame taken for the scene's."""
+        self._mapper.inputs.add_poses(name, received)
+        self._log_refusal(name, received)
+
+    def _log_refusal(self, name: str, received: ReceivedPoses) -> None:
+        if received.frame_assumed:
+            frame = self._mapper.scene.frame_id
+            self._notes.log_once(name, f"a {received.source} without a frame_id is taken in the scene frame {frame!r}")
+        if received.refusal is not None:
+            self._notes.log_once(name, f"{received.source} refused: {received.refusal}")
 
     def weights(self, name: str) -> Callable[[Float64MultiArray, Mapping[str, Any]], None]:
         """Object ``name``'s weights handler."""
@@ -88,17 +120,29 @@ class InputHandlers:
 
     def detections(self) -> Callable[[Any, Mapping[str, Any]], None]:
         """The ``detections`` handler: its results are the hypotheses of the objects their class ids name,
-        a class of instances's detections associated to instances (:meth:`Mapper.add_detections`)."""
+        a class of instances's detections associated to instances (:meth:`Mapper.add_detections`), once
+        their frames are moved into the scene's."""
 
         def on_detections(msg: Any, info: Mapping[str, Any]) -> None:
-            detected = self._mapper.add_detections(msg, received=self.received(info))
-            for name, received in detected.objects.items():
-                if received.refusal is not None:
-                    self._notes.log_once(name, f"detections refused: {received.refusal}")
-            for note in detected.unused:
-                self._notes.log_once(DETECTIONS_TOPIC, note)
+            received = self.received(info)
+
+            def complete(transforms: Mapping[str, Transform], unresolved: Mapping[str, str]) -> None:
+                detected = self._mapper.add_detections(
+                    msg, received=received, transforms=transforms, unresolved=unresolved
+                )
+                self._log_detections(detected)
+
+            stamp = msg.header.stamp
+            self._frames.resolve(detection_frames(msg), to_nanoseconds(stamp.sec, stamp.nanosec), received, complete)
 
         return on_detections
+
+    def _log_detections(self, detected: DetectionInputs) -> None:
+        """What the mapper made of a Detection3DArray: each refusal and note, once."""
+        for name, received in detected.objects.items():
+            self._log_refusal(name, received)
+        for note in detected.unused:
+            self._notes.log_once(DETECTIONS_TOPIC, note)
 
     def lost(self, name: str, kind: MessageKind) -> Callable[[QoSMessageLostInfo], None]:
         """The middleware's message-lost event of object ``name``'s ``kind`` input, counted."""

@@ -27,6 +27,8 @@ from physics_mapper.model.scene_files import SceneError, search_with_overrides
 
 #: Seconds between two /diagnostics messages unless ``diagnostics_period`` says otherwise (the ~1 Hz convention).
 DEFAULT_DIAGNOSTICS_PERIOD = 1.0
+#: ``tf_pose``'s values: which of an object's map poses its /tf frame takes.
+TF_POSES = ("settled", "chosen")
 
 
 @dataclass(frozen=True)
@@ -82,6 +84,21 @@ PARAMETERS = (
         (0.01, 3600.0),
     ),
     ParameterSpec(
+        "transform_timeout",
+        "seconds an input in a sensor frame waits for its transform into the scene frame (from /tf, /tf_static "
+        "or the scene file's frames:) before it is refused",
+        0.2,
+        (0.0, 10.0),
+    ),
+    ParameterSpec("publish_tf", "publish each object's map pose on /tf as frame <tf_prefix><object name>", False),
+    ParameterSpec("tf_prefix", "prefix of the objects' frame names on /tf", "physics_mapper/"),
+    ParameterSpec(
+        "tf_pose",
+        f"the pose of each object's /tf frame: {' or '.join(TF_POSES)} (settled: after settling, a fallback's "
+        "corrected estimate; chosen: the chosen hypothesis)",
+        "settled",
+    ),
+    ParameterSpec(
         "input_reliability",
         f"QoS reliability of the hypothesis subscriptions, {' or '.join(INPUT_RELIABILITIES)}: best_effort matches "
         "every publisher (lost messages are counted in the diagnostics); reliable loses no message of a reliable "
@@ -90,6 +107,10 @@ PARAMETERS = (
         read_only=True,
     ),
 )
+
+
+#: Parameters read once, when the node is configured: a change is refused in every state.
+READ_ONLY_PARAMETERS = frozenset({"scene_file", *(spec.name for spec in PARAMETERS if spec.read_only)})
 
 
 def descriptor(spec: ParameterSpec, default: object) -> ParameterDescriptor:
@@ -127,6 +148,8 @@ def parameters_problem(values: Mapping[str, Any]) -> str | None:
     reliability = values["input_reliability"]
     if reliability not in INPUT_RELIABILITIES:
         return f"input_reliability must be one of {', '.join(INPUT_RELIABILITIES)}, got {reliability!r}"
+    if values["tf_pose"] not in TF_POSES:
+        return f"tf_pose must be one of {', '.join(TF_POSES)}, got {values['tf_pose']!r}"
     try:
         mapper_settings = settings(values)
     except SceneError as error:
@@ -144,15 +167,36 @@ class NodeParameters:
     def __init__(self, node: Node) -> None:
         self._node = node
         self._declared: set[str] = set()
+        self._declaring = False
 
     def declare(self, name: str, default: object, descriptor: ParameterDescriptor) -> object:
-        """Declare a parameter of this node once (a params file's value wins over ``default``); its value."""
+        """Declare a parameter of this node once (a params file's value wins over ``default``); its value.
+
+        A value set before (a SetParameters request to the unconfigured managed node) is kept: rclpy
+        would declare the parameter with its command-line override again.
+        """
         if name not in self._declared:
-            if self._node.has_parameter(name):  # declared from an override: declared again, typed
-                self._node.undeclare_parameter(name)
-            self._node.declare_parameter(name, default, descriptor)
+            self._declaring = True
+            try:
+                earlier = self._node.get_parameter(name) if self._node.has_parameter(name) else None
+                if earlier is not None:  # declared from an override: declared again, typed
+                    self._node.undeclare_parameter(name)
+                self._node.declare_parameter(name, default, descriptor)
+            finally:
+                self._declaring = False
             self._declared.add(name)
+            if earlier is not None and earlier.value != self._node.get_parameter(name).value:
+                self._node.set_parameters([earlier])
         return self._node.get_parameter(name).value
+
+    def read_only_problem(self, parameters: Sequence[Parameter]) -> str | None:
+        """Why a change of a read-only parameter is refused (in every state; None while declaring them)."""
+        names = sorted({p.name for p in parameters} & READ_ONLY_PARAMETERS)
+        if self._declaring or not names:
+            return None
+        return (
+            f"{', '.join(names)} is read-only: read once, when the node is configured (restart the node to change it)"
+        )
 
     def declare_all(self, scene_search: SearchParams) -> None:
         """Declare every parameter of :data:`PARAMETERS`; the search ones default to the scene file's."""

@@ -16,6 +16,8 @@ from physics_mapper.mapping.stamps import NANOSECONDS_PER_SECOND
 from physics_mapper.mapping.topics import (
     DIAGNOSTICS_TOPIC_QOS,
     MAP_TOPIC_QOS,
+    TF_STATIC_TOPIC_QOS,
+    TF_TOPIC_QOS,
     InputReliability,
     TopicQos,
     input_topic_qos,
@@ -40,6 +42,8 @@ def input_qos(reliability: InputReliability = "best_effort") -> QoSProfile:
 INPUT_QOS = input_qos()
 MAP_QOS = qos_profile(MAP_TOPIC_QOS)
 DIAGNOSTICS_QOS = qos_profile(DIAGNOSTICS_TOPIC_QOS)
+TF_QOS = qos_profile(TF_TOPIC_QOS)
+TF_STATIC_QOS = qos_profile(TF_STATIC_TOPIC_QOS)
 
 
 #: Keep-last depth of a replay's volatile publishers and of its recorder (a burst of a bag's messages).

@@ -330,7 +330,7 @@ def test_the_node_starts_with_the_sweep_s_parameters_file(sweep: tuple[int, Path
     data = json.loads((output / "sweep.json").read_text())
     best = data["settings"][data["best"]["index"]]["search"]
     params_file = output / "best_params.yaml"
-    written = yaml.safe_load(params_file.read_text())["/**/physics_mapper"]["ros__parameters"]
+    written = yaml.safe_load(params_file.read_text())["/**"]["ros__parameters"]
     assert {key: written[key] for key in best} == best
     log = (tmp_path / "node.log").open("w")
     command = [str(PHYSICS_MAPPER), "node", "--ros-args", "--params-file", str(params_file), "-r", "__ns:=/sweep"]
@@ -403,8 +403,8 @@ def test_parameters_file_fits_the_node_s_tick() -> None:
     assert node_rate_hz(0.2) == 2.0
     assert node_rate_hz(0.6) == 1.5 and node_rate_hz(0.7) == 1.2 and 1 / node_rate_hz(7.0) > 7.0
     text = node_parameters_yaml(SCENE, SearchParams(probability_threshold=1e-5, deadline=0.6), ["made by a test"])
-    assert text.startswith("# made by a test\n/**/physics_mapper:\n  ros__parameters:\n")
-    written = yaml.safe_load(text)["/**/physics_mapper"]["ros__parameters"]
+    assert text.startswith("# made by a test\n/**:\n  ros__parameters:\n")
+    written = yaml.safe_load(text)["/**"]["ros__parameters"]
     assert written["probability_threshold"] == 1e-5  # a float in YAML 1.1 too (1.0e-05)
     assert (written["deadline"], written["rate_hz"]) == (0.6, 1.5)
 

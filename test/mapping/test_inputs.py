@@ -297,7 +297,7 @@ def test_weights_that_are_refused_refuse_the_poses_they_belong_to() -> None:
 
 def test_an_object_without_messages_is_missing() -> None:
     status = ObjectInputs("cube").status(5.0, SETTINGS)
-    assert (status.level, status.message, status.hypotheses) == (Level.WARN, "no PoseArray received yet", None)
+    assert (status.level, status.message, status.hypotheses) == (Level.WARN, "no hypotheses received yet", None)
 
 
 def test_hypotheses_older_than_max_age_are_stale_until_fresh_ones_arrive() -> None:

@@ -216,7 +216,7 @@ def test_any_sequence_of_messages_gives_a_usable_snapshot_and_bounded_diagnostic
         # No hypotheses in use: an error, or a warning while nothing has come yet.
         assert (status.level == Level.OK) <= (status.hypotheses is not None)
         assert (status.hypotheses is None) == (
-            status.level == Level.ERROR or status.message == "no PoseArray received yet"
+            status.level == Level.ERROR or status.message == "no hypotheses received yet"
         )
         if status.hypotheses is not None:
             weights = [h.weight for h in status.hypotheses.hypotheses]

@@ -45,7 +45,7 @@ PROVIDERS: dict[str, str | None] = {
     "motmetrics": None,  # no key of its own found; pinned in requirements.txt
     "ray": None,
 }
-ROS_PACKAGES = {"rclpy", "ament_index_python", "rosidl_runtime_py"}
+ROS_PACKAGES = {"rclpy", "ament_index_python", "rosidl_runtime_py", "launch", "launch_ros"}
 #: The Python packages setup.py installs.
 INSTALLED = ("physics_mapper",)
 #: Their source folders: msg_adapters/ is installed as physics_mapper.msg_adapters.
@@ -112,12 +112,15 @@ def missing(found: dict[str, list[str]], allowed: set[str], tag: str) -> list[st
 
 
 def installed_sources() -> list[Path]:
-    return sorted(path for folder in SOURCE_FOLDERS for path in (REPO / folder).rglob("*.py"))
+    """The installed package's modules and the launch files (installed to share/, run by ``ros2 launch``)."""
+    modules = [path for folder in SOURCE_FOLDERS for path in (REPO / folder).rglob("*.py")]
+    return sorted([*modules, *(REPO / "launch").glob("*.launch.py")])
 
 
 def test_every_import_of_the_installed_package_is_an_exec_depend() -> None:
     found = third_party_imports(installed_sources(), set(INSTALLED))
     assert {"rclpy", "pybullet", "ray"} <= set(found)  # the walk sees function-level and importlib imports
+    assert {"launch", "launch_ros", "lifecycle_msgs"} <= set(found)  # and the launch file's
     assert missing(found, declared("exec_depend"), "exec_depend") == []
 
 

@@ -146,7 +146,7 @@ def test_nothing_is_published_until_some_object_has_hypotheses_and_a_missing_one
     assert search is not None
     assert search.message == "waiting for hypotheses of: cube_left, cube_right, cube_top"
     assert search.level == DiagnosticStatus.WARN  # waiting is not a failure
-    assert object_status(diagnostics, "cube_top").message == "no PoseArray received yet"
+    assert object_status(diagnostics, "cube_top").message == "no hypotheses received yet"
     assert client.configurations == []
     problem = load_problem(PYRAMID_PROBLEM)
     mapped = publish_until_diagnosed(
@@ -280,7 +280,9 @@ BAD_INPUTS = {
     "one_bad_pose_of_two": BadInput(
         raw_pose_array(TOP, ((0.0, 0.0, 0.3), (0.0, 0.0, 0.0, 0.0))), [0.5, 0.5], "dropped 1 of 2 poses"
     ),
-    "wrong_frame": BadInput(raw_pose_array(TOP, frame="camera"), [1.0], "frame_id 'camera' is not the scene frame"),
+    "wrong_frame": BadInput(
+        raw_pose_array(TOP, frame="camera"), [1.0], "PoseArray refused: no transform from 'camera' to 'world'"
+    ),
     "outside_workspace": BadInput(
         raw_pose_array(((0.0, 0.0, 1e15), TOP[1])), [1.0], "poses[0]: (0, 0, 1e+15) m is outside the workspace"
     ),
@@ -505,8 +507,8 @@ def test_deadline_changed_at_run_time_takes_effect_and_invalid_values_are_refuse
 def test_params_file_configures_the_node_and_unknown_keys_are_named(tmp_path: Path) -> None:
     """The shipped parameters file, plus two misspelt keys (and one -p) that a user would want to hear about."""
     shipped = yaml.safe_load((REPO / "config" / "params" / "node.yaml").read_text())
-    expected = shipped["/**/physics_mapper"]["ros__parameters"]
-    shipped["/**/physics_mapper"]["ros__parameters"] = {**expected, "deadlne": 0.1, "rate": 5.0}
+    expected = shipped["/**"]["ros__parameters"]
+    shipped["/**"]["ros__parameters"] = {**expected, "deadlne": 0.1, "rate": 5.0}
     params_file = tmp_path / "params.yaml"
     params_file.write_text(yaml.safe_dump(shipped))
     log = (tmp_path / "node.log").open("w")

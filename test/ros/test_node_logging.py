@@ -38,7 +38,9 @@ def publish_problem(client: RosClient, frame_id: str, stamp_ns: int) -> None:
 
 def test_a_refused_input_is_logged_once_however_often_it_comes(console: tuple[NodeProcess, RosClient]) -> None:
     node, client = console
-    refusal = "cube_top: PoseArray refused: frame_id 'camera' is not the scene frame 'world'"
+    refusal = (
+        "cube_top: PoseArray refused: no transform from 'camera' to 'world': frame 'camera' is unknown (waited 0.2 s)"
+    )
     client.keep_publishing(
         lambda: publish_problem(client, "camera", stamp_ns=1_000), lambda: refusal in node.output(), "the refusal"
     )
