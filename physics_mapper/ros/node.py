@@ -19,45 +19,36 @@ at any moment, exit code 0 (:class:`~physics_mapper.ros.spinning.SignalStop`).
 from __future__ import annotations
 
 import time
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from typing import Any, cast
 
 from diagnostic_msgs.msg import DiagnosticArray
-from geometry_msgs.msg import PoseArray
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
-from rclpy.clock import Clock
-from rclpy.clock_type import ClockType
-from rclpy.event_handler import QoSMessageLostInfo, SubscriptionEventCallbacks
-from rclpy.exceptions import InvalidTopicNameException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.publisher import Publisher
 from rclpy.qos import QoSProfile
 from rclpy.subscription import Subscription
 from rclpy.timer import Timer
-from std_msgs.msg import Float64MultiArray
 
-from physics_mapper.mapping.detections import DETECTIONS_TOPIC
-from physics_mapper.mapping.inputs import MESSAGE_KINDS
 from physics_mapper.mapping.mapper import Mapper
 from physics_mapper.mapping.stamps import NANOSECONDS_PER_SECOND
 from physics_mapper.mapping.topics import (
     DIAGNOSTICS_TOPIC,
     NODE_NAME,
     InputReliability,
-    poses_topic,
-    weights_topic,
 )
 from physics_mapper.model.errors import InputError
 from physics_mapper.msg_adapters.results import static_markers_msg
 from physics_mapper.ros.map_publishers import MapPublishers, TfOutput, map_publishers
-from physics_mapper.ros.node_diagnostics import WATCH_PERIOD, NodeDiagnostics
+from physics_mapper.ros.node_diagnostics import WATCH_PERIOD, NodeDiagnostics, wall_clock
 from physics_mapper.ros.node_frames import SensorFrames
 from physics_mapper.ros.node_inputs import InputHandlers, InputNotes
 from physics_mapper.ros.node_scene import load_scene_spinning, resolve_scene_path
+from physics_mapper.ros.node_subscriptions import InputSubscriptions
 from physics_mapper.ros.parameters import PARAMETERS, SCENE_FILE_DESCRIPTOR, NodeParameters, parameters_problem
-from physics_mapper.ros.qos import DIAGNOSTICS_QOS, MAP_QOS, input_qos
+from physics_mapper.ros.qos import DIAGNOSTICS_QOS, MAP_QOS
 from physics_mapper.ros.spinning import SignalStop
 
 __all__ = ["PARAMETERS", "MapperNodeBase", "PhysicsMapperNode"]
@@ -108,8 +99,9 @@ class MapperNodeBase(Node):
         self._frames = SensorFrames(self, scene, self._input_notes.log_once, float(values["transform_timeout"]))
         self._entities += self._frames.subscribe(self._inputs_group)
         handlers = InputHandlers(self, self._mapper, self._input_notes, self._frames)
-        topics = [topic for name in scene.object_names for topic in self._subscribe(handlers, name, reliability)]
-        topics += self._subscribe_detections(handlers, reliability)
+        subscriptions = InputSubscriptions(self, handlers, reliability, self._inputs_group, [])
+        topics = subscriptions.objects(scene.object_names) + subscriptions.detections()
+        self._entities += subscriptions.made
         diagnostics_pub = self._map_publisher(DiagnosticArray, DIAGNOSTICS_TOPIC, DIAGNOSTICS_QOS)
         diagnostics = NodeDiagnostics(
             self, self._mapper, self._node_parameters, diagnostics_pub, best_effort=reliability == "best_effort"
@@ -220,61 +212,6 @@ class MapperNodeBase(Node):
         timer.timer_period_ns = round(period * NANOSECONDS_PER_SECOND)
         timer.reset()  # type: ignore[no-untyped-call]
 
-    # --- inputs ---------------------------------------------------------------------------------
-
-    def _subscribe(self, handlers: InputHandlers, name: str, reliability: InputReliability) -> list[str]:
-        """Subscribe to object ``name``'s hypotheses; the topics' names as resolved (namespace, remaps)."""
-        topics = [
-            (PoseArray, poses_topic(name), handlers.poses(name)),
-            (Float64MultiArray, weights_topic(name), handlers.weights(name)),
-        ]
-        try:
-            return [
-                self._input_subscription(
-                    msg_type, topic, callback, reliability, handlers.lost(name, kind), raw=kind == "poses"
-                )
-                for (msg_type, topic, callback), kind in zip(topics, MESSAGE_KINDS, strict=True)
-            ]
-        except InvalidTopicNameException:
-            raise InputError(f"object name {name!r} cannot be part of a ROS topic name") from None
-
-    def _subscribe_detections(self, handlers: InputHandlers, reliability: InputReliability) -> list[str]:
-        """Subscribe to ``detections`` (``vision_msgs/Detection3DArray``) where vision_msgs is installed.
-
-        Its results are the hypotheses of the objects their class ids name
-        (:mod:`physics_mapper.mapping.detections`), beside the per-object topics.
-        """
-        try:
-            from vision_msgs.msg import Detection3DArray
-        except ImportError:
-            return []
-        # A lost array cannot be laid to one object: the middleware's losses are not counted for it.
-        return [self._input_subscription(Detection3DArray, DETECTIONS_TOPIC, handlers.detections(), reliability)]
-
-    def _input_subscription(
-        self,
-        msg_type: type,
-        topic: str,
-        callback: Callable[[Any, Mapping[str, Any]], None],
-        reliability: InputReliability,
-        lost: Callable[[QoSMessageLostInfo], None] | None = None,
-        *,
-        raw: bool = False,
-    ) -> str:
-        """A hypothesis subscription: its callback gets the message info, ``lost`` counts the middleware's
-        lost messages; returns the topic's resolved name."""
-        subscription = self.create_subscription(
-            msg_type,
-            topic,
-            cast(Callable[[Any], None], callback),  # rclpy passes two-parameter callbacks the message info
-            input_qos(reliability),
-            callback_group=self._inputs_group,
-            event_callbacks=None if lost is None else SubscriptionEventCallbacks(message_lost=lost),
-            raw=raw,
-        )
-        self._entities.append(subscription)
-        return str(subscription.topic_name)
-
     def _now_ns(self) -> int:
         """The node clock, integer nanoseconds (exact, for stamps)."""
         return self.get_clock().now().nanoseconds
@@ -304,11 +241,6 @@ class MapperNodeBase(Node):
     def destroy_node(self) -> None:
         self.release()
         super().destroy_node()  # type: ignore[no-untyped-call]
-
-
-def wall_clock() -> Clock:
-    """A clock for timers that must not follow ``/clock`` (steady: never jumps)."""
-    return Clock(clock_type=ClockType.STEADY_TIME)
 
 
 class PhysicsMapperNode(MapperNodeBase):

@@ -12,6 +12,8 @@ import time
 from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticStatus
+from rclpy.clock import Clock
+from rclpy.clock_type import ClockType
 from rclpy.node import Node
 from rclpy.publisher import Publisher
 
@@ -124,3 +126,8 @@ class NodeDiagnostics:
         if message != self._last_message:
             self._last_message = message
             self._logger.info(message)
+
+
+def wall_clock() -> Clock:
+    """A clock for timers that must not follow ``/clock`` (steady: never jumps)."""
+    return Clock(clock_type=ClockType.STEADY_TIME)

@@ -35,7 +35,7 @@ def detections_bag(path: Path, definition: str) -> Path:
         connection = writer.add_connection(
             RECORDED_DETECTIONS_TOPIC, DETECTION_ARRAY, msgdef=definition, rihs01="RIHS01_" + "0" * 64
         )
-        writer.write(connection, 1_000, detections_cdr(1_000, "world", [("cube_top", top)]))
+        writer.write(connection, 1_000, detections_cdr(1_000, "world", [("cube_top", top, "")]))
     return path
 
 

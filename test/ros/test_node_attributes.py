@@ -16,7 +16,16 @@ import physics_mapper
 
 ROS = Path(physics_mapper.__file__).parent / "ros"
 #: The node and the modules it is made of.
-NODE_MODULES = ("node", "managed_node", "parameters", "node_scene", "node_inputs", "node_diagnostics", "map_publishers")
+NODE_MODULES = (
+    "node",
+    "managed_node",
+    "parameters",
+    "node_scene",
+    "node_inputs",
+    "node_subscriptions",
+    "node_diagnostics",
+    "map_publishers",
+)
 
 
 def self_attributes(function: ast.FunctionDef) -> set[str]:
