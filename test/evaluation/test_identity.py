@@ -13,7 +13,7 @@ from conftest import REPO, SCENES
 from physics_mapper.bags.storage import read_bag
 from physics_mapper.cli import main
 from physics_mapper.evaluation.identity import IdentityFrame, identity_metrics, overall_identity_metrics
-from physics_mapper.evaluation.settings import grid_settings
+from physics_mapper.evaluation.settings import PARAMS_FILE_NODE_KEY, grid_settings
 from physics_mapper.evaluation.snapshots import bag_snapshots
 from physics_mapper.mapping.association import AssociationSettings
 from physics_mapper.model.errors import InputError
@@ -129,7 +129,7 @@ def test_sweep_grids_over_the_association_settings(tmp_path: Path) -> None:
     assert [(s["association"]["gate"], s["association"]["confirm_hits"]) for s in settings] == [(0.002, 1), (0.04, 1)]
     assert all(s["overall"]["identity"]["frames"] > 0 for s in settings)
     assert "| switches | IDF1 |" in (output / "sweep.md").read_text()
-    parameters = yaml.safe_load((output / "best_params.yaml").read_text())["/**/physics_mapper"]["ros__parameters"]
+    parameters = yaml.safe_load((output / "best_params.yaml").read_text())[PARAMS_FILE_NODE_KEY]["ros__parameters"]
     assert parameters["confirm_hits"] == 1 and parameters["association_gate"] in (0.002, 0.04)
 
 

@@ -189,7 +189,9 @@ def test_deactivating_during_a_search_answers_success_and_publishes_no_map_after
             def mapped_now(stamp_ns: int = stamp_ns) -> bool:
                 return mapped(client, stamp_ns)
 
-            client.keep_publishing(publish, mapped_now, "a map")
+                # Under a loaded full run the first search after activation may take several ticks to answer.
+                client.keep_publishing(publish, mapped_now, "a map", timeout=60.0)
+
             client.spin_until(lambda: False, timeout=SEARCH_DEADLINE / 2)  # into the next tick's search
             before = len(client.configurations)
             assert lifecycle.change(Transition.TRANSITION_DEACTIVATE)
