@@ -62,15 +62,17 @@ def load_scene_spinning(node: Node, path: Path, stop: SignalStop) -> Scene:
     publisher = node.create_publisher(DiagnosticArray, DIAGNOSTICS_TOPIC, DIAGNOSTICS_QOS)
     executor = SingleThreadedExecutor(context=node.context)
     executor.add_node(node)
-    reported = -float("inf")
+    reported, shown = -float("inf"), ""
     try:
         while not loading.done:
             if stop.requested:
                 loading.cancel()
                 raise KeyboardInterrupt
-            if time.monotonic() - reported >= DEFAULT_DIAGNOSTICS_PERIOD:
-                reported = time.monotonic()
-                publisher.publish(loading_diagnostics(node, loading.activity or f"loading {path}"))
+            # Reported at once when it changes (a decomposition that starts), else once a period.
+            activity = loading.activity or f"loading {path}"
+            if activity != shown or time.monotonic() - reported >= DEFAULT_DIAGNOSTICS_PERIOD:
+                reported, shown = time.monotonic(), activity
+                publisher.publish(loading_diagnostics(node, activity))
             executor.spin_once(timeout_sec=STOP_POLL / 2)
     finally:
         executor.remove_node(node)

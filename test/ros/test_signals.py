@@ -46,7 +46,8 @@ LONGEST_WAIT = {"start-up": 1.5, "idle": 0.5, "searching": 0.5, "flood": 0.5}
 NODE_PARAMETERS = {"rate_hz": 4.0, "deadline": 0.2, "probability_threshold": 0.0, "diagnostics_period": 0.1}
 FLOOD_HZ = 200
 #: Lines a cleanly stopping node may print: its own log lines at level INFO.
-LOG_LINE = re.compile(r"\[INFO\] \[[0-9.]+\] \[[\w.]*physics_mapper\]: ")
+# The node's own log lines (a tick may warn of its inputs, e.g. weights not yet received).
+LOG_LINE = re.compile(r"\[(INFO|WARN)\] \[[0-9.]+\] \[[\w.]*physics_mapper\]: ")
 SIGTERM_MASK = 1 << (signal.SIGTERM - 1)
 
 
