@@ -39,7 +39,8 @@ class PoseArrayView:
     poses: NDArray[np.float64]
 
 
-def _aligned(offset: int, size: int) -> int:
+def aligned(offset: int, size: int) -> int:
+    """``offset`` rounded up to a multiple of ``size``: where CDR puts a value of ``size`` bytes."""
     return offset + (-offset % size)
 
 
@@ -53,9 +54,9 @@ def pose_array_view(raw: bytes) -> PoseArrayView | None:
         sec, nanosec, text_length = struct.unpack_from(f"{order}iII", body, 0)
         text_end = 12 + text_length
         frame_id = bytes(body[12 : max(12, text_end - 1)]).decode("utf-8", errors="replace")  # without its NUL
-        count_at = _aligned(text_end, 4)
+        count_at = aligned(text_end, 4)
         (count,) = struct.unpack_from(f"{order}I", body, count_at)
-        poses_at = _aligned(count_at + 4, 8)
+        poses_at = aligned(count_at + 4, 8)
         if count and poses_at + count * POSE_FLOATS * 8 > len(body):  # an empty array ends before the padding
             return None
         poses = np.frombuffer(body, dtype=f"{order}f8", count=count * POSE_FLOATS, offset=min(poses_at, len(body)))

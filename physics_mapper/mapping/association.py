@@ -172,13 +172,23 @@ def default_gate(shape: ObjectShape) -> float:
     return 0.5 * float(np.min(high - low))
 
 
-def _nearest_distances(points: NDArray[np.float64], observations: Sequence[Observation]) -> NDArray[np.float64]:
-    """(P x O) metres: from each of ``points`` (P x 3) to the nearest result of each observation, at once."""
-    counts = [len(o.positions) for o in observations]
-    results = np.concatenate([o.positions for o in observations])
-    distances = np.linalg.norm(points[:, None, :] - results[None, :, :], axis=2)
-    starts = np.concatenate(([0], np.cumsum(counts)[:-1]))
-    return np.asarray(np.minimum.reduceat(distances, starts, axis=1), dtype=np.float64)
+def _nearest_distances(
+    points: NDArray[np.float64], observations: Sequence[Observation], gate: float
+) -> NDArray[np.float64]:
+    """(P x O) metres: from each of ``points`` (P x 3) to the nearest result of each observation, where
+    that can be within ``gate``; inf where the point is farther than ``gate`` from the box bounding the
+    observation's results (a lower bound of the distance to each of them): only the results of the
+    observations near a point are measured, not every result from every point."""
+    low = np.array([o.positions.min(axis=0) for o in observations])
+    high = np.array([o.positions.max(axis=0) for o in observations])
+    outside = np.maximum(low[None] - points[:, None], 0.0) + np.maximum(points[:, None] - high[None], 0.0)
+    near = np.linalg.norm(outside, axis=2) <= gate
+    distances = np.full(near.shape, np.inf)
+    for column in np.flatnonzero(near.any(axis=0)).tolist():
+        rows = np.flatnonzero(near[:, column])
+        offsets = points[rows, None, :] - observations[column].positions[None, :, :]
+        distances[rows, column] = np.linalg.norm(offsets, axis=2).min(axis=1)
+    return distances
 
 
 class InstanceTracks:
@@ -309,8 +319,8 @@ class InstanceTracks:
         if not rest or not free:
             return pairs
         predicted = np.array([self.tracks[n].predicted(now, self.settings.process_noise) for n in free])
-        costs = _nearest_distances(predicted, rest)
         gate = self.gate(class_id)
+        costs = _nearest_distances(predicted, rest, gate)
         costs[costs > gate] = _FORBIDDEN
         rows, columns = linear_sum_assignment(costs)
         for row, column in zip(rows.tolist(), columns.tolist(), strict=True):

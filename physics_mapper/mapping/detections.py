@@ -18,7 +18,7 @@ a ``score`` and a pose. The rules that make them hypotheses:
   (ids, gated distance to each instance's filtered position, optimal assignment), never by its
   place in the array; its results are that instance's hypotheses.
 - **Frames.** Poses are in the detection's header frame, or the array's if the detection names
-  none (:func:`detection_frames`). A frame other than the scene's is moved into the scene's frame
+  none (:meth:`DetectionArrayData.frames`). A frame other than the scene's is moved into the scene's frame
   by the transform the caller looked up at the array's stamp (``transforms``, see
   :mod:`~physics_mapper.mapping.frames`), covariances rotating with their poses; a frame with no
   transform refuses its detections, with the lookup's reason where there is one
@@ -29,9 +29,11 @@ a ``score`` and a pose. The rules that make them hypotheses:
   covariance's weight, and up to 24 poses along the covariance's principal axes. A zero
   covariance leaves the result as it is; an unusable one is noted and left out of the weight.
 
-Messages are read by attribute, so rclpy's messages and those rosbags decodes from a bag give the
-same inputs (:func:`detection_inputs`). Each result's numbers are read once into one array per
-detection; the checks then run on arrays.
+The rules run on arrays (:class:`~physics_mapper.mapping.detection_data.DetectionArrayData`):
+per detection, its results' class ids, scores, poses and covariances, read once. The node reads
+them from the serialised message (:mod:`physics_mapper.msg_adapters.detection_array_cdr`), a bag
+replay from rosbags' messages by attribute, with the same outcome; no rule then costs Python work
+per result (but covariance's alternatives, made per result that has one).
 """
 
 from __future__ import annotations
@@ -44,10 +46,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from physics_mapper.mapping.association import FrameAssociation, InstanceTracks, Observation
-from physics_mapper.mapping.covariance import covariance_matrices, covariance_problem, expand, is_absent
+from physics_mapper.mapping.covariance import covariance_problem, expand, is_absent
+from physics_mapper.mapping.detection_data import DetectionArrayData, DetectionData, detection_array_data
 from physics_mapper.mapping.frames import Transform, rotate_covariance, transform_poses
 from physics_mapper.mapping.inputs import POSE_COLUMNS, PoseBlock, ReceivedPoses, check_poses, check_weights
-from physics_mapper.mapping.stamps import to_nanoseconds
 from physics_mapper.model.limits import MAX_QUOTED_TEXT, clipped
 from physics_mapper.model.scene import Scene
 
@@ -83,8 +85,8 @@ class _Detection:
 
     def moved(self, transform: Transform, frame: str) -> _Detection:
         """This detection in ``frame``, the target of ``transform``: poses moved, covariances rotated."""
-        covariances = np.array([rotate_covariance(transform, c) for c in self.covariances]).reshape(-1, 6, 6)
-        return replace(self, frame=frame, poses=transform_poses(transform, self.poses), covariances=covariances)
+        poses = transform_poses(transform, self.poses)
+        return replace(self, frame=frame, poses=poses, covariances=rotate_covariance(transform, self.covariances))
 
     def expanded(self, notes: list[str]) -> _Detection:
         """Each result's covariance as its weight and alternatives (:func:`expand`), bad ones noted."""
@@ -110,43 +112,41 @@ class _Detection:
 
 
 def _read(
-    detection: Any, index: int, array_frame: str, scene: Scene, notes: list[str], unknown: set[str]
+    detection: DetectionData, index: int, array_frame: str, scene: Scene, notes: list[str], unknown: set[str]
 ) -> _Detection | None:
-    """A detection's results as arrays, one class kept (module docstring), or None if none is usable;
+    """A detection's usable results, one class kept (module docstring), or None if none is usable;
     class ids of no scene object are added to ``unknown``."""
-    results = list(detection.results)
-    classes = [str(result.hypothesis.class_id) for result in results]
-    scores = np.fromiter((float(result.hypothesis.score) for result in results), np.float64, len(results))
+    scores, classes = detection.scores, detection.result_classes
     usable = np.isfinite(scores) & (scores >= 0.0)
     for position in np.flatnonzero(~usable).tolist():
         notes.append(f"detection {index}: result {position} refused: score {scores[position]:g}")
-    known_classes = {c: bool(scene.objects_of_class(c)) for c in set(classes)}
-    unknown.update(c for c, known in known_classes.items() if not known)
-    usable &= np.fromiter((known_classes[c] for c in classes), bool, len(classes))
+    known = np.array([bool(scene.objects_of_class(c)) for c in detection.class_ids], dtype=bool)
+    unknown.update(c for c, is_known in zip(detection.class_ids, known.tolist(), strict=True) if not is_known)
+    usable &= known[classes]
     if not usable.any():
-        if not results:
+        if not len(scores):
             notes.append(f"detection {index} refused: no results")
         return None
     best = int(np.flatnonzero(usable)[np.argmax(scores[usable])])
-    chosen = classes[best]
-    kept = usable & np.array([c == chosen for c in classes], dtype=bool)
-    others = sorted({c for c, use in zip(classes, usable.tolist(), strict=True) if use and c != chosen})
+    chosen = int(classes[best])
+    kept = usable & (classes == chosen)
+    others = sorted(detection.class_ids[c] for c in np.unique(classes[usable]).tolist() if c != chosen)
     if others:
         left = ", ".join(repr(c) for c in others)
         notes.append(
-            f"detection {index}: results of class {left} left out (one detection is one object; {chosen!r} scored best)"
+            f"detection {index}: results of class {left} left out"
+            f" (one detection is one object; {detection.class_ids[chosen]!r} scored best)"
         )
-    positions = np.flatnonzero(kept).tolist()
-    poses = np.array([_pose_row(results[p].pose.pose) for p in positions], dtype=np.float64).reshape(-1, POSE_COLUMNS)
-    covariances = covariance_matrices([results[p].pose.covariance for p in positions])
-    frame = str(detection.header.frame_id) or array_frame
-    return _Detection(index, chosen, frame, str(detection.id), poses, scores[kept], covariances)
-
-
-def detection_frames(message: Any) -> set[str]:
-    """The frames a ``Detection3DArray``'s poses are in: each detection's, or the array's where it names none."""
-    array_frame = str(message.header.frame_id)
-    return {str(detection.header.frame_id) or array_frame for detection in message.detections}
+    frame = detection.frame_id or array_frame
+    return _Detection(
+        index,
+        detection.class_ids[chosen],
+        frame,
+        detection.key,
+        detection.poses[kept],
+        scores[kept],
+        detection.covariances[kept],
+    )
 
 
 def _in_scene_frame(
@@ -160,11 +160,6 @@ def _in_scene_frame(
         return detection.moved(transform, scene.frame_id), None
     quoted = clipped(detection.frame, MAX_QUOTED_TEXT)
     return detection, unresolved.get(detection.frame, f"frame_id {quoted!r} is not the scene frame {scene.frame_id!r}")
-
-
-def _pose_row(pose: Any) -> tuple[float, ...]:
-    p, q = pose.position, pose.orientation
-    return (p.x, p.y, p.z, q.x, q.y, q.z, q.w)
 
 
 def _observation(detection: _Detection, notes: list[str], refusal: str | None) -> Observation | None:
@@ -183,7 +178,7 @@ def _observation(detection: _Detection, notes: list[str], refusal: str | None) -
 
 
 def detection_inputs(
-    message: Any,
+    message: DetectionArrayData | Any,
     scene: Scene,
     *,
     received: float,
@@ -194,13 +189,14 @@ def detection_inputs(
     """A ``Detection3DArray`` (rclpy's or rosbags') received at ``received`` seconds, as per-object inputs.
 
     ``tracks`` are the instances' tracks, kept from array to array (None: new ones, as for a first array).
-    ``transforms``: for frames other than the scene's (:func:`detection_frames`), the transform into
+    ``message`` may be read already (:class:`DetectionArrayData`, as the node reads it from its bytes).
+    ``transforms``: for frames other than the scene's (:meth:`DetectionArrayData.frames`), the transform into
     the scene's frame at the array's stamp; ``unresolved``: for frames without one, why.
     """
+    array = message if isinstance(message, DetectionArrayData) else detection_array_data(message)
     notes: list[str] = []
-    array_frame = str(message.header.frame_id)
     unknown: set[str] = set()
-    read = [_read(d, index, array_frame, scene, notes, unknown) for index, d in enumerate(message.detections)]
+    read = [_read(d, index, array.frame_id, scene, notes, unknown) for index, d in enumerate(array.detections)]
     refusals: dict[int, str] = {}
     detections = []
     for detection in (d for d in read if d is not None):
@@ -209,8 +205,7 @@ def detection_inputs(
         if refusal is not None:
             refusals[detection.index] = refusal
     notes[:0] = [f"class id {class_id!r} is no object of the scene" for class_id in sorted(unknown)]
-    stamp = message.header.stamp
-    stamp_ns = to_nanoseconds(stamp.sec, stamp.nanosec)
+    stamp_ns = array.stamp_ns
     collected: dict[str, list[_Detection]] = {}
     tracked = [d for d in detections if scene.is_tracked(d.class_id)]
     association = None

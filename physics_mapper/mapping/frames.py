@@ -299,7 +299,8 @@ def moved_into(poses: ReceivedPoses, transform: Transform, frame: str) -> Receiv
 
 
 def rotate_covariance(transform: Transform, covariance: NDArray[np.float64]) -> NDArray[np.float64]:
-    """A 6x6 pose covariance (x, y, z, rotation about x, y, z) expressed in the transform's target frame.
+    """A 6x6 pose covariance (x, y, z, rotation about x, y, z), or a stack of them (..., 6, 6), expressed
+    in the transform's target frame.
 
     Both the position and the small rotation are vectors of the source frame, so both rotate
     with R: Sigma' = J Sigma J^T, J = diag(R, R). The translation does not change a covariance.

@@ -19,12 +19,13 @@ from rclpy.event_handler import QoSMessageLostInfo
 from rclpy.node import Node
 from std_msgs.msg import Float64MultiArray
 
-from physics_mapper.mapping.detections import DETECTIONS_TOPIC, DetectionInputs, detection_frames
+from physics_mapper.mapping.detections import DETECTIONS_TOPIC, DetectionInputs
 from physics_mapper.mapping.frames import Transform, moved_into
 from physics_mapper.mapping.inputs import InputSnapshot, MessageKind, ReceivedPoses
 from physics_mapper.mapping.mapper import Mapper
-from physics_mapper.mapping.stamps import NANOSECONDS_PER_SECOND, to_nanoseconds
+from physics_mapper.mapping.stamps import NANOSECONDS_PER_SECOND
 from physics_mapper.model.limits import clipped, printable
+from physics_mapper.msg_adapters.detection_array_cdr import received_detection_array
 from physics_mapper.msg_adapters.hypotheses import received_pose_array, received_weights
 from physics_mapper.ros.node_frames import SensorFrames
 
@@ -118,22 +119,25 @@ class InputHandlers:
 
         return on_weights
 
-    def detections(self) -> Callable[[Any, Mapping[str, Any]], None]:
-        """The ``detections`` handler: its results are the hypotheses of the objects their class ids name,
-        a class of instances's detections associated to instances (:meth:`Mapper.add_detections`), once
-        their frames are moved into the scene's."""
+    def detections(self, message_type: type) -> Callable[[bytes, Mapping[str, Any]], None]:
+        """The serialised ``detections`` handler (``message_type``: vision_msgs' Detection3DArray): its results
+        are the hypotheses of the objects their class ids name, a class of instances's detections associated
+        to instances (:meth:`Mapper.add_detections`), once their frames are moved into the scene's."""
 
-        def on_detections(msg: Any, info: Mapping[str, Any]) -> None:
+        def on_detections(raw: bytes, info: Mapping[str, Any]) -> None:
             received = self.received(info)
+            array = received_detection_array(raw, message_type)
+            if isinstance(array, str):
+                self._notes.log_once(DETECTIONS_TOPIC, f"Detection3DArray refused: {array}")
+                return
 
             def complete(transforms: Mapping[str, Transform], unresolved: Mapping[str, str]) -> None:
                 detected = self._mapper.add_detections(
-                    msg, received=received, transforms=transforms, unresolved=unresolved
+                    array, received=received, transforms=transforms, unresolved=unresolved
                 )
                 self._log_detections(detected)
 
-            stamp = msg.header.stamp
-            self._frames.resolve(detection_frames(msg), to_nanoseconds(stamp.sec, stamp.nanosec), received, complete)
+            self._frames.resolve(array.frames(), array.stamp_ns, received, complete)
 
         return on_detections
 

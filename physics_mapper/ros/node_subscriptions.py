@@ -63,7 +63,9 @@ class InputSubscriptions:
         except ImportError:
             return []
         # A lost array cannot be laid to one object: the middleware's losses are not counted for it.
-        return [self._subscribe(Detection3DArray, DETECTIONS_TOPIC, self.handlers.detections())]
+        # Subscribed serialised, as the poses are: read without a Python object per result.
+        handler = self.handlers.detections(Detection3DArray)
+        return [self._subscribe(Detection3DArray, DETECTIONS_TOPIC, handler, raw=True)]
 
     def _subscribe(
         self,

@@ -13,7 +13,8 @@ import numpy as np
 import pytest
 
 from physics_mapper.bags.storage import TYPESTORE
-from physics_mapper.mapping.detections import DETECTION_ARRAY, detection_frames, detection_inputs
+from physics_mapper.mapping.detection_data import detection_array_data
+from physics_mapper.mapping.detections import DETECTION_ARRAY, detection_inputs
 from physics_mapper.mapping.frames import StampedTransform, Transform, TransformBuffer
 from physics_mapper.model.geometry import quaternion_about_axis
 from physics_mapper.model.scene import Scene
@@ -63,7 +64,7 @@ def camera_above() -> Transform:
 
 def test_a_detection_in_the_camera_frame_lands_in_the_scene_frame() -> None:
     message = array(result((0.1, 0.2, 0.95), 0.9), frame_id="camera")
-    assert detection_frames(message) == {"camera"}
+    assert detection_array_data(message).frames() == {"camera"}
     inputs = detection_inputs(message, scene(), received=1.0, transforms={"camera": camera_above()})
     poses = inputs.objects["part"]
     assert poses.refusal is None
