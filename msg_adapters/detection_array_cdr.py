@@ -39,6 +39,7 @@ from physics_mapper.mapping.detection_data import (
     DetectionData,
     detection_array_data,
     distinct_classes,
+    given_covariances,
 )
 from physics_mapper.mapping.inputs import POSE_COLUMNS
 from physics_mapper.mapping.stamps import to_nanoseconds
@@ -145,16 +146,10 @@ def _detection(cursor: _Cursor) -> DetectionData:
     cursor.at = aligned(cursor.at, FLOAT_BYTES)
     cursor.skip(BOX_BYTES)
     key = cursor.text()
-    names, classes, rows = _joined(parts)
+    names, classes, numbers, covariances = _joined(parts)
     class_ids, renamed = distinct_classes(names)
     return DetectionData(
-        frame_id,
-        key,
-        class_ids,
-        renamed[classes],
-        rows[:, 0],
-        rows[:, 1 : 1 + POSE_COLUMNS],
-        rows[:, 1 + POSE_COLUMNS :].reshape(-1, 6, 6),
+        frame_id, key, class_ids, renamed[classes], numbers[:, 0], numbers[:, 1 : 1 + POSE_COLUMNS], covariances
     )
 
 
@@ -196,15 +191,27 @@ def _strided(cursor: _Cursor, count: int) -> _Results | None:
     return names, classes, rows
 
 
-def _joined(parts: list[_Results]) -> _Results:
-    """Results read in parts as one: class ids in order, indices shifted, rows copied once into native floats."""
+def _joined(
+    parts: list[_Results],
+) -> tuple[list[str], NDArray[np.intp], NDArray[np.float64], NDArray[np.float64] | None]:
+    """Results read in parts as one: class ids in order and each result's index among them; scores and
+    poses (M, 8) copied into native floats; covariances (M, 6, 6) copied too, unless all are zero (None)."""
     names: list[str] = []
     classes = []
     for part_names, part_classes, _ in parts:
         classes.append(part_classes + len(names))
         names += part_names
-    rows = np.concatenate([part[2] for part in parts], dtype=np.float64)
-    return names, np.concatenate(classes), rows
+    numbers = np.concatenate([rows[:, : 1 + POSE_COLUMNS] for _, _, rows in parts], dtype=np.float64)
+    covariances = [rows[:, 1 + POSE_COLUMNS :] for _, _, rows in parts]
+    # All bits zero is the estimator's "no covariance" (0.0 has no bit set): tested without reading floats.
+    if not any(block.view(np.uint64).any() for block in covariances):
+        return names, np.concatenate(classes), numbers, None
+    return (
+        names,
+        np.concatenate(classes),
+        numbers,
+        given_covariances(np.concatenate(covariances, dtype=np.float64).reshape(-1, 6, 6)),
+    )
 
 
 def _text_classes(texts: NDArray[np.generic]) -> tuple[list[str], NDArray[np.intp]]:

@@ -60,6 +60,7 @@ import numpy as np
 from filterpy.kalman import KalmanFilter
 from numpy.typing import NDArray
 from scipy.optimize import linear_sum_assignment
+from scipy.spatial.distance import cdist
 
 from physics_mapper.model.extents import body_box
 from physics_mapper.model.geometry import ORIGIN
@@ -134,6 +135,8 @@ class Track:
 
     def predicted(self, now: float, process_noise: float) -> NDArray[np.float64]:
         """The position predicted at ``now``: unchanged (constant position), its uncertainty grown."""
+        if now == self.updated:  # no time passed: the prediction is the state itself
+            return self.position
         self.filter.Q = np.eye(3) * process_noise * max(0.0, now - self.updated)
         self.filter.predict()
         self.updated = now
@@ -174,21 +177,25 @@ def default_gate(shape: ObjectShape) -> float:
 
 def _nearest_distances(
     points: NDArray[np.float64], observations: Sequence[Observation], gate: float
-) -> NDArray[np.float64]:
+) -> tuple[NDArray[np.float64], NDArray[np.intp]]:
     """(P x O) metres: from each of ``points`` (P x 3) to the nearest result of each observation, where
     that can be within ``gate``; inf where the point is farther than ``gate`` from the box bounding the
     observation's results (a lower bound of the distance to each of them): only the results of the
-    observations near a point are measured, not every result from every point."""
-    low = np.array([o.positions.min(axis=0) for o in observations])
-    high = np.array([o.positions.max(axis=0) for o in observations])
+    observations near a point are measured, not every result from every point. Also (P x O) the index
+    of that nearest result (0 where inf)."""
+    results = np.concatenate([o.positions for o in observations])
+    starts = np.cumsum([0] + [len(o.positions) for o in observations[:-1]])
+    low, high = np.minimum.reduceat(results, starts), np.maximum.reduceat(results, starts)
     outside = np.maximum(low[None] - points[:, None], 0.0) + np.maximum(points[:, None] - high[None], 0.0)
     near = np.linalg.norm(outside, axis=2) <= gate
     distances = np.full(near.shape, np.inf)
+    nearest = np.zeros(near.shape, dtype=np.intp)
     for column in np.flatnonzero(near.any(axis=0)).tolist():
         rows = np.flatnonzero(near[:, column])
-        offsets = points[rows, None, :] - observations[column].positions[None, :, :]
-        distances[rows, column] = np.linalg.norm(offsets, axis=2).min(axis=1)
-    return distances
+        offsets = cdist(points[rows], observations[column].positions)
+        nearest[rows, column] = np.argmin(offsets, axis=1)
+        distances[rows, column] = offsets[np.arange(len(rows)), nearest[rows, column]]
+    return distances, nearest
 
 
 class InstanceTracks:
@@ -280,8 +287,8 @@ class InstanceTracks:
             of_class = [o for o in observations if o.class_id == class_id]
             names = self.scene.objects_of_class(class_id)
             pairs = self._match(of_class, [n for n in names if n in self.tracks], class_id, now)
-            for observation, name in pairs:
-                self._update(name, observation, now)
+            for observation, name, nearest in pairs:
+                self._update(name, observation, now, nearest)
                 assigned[observation.index] = name
                 matched.add(name)
             unmatched = sorted((o for o in of_class if o.index not in assigned), key=Observation.place)
@@ -303,9 +310,10 @@ class InstanceTracks:
 
     def _match(
         self, observations: list[Observation], names: list[str], class_id: str, now: float
-    ) -> list[tuple[Observation, str]]:
-        """Pairs by key, then by gated optimal assignment on distance."""
-        pairs: list[tuple[Observation, str]] = []
+    ) -> list[tuple[Observation, str, int | None]]:
+        """Pairs by key, then by gated optimal assignment on distance, each with the index of the
+        observation's result nearest the instance's predicted position where it was measured."""
+        pairs: list[tuple[Observation, str, int | None]] = []
         keyed = {self.tracks[n].key: n for n in names if self.tracks[n].key}
         rest: list[Observation] = []
         for observation in observations:
@@ -313,19 +321,19 @@ class InstanceTracks:
             if name is None:
                 rest.append(observation)
             else:
-                pairs.append((observation, name))
-        taken = {name for _, name in pairs}
+                pairs.append((observation, name, None))
+        taken = {name for _, name, _ in pairs}
         free = [n for n in names if n not in taken]
         if not rest or not free:
             return pairs
         predicted = np.array([self.tracks[n].predicted(now, self.settings.process_noise) for n in free])
         gate = self.gate(class_id)
-        costs = _nearest_distances(predicted, rest, gate)
+        costs, nearest = _nearest_distances(predicted, rest, gate)
         costs[costs > gate] = _FORBIDDEN
         rows, columns = linear_sum_assignment(costs)
         for row, column in zip(rows.tolist(), columns.tolist(), strict=True):
             if costs[row, column] < _FORBIDDEN:
-                pairs.append((rest[column], free[row]))
+                pairs.append((rest[column], free[row], int(nearest[row, column])))
         return pairs
 
     def _free(self, names: Sequence[str], observation: Observation, gate: float) -> str | None:
@@ -353,10 +361,13 @@ class InstanceTracks:
         self._matched[name] = now
         self._confirm(name, observation)
 
-    def _update(self, name: str, observation: Observation, now: float) -> None:
+    def _update(self, name: str, observation: Observation, now: float, nearest: int | None) -> None:
+        """Update ``name``'s track with the observation's result nearest its predicted position (its index
+        ``nearest`` where the matching measured it)."""
         track = self.tracks[name]
         point = track.predicted(now, self.settings.process_noise)
-        nearest, _ = observation.nearest(point)
+        if nearest is None:
+            nearest, _ = observation.nearest(point)
         track.filter.update(observation.positions[nearest].reshape(3, 1))
         self._matched[name] = now
         self._confirm(name, observation)

@@ -1,8 +1,9 @@
 """A ``vision_msgs/Detection3DArray`` as arrays: what the rules of detections read (ROS-free).
 
 Each ``Detection3D`` is one :class:`DetectionData`: its frame and id, and its M results as
-arrays, scores (M,), poses (M, 7: x, y, z, qx, qy, qz, qw) and covariances (M, 6, 6), with each
-result's class id as an index into the detection's distinct class ids. Two readers make them:
+arrays, scores (M,), poses (M, 7: x, y, z, qx, qy, qz, qw) and covariances (M, 6, 6; None when
+all are zero, as estimators without covariance send them), with each result's class id as an index
+into the detection's distinct class ids. Two readers make them:
 :func:`detection_array_data` reads a deserialised message (rclpy's or rosbags') by attribute, a
 Python loop over the results; the node reads the serialised bytes without a Python object per
 result (:mod:`physics_mapper.msg_adapters.detection_array_cdr`). The rules
@@ -27,7 +28,7 @@ from physics_mapper.mapping.stamps import to_nanoseconds
 class DetectionData:
     """One Detection3D as read: ``frame_id`` (its header's, '' for none), ``key`` (its ``id``), and its
     results: result i is of class ``class_ids[result_classes[i]]`` (``class_ids`` distinct), scored
-    ``scores[i]``, at ``poses[i]`` with covariance ``covariances[i]`` (row-major, as ROS lays it out)."""
+    ``scores[i]``, at ``poses[i]`` with covariance ``covariances[i]`` (None: every result's is zero)."""
 
     frame_id: str
     key: str
@@ -35,7 +36,7 @@ class DetectionData:
     result_classes: NDArray[np.intp]  # (M,)
     scores: NDArray[np.float64]  # (M,)
     poses: PoseBlock  # (M, 7)
-    covariances: NDArray[np.float64]  # (M, 6, 6)
+    covariances: NDArray[np.float64] | None  # (M, 6, 6)
 
 
 @dataclass(frozen=True)
@@ -58,6 +59,11 @@ def distinct_classes(names: Sequence[str]) -> tuple[tuple[str, ...], NDArray[np.
     return class_ids, np.fromiter((index[name] for name in names), np.intp, len(names))
 
 
+def given_covariances(covariances: NDArray[np.float64]) -> NDArray[np.float64] | None:
+    """Results' (M, 6, 6) covariances, or None if all are zero (no estimator's covariance)."""
+    return covariances if covariances.any() else None
+
+
 def detection_array_data(message: Any) -> DetectionArrayData:
     """A deserialised ``Detection3DArray`` (rclpy's or rosbags'), read by attribute."""
     stamp = message.header.stamp
@@ -77,7 +83,7 @@ def _detection_data(detection: Any) -> DetectionData:
         result_classes,
         scores,
         poses.reshape(-1, POSE_COLUMNS),
-        covariance_matrices([result.pose.covariance for result in results]),
+        given_covariances(covariance_matrices([result.pose.covariance for result in results])),
     )
 
 

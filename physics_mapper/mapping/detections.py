@@ -81,16 +81,17 @@ class _Detection:
     key: str
     poses: PoseBlock  # (M, 7)
     scores: NDArray[np.float64]
-    covariances: NDArray[np.float64]  # (M, 6, 6), in ``frame``
+    covariances: NDArray[np.float64] | None  # (M, 6, 6), in ``frame``; None: none given (all zero)
 
     def moved(self, transform: Transform, frame: str) -> _Detection:
         """This detection in ``frame``, the target of ``transform``: poses moved, covariances rotated."""
         poses = transform_poses(transform, self.poses)
-        return replace(self, frame=frame, poses=poses, covariances=rotate_covariance(transform, self.covariances))
+        covariances = None if self.covariances is None else rotate_covariance(transform, self.covariances)
+        return replace(self, frame=frame, poses=poses, covariances=covariances)
 
     def expanded(self, notes: list[str]) -> _Detection:
         """Each result's covariance as its weight and alternatives (:func:`expand`), bad ones noted."""
-        if not self.covariances.any():  # no estimator's covariance: the results as they are
+        if self.covariances is None:  # no estimator's covariance: the results as they are
             return self
         poses: list[NDArray[np.float64]] = []
         scores: list[float] = []
@@ -107,7 +108,7 @@ class _Detection:
             self,
             poses=np.array(poses, dtype=np.float64).reshape(-1, POSE_COLUMNS),
             scores=np.array(scores, dtype=np.float64),
-            covariances=np.zeros((len(poses), 6, 6)),
+            covariances=None,
         )
 
 
@@ -138,14 +139,10 @@ def _read(
             f" (one detection is one object; {detection.class_ids[chosen]!r} scored best)"
         )
     frame = detection.frame_id or array_frame
+    rows = slice(None) if kept.all() else kept  # all kept (as usual): the arrays themselves, not copies
+    covariances = None if detection.covariances is None else detection.covariances[rows]
     return _Detection(
-        index,
-        detection.class_ids[chosen],
-        frame,
-        detection.key,
-        detection.poses[kept],
-        scores[kept],
-        detection.covariances[kept],
+        index, detection.class_ids[chosen], frame, detection.key, detection.poses[rows], scores[rows], covariances
     )
 
 
@@ -172,8 +169,9 @@ def _observation(detection: _Detection, notes: list[str], refusal: str | None) -
     if not finite.any():
         notes.append(f"detection {detection.index} refused: no finite pose")
         return None
+    rows = slice(None) if finite.all() else finite
     return Observation(
-        detection.class_id, detection.poses[finite, :3], detection.scores[finite], detection.key, detection.index
+        detection.class_id, detection.poses[rows, :3], detection.scores[rows], detection.key, detection.index
     )
 
 

@@ -159,6 +159,24 @@ def test_a_double_detection_is_one_instance() -> None:
     assert inputs.association is not None and inputs.association.outside == {"box": 1}
 
 
+def test_the_gate_is_to_the_nearest_result_not_to_the_results_spread() -> None:
+    """Results on both sides of an instance, none within its gate (5 cm), do not match it; one near result
+    among far ones does, and it is the one the instance's filter takes."""
+    scene = bin_scene(2)
+    around = InstanceTracks(scene)
+    detection_inputs(array([detection(result((0.0, 0.0, 0.05)))]), scene, received=0.0, tracks=around)
+    both_sides = detection(result((-0.06, 0.0, 0.05)), result((0.06, 0.0, 0.05)))
+    inputs = detection_inputs(array([both_sides]), scene, received=0.5, tracks=around)
+    assert inputs.association is not None
+    assert inputs.association.assigned == {0: "box_2"} and inputs.association.ended == ("box_1",)
+    near = InstanceTracks(scene)
+    detection_inputs(array([detection(result((0.0, 0.0, 0.05)))]), scene, received=0.0, tracks=near)
+    spread = detection(result((0.5, 0.5, 0.05), 0.9), result((0.01, 0.0, 0.05), 0.1), result((-0.4, 0.2, 0.05)))
+    inputs = detection_inputs(array([spread]), scene, received=0.5, tracks=near)
+    assert inputs.association is not None and inputs.association.assigned == {0: "box_1"}
+    assert 0.0 < near.tracks["box_1"].position[0] < 0.01  # moved towards the near result, not the best-scored
+
+
 def test_results_of_several_classes_in_one_detection_are_one_object() -> None:
     box = {"shape": "box", "size": [0.1, 0.1, 0.1]}
     scene = scene_from_dict({"objects": [{"name": "a", **box}, {"name": "b", **box}]}, "two")
