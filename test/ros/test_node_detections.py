@@ -1,7 +1,10 @@
 """The node fed by a pose estimator's ``vision_msgs/Detection3DArray`` over real DDS.
 
-vision_msgs has no PyPI wheel: ``make test`` builds its detection messages into the venv
-(``test/vision_msgs/``), as a ROS machine's apt package would provide them.
+The node subscribes to the serialised arrays and reads them without a Python object per result
+(``physics_mapper.msg_adapters.detection_array_cdr``); bytes that view does not take go to rclpy's
+deserialiser, and bytes neither reads are refused in the log. vision_msgs has no PyPI wheel: ``make
+test`` builds its detection messages into the venv (``test/vision_msgs/``), as a ROS machine's apt
+package would provide them.
 """
 
 from __future__ import annotations
@@ -10,11 +13,14 @@ from pathlib import Path
 
 import numpy as np
 from conftest import PROBLEMS, SCENES
-from geometry_msgs.msg import Point, Pose, PoseWithCovariance, Quaternion, Vector3
+from geometry_msgs.msg import Point, Pose, PoseArray, PoseWithCovariance, Quaternion, Vector3
+from rclpy.serialization import serialize_message
 from ros_helpers import NodeProcess, RosClient, stamp_ns_of
 from std_msgs.msg import Header
 from vision_msgs.msg import BoundingBox3D, Detection3D, Detection3DArray, ObjectHypothesis, ObjectHypothesisWithPose
 
+from physics_mapper.bags.storage import TYPESTORE
+from physics_mapper.mapping.detections import DETECTION_ARRAY
 from physics_mapper.model.scene_files import load_problem
 from physics_mapper.msg_adapters.hypotheses import stamp_from_nanoseconds
 from physics_mapper.physics.checker import PhysicsChecker
@@ -64,12 +70,42 @@ def test_detections_alone_give_the_map_the_problem_file_gives(tmp_path: Path) ->
     finally:
         client.close()
         assert node.stop() == 0, node.output()
+    assert_the_problem_s_map(client.configurations)
+    started = next(line for line in node.output().splitlines() if "listening on" in line)
+    assert f"{NAMESPACE}/detections" in started
+
+
+def assert_the_problem_s_map(configurations: list[PoseArray]) -> None:
+    """The map of the array stamped STAMP_NS is the one the problem file's hypotheses give."""
     problem = load_problem(PROBLEMS / "pyramid.yaml")
     with PhysicsChecker(problem.scene) as checker:
         expected = solve(checker, problem.hypotheses, problem.scene.search)
     assert expected.poses is not None
-    mapped = next(c for c in client.configurations if stamp_ns_of(c) == STAMP_NS)
+    mapped = next(c for c in configurations if stamp_ns_of(c) == STAMP_NS)
     chosen = [((p.position.x, p.position.y, p.position.z)) for p in mapped.poses]
     assert chosen == [pose.position for pose in expected.poses]  # the same hypotheses, chosen the same way
-    started = next(line for line in node.output().splitlines() if "listening on" in line)
-    assert f"{NAMESPACE}/detections" in started
+
+
+def test_big_endian_arrays_map_the_same_and_bytes_no_reader_takes_are_refused_once(tmp_path: Path) -> None:
+    little = serialize_message(detections_of_problem())
+    message = TYPESTORE.deserialize_cdr(little, DETECTION_ARRAY)
+    big = bytes(TYPESTORE.serialize_cdr(message, DETECTION_ARRAY, little_endian=False))
+    refusal = "detections: Detection3DArray refused: 12 bytes that are no Detection3DArray ("
+    parameters = {"rate_hz": 4.0, "deadline": 0.2, "max_age": 60.0, "diagnostics_period": 0.25}
+    node = NodeProcess(SCENES / "pyramid.yaml", parameters, tmp_path / "node.log", NAMESPACE)
+    client = RosClient(NAMESPACE)
+    try:
+        publisher = client.node.create_publisher(Detection3DArray, "detections", 10)
+        # 12 bytes: the transport pads a payload to a multiple of 4, and the node is handed those
+        client.keep_publishing(lambda: publisher.publish(little[:12]), lambda: refusal in node.output(), "a refusal")
+        client.keep_publishing(
+            lambda: publisher.publish(big),
+            lambda: any(stamp_ns_of(c) == STAMP_NS for c in client.configurations),
+            "a map from big-endian detections",
+        )
+    finally:
+        client.close()
+        assert node.stop() == 0, node.output()
+    assert big[:2] == b"\x00\x00"  # CDR big-endian; rclpy writes this machine's little-endian
+    assert_the_problem_s_map(client.configurations)
+    assert node.output().count(refusal) == 1  # once, however many arrived
