@@ -139,8 +139,9 @@ class Mapper:
         transforms: Mapping[str, Transform] | None = None,
         unresolved: Mapping[str, str] | None = None,
     ) -> DetectionInputs:
-        """A ``Detection3DArray`` received at ``received`` (node clock, s): its detections associated to
-        instances and given to :attr:`inputs`; instances whose tracks ended forget their inputs.
+        """A ``Detection3DArray`` received at ``received`` (node clock, s), a message or its arrays as the node
+        reads them (:class:`~physics_mapper.mapping.detection_data.DetectionArrayData`): its detections
+        associated to instances and given to :attr:`inputs`; instances whose tracks ended forget their inputs.
         ``transforms`` and ``unresolved``: its sensor frames into the scene's (:func:`detection_inputs`)."""
         with self._tracks_lock:
             detected = detection_inputs(
