@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import struct
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -94,7 +95,7 @@ class _Cursor:
         start = self.skip(length)
         return bytes(self.body[start : max(start, self.at - 1)]).decode("utf-8", errors="replace")
 
-    def array(self, dtype: str, shape: tuple[int, ...], strides: tuple[int, ...]) -> NDArray[np.generic]:
+    def array(self, dtype: str, shape: tuple[int, ...], strides: tuple[int, ...]) -> NDArray[Any]:
         """A read-only numpy view of the body at the cursor (bounds checked by the caller's :meth:`skip`)."""
         return np.ndarray(shape, np.dtype(dtype), buffer=self.body, offset=self.at, strides=strides)
 

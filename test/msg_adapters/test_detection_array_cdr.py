@@ -195,6 +195,7 @@ def test_the_rules_make_the_same_inputs_from_the_view_as_from_the_message() -> N
     assert from_view.association.assigned == from_message.association.assigned
     assert list(from_view.objects) == list(from_message.objects) == ["a", "box_1", "box_2"]
     for name, poses in from_view.objects.items():
-        np.testing.assert_array_equal(poses.poses, from_message.objects[name].poses)
-        assert poses.weights is not None and from_message.objects[name].weights is not None
-        np.testing.assert_array_equal(poses.weights.values, from_message.objects[name].weights.values)
+        expected = from_message.objects[name]
+        np.testing.assert_array_equal(poses.poses, expected.poses)
+        assert poses.weights is not None and expected.weights is not None
+        np.testing.assert_array_equal(poses.weights.values, expected.weights.values)
