@@ -1,15 +1,17 @@
-"""What a pose estimator's ``Detection3DArray`` costs the node: rclpy's deserialiser against the raw view.
+"""What a pose estimator's ``Detection3DArray`` costs: rclpy's deserialiser, a bag's messages, the raw view.
 
 Run: ``.venv/bin/python benchmarks/detection_arrays.py [--sizes NxM ...] [--arrays A]`` (needs
 vision_msgs in the venv: ``make .venv/.vision_msgs``). Each array holds N detections of M results
 each (positions scattered about N boxes of a bin, scores random, one class id per detection),
 shuffled, serialised as CDR. Two scenes read the same arrays: a bin of N identical boxes
 (``count: N``: each detection associated to an instance, :mod:`physics_mapper.mapping.association`)
-and N named boxes with one class id each (no association). Two ways of reading each, side by side:
+and N named boxes with one class id each (no association). Three ways of reading each, side by side:
 
 * ``rclpy``: what a typed subscription costs: rclpy's ``deserialize_message`` (a Python object per
   result and per pose, before a callback runs), then
   :func:`physics_mapper.mapping.detections.detection_inputs` reading the message by attribute;
+* ``rosbags message``: what a bag replay costs once rosbags has decoded the array (decoding not
+  timed): :func:`~physics_mapper.mapping.detections.detection_inputs` reading it by attribute;
 * ``raw view``: what the node's raw subscription costs:
   :func:`physics_mapper.msg_adapters.detection_array_cdr.received_detection_array` views the bytes,
   then the same :func:`~physics_mapper.mapping.detections.detection_inputs` on its arrays.
@@ -50,8 +52,9 @@ def typestore() -> Any:
     return store
 
 
-def arrays(count: int, detections: int, results: int, named: bool, seed: int) -> list[bytes]:
-    """``count`` shuffled arrays, serialised; class ids ``box`` (a bin) or ``box_<k>`` (named boxes)."""
+def arrays(count: int, detections: int, results: int, named: bool, seed: int) -> list[tuple[Any, bytes]]:
+    """``count`` shuffled arrays, as rosbags' messages and serialised; class ids ``box`` (a bin) or
+    ``box_<k>`` (named boxes)."""
     store = typestore()
     types = store.types
     rng = np.random.default_rng(seed)
@@ -83,7 +86,7 @@ def arrays(count: int, detections: int, results: int, named: bool, seed: int) ->
             listed.append(types["vision_msgs/msg/Detection3D"](header=header, results=found, bbox=box, id=""))
         order = rng.permutation(len(listed))
         message = types[DETECTION_ARRAY](header=header, detections=[listed[i] for i in order])
-        made.append(bytes(store.serialize_cdr(message, DETECTION_ARRAY)))
+        made.append((message, bytes(store.serialize_cdr(message, DETECTION_ARRAY))))
     return made
 
 
@@ -97,19 +100,24 @@ def by_view(raw: bytes) -> Any:
     return received_detection_array(raw, Detection3DArray)
 
 
-def milliseconds(scene: Scene, messages: list[bytes], read: Callable[[bytes], Any]) -> float:
+def as_decoded(message: Any) -> Any:
+    """A message rosbags decoded already."""
+    return message
+
+
+def milliseconds(scene: Scene, messages: list[Any], read: Callable[[Any], Any]) -> float:
     """Median milliseconds per array, read by ``read`` then the rules, in order by one node's tracks."""
     tracks = InstanceTracks(scene)
     times = []
-    for index, raw in enumerate(messages):
+    for index, message in enumerate(messages):
         start = time.perf_counter()
-        detection_inputs(read(raw), scene, received=0.5 * index, tracks=tracks)
+        detection_inputs(read(message), scene, received=0.5 * index, tracks=tracks)
         times.append((time.perf_counter() - start) * 1000.0)
     return statistics.median(times)
 
 
-def rows(detections: int, results: int, count: int) -> list[tuple[str, float, float]]:
-    """(scene, rclpy ms, raw view ms) for the bin and the named boxes."""
+def rows(detections: int, results: int, count: int) -> list[tuple[str, float, float, float]]:
+    """(scene, rclpy ms, rosbags message ms, raw view ms) for the bin and the named boxes."""
     n = detections
     scenes = {
         f"bin of {n} identical boxes (associated)": (
@@ -121,10 +129,16 @@ def rows(detections: int, results: int, count: int) -> list[tuple[str, float, fl
             arrays(count, n, results, named=True, seed=0),
         ),
     }
-    return [
-        (label, milliseconds(scene, raws, by_rclpy), milliseconds(scene, raws, by_view))
-        for label, (scene, raws) in scenes.items()
-    ]
+    made = []
+    for label, (scene, pairs) in scenes.items():
+        messages, raws = [message for message, _ in pairs], [raw for _, raw in pairs]
+        ways = (
+            milliseconds(scene, raws, by_rclpy),
+            milliseconds(scene, messages, as_decoded),
+            milliseconds(scene, raws, by_view),
+        )
+        made.append((label, *ways))
+    return made
 
 
 def main() -> None:
@@ -133,13 +147,13 @@ def main() -> None:
     parser.add_argument("--arrays", type=int, default=5, help="arrays read per size and scene (default 5)")
     options = parser.parse_args()
     print(f"median of {options.arrays} arrays; load average before: {os.getloadavg()[0]:.1f}")
-    print("| array | scene | rclpy deserialise + attributes | raw view | ratio |")
-    print("| --- | --- | ---: | ---: | ---: |")
+    print("| array | scene | rclpy deserialise + attributes | rosbags message | raw view | rclpy / raw view |")
+    print("| --- | --- | ---: | ---: | ---: | ---: |")
     for size in options.sizes:
         detections, results = (int(part) for part in size.split("x"))
-        for label, rclpy_ms, view_ms in rows(detections, results, options.arrays):
+        for label, rclpy_ms, decoded_ms, view_ms in rows(detections, results, options.arrays):
             print(
-                f"| {detections} x {results} | {label} | {rclpy_ms:.1f} ms | {view_ms:.2f} ms"
+                f"| {detections} x {results} | {label} | {rclpy_ms:.1f} ms | {decoded_ms:.1f} ms | {view_ms:.1f} ms"
                 f" | {rclpy_ms / view_ms:.0f} |"
             )
     print(f"load average after: {os.getloadavg()[0]:.1f}")

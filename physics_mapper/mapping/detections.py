@@ -128,10 +128,11 @@ def _read(
         if not len(scores):
             notes.append(f"detection {index} refused: no results")
         return None
-    best = int(np.flatnonzero(usable)[np.argmax(scores[usable])])
+    best = int(np.argmax(np.where(usable, scores, -np.inf)))  # the first of equal best usable scores
     chosen = int(classes[best])
     kept = usable & (classes == chosen)
-    others = sorted(detection.class_ids[c] for c in np.unique(classes[usable]).tolist() if c != chosen)
+    left_out = classes[usable & ~kept]
+    others = sorted(detection.class_ids[c] for c in np.unique(left_out).tolist()) if len(left_out) else []
     if others:
         left = ", ".join(repr(c) for c in others)
         notes.append(
