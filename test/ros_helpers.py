@@ -176,6 +176,11 @@ class RosClient:
             publish()
             self.spin_until(until, timeout=0.5)
 
+    def map_of(self, stamp_ns: int, objects: int) -> PoseArray | None:
+        """The first configuration stamped ``stamp_ns`` that holds ``objects`` poses (a map made before
+        every object's hypotheses came leaves the others out), or None."""
+        return next((c for c in self.configurations if stamp_ns_of(c) == stamp_ns and len(c.poses) == objects), None)
+
     def spin_until(self, predicate: Callable[[], bool], timeout: float = REPLY_TIMEOUT) -> bool:
         end = time.monotonic() + timeout
         while not predicate():

@@ -64,9 +64,8 @@ def publish_until_mapped(client: RosClient, stamp_ns: int) -> None:
         for name, hypotheses in zip(problem.scene.object_names, problem.hypotheses, strict=True):
             client.publish(name, *hypotheses_msgs(hypotheses, frame_id=problem.scene.frame_id, stamp_ns=stamp_ns))
 
-    client.keep_publishing(
-        publish, lambda: any(stamp_ns_of(c) == stamp_ns for c in client.configurations), f"a map stamped {stamp_ns}"
-    )
+    objects = len(problem.scene.objects)
+    client.keep_publishing(publish, lambda: client.map_of(stamp_ns, objects) is not None, f"a map stamped {stamp_ns}")
 
 
 def configuration_publishers(client: RosClient) -> int:

@@ -99,12 +99,15 @@ def publish_until_configured(client: RosClient, problem: Problem, stamp_ns: int)
 
     Every object's PoseArray is replaced, so the configuration carries exactly ``stamp_ns``.
     """
+    objects = len(problem.scene.objects)
     client.keep_publishing(
         lambda: publish_problem(client, problem, stamp_ns),
-        lambda: any(stamp_ns_of(c) == stamp_ns for c in client.configurations),
+        lambda: client.map_of(stamp_ns, objects) is not None,
         f"a configuration stamped {stamp_ns} ns",
     )
-    return next(c for c in client.configurations if stamp_ns_of(c) == stamp_ns)
+    configuration = client.map_of(stamp_ns, objects)
+    assert configuration is not None
+    return configuration
 
 
 @pytest.fixture

@@ -44,13 +44,14 @@ def test_the_node_draws_the_fixed_bodies_at_start_and_every_object_as_its_mesh(t
                 hypotheses = RankedHypotheses.from_weighted([Hypothesis(pose, 1.0)])
                 client.publish(name, *hypotheses_msgs(hypotheses, frame_id=scene.frame_id, stamp_ns=stamp_ns))
 
-        def mapped() -> bool:
-            return any(
-                in_namespace(m, SHAPE_NAMESPACE) and stamp_ns_of(m.markers[0]) == stamp_ns for m in client.markers
-            )
+        def whole_map(message: MarkerArray) -> bool:
+            """Markers of a map of this stamp holding every object (a map made before every object's
+            hypotheses came leaves the others out: DELETE markers)."""
+            shapes = in_namespace(message, SHAPE_NAMESPACE)
+            return bool(shapes) and stamp_ns_of(shapes[0]) == stamp_ns and all(m.action == Marker.ADD for m in shapes)
 
-        client.keep_publishing(publish, mapped, "markers of the map", timeout=60.0)
-        message = next(m for m in client.markers if in_namespace(m, SHAPE_NAMESPACE))
+        client.keep_publishing(publish, lambda: any(whole_map(m) for m in client.markers), "markers of the map", 60.0)
+        message = next(m for m in client.markers if whole_map(m))
         objects = in_namespace(message, SHAPE_NAMESPACE)
         assert [m.id for m in objects] == list(range(len(scene.objects)))
         assert all(m.type == Marker.MESH_RESOURCE for m in objects)

@@ -17,7 +17,7 @@ import pytest
 from conftest import PROBLEMS, SCENES
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from rclpy.parameter import Parameter
-from ros_helpers import PHYSICS_MAPPER, RosClient, object_status, search_status, stamp_ns_of, values
+from ros_helpers import PHYSICS_MAPPER, RosClient, object_status, search_status, values
 
 from physics_mapper.model.bullet import pybullet
 from physics_mapper.model.geometry import Pose
@@ -140,9 +140,8 @@ def publish_until_configured(client: RosClient, problem: Problem, stamp_ns: int)
         for name, ranked in zip(problem.scene.object_names, problem.hypotheses, strict=True):
             client.publish(name, *hypotheses_msgs(ranked, frame_id="world", stamp_ns=stamp_ns))
 
-    client.keep_publishing(
-        publish, lambda: any(stamp_ns_of(c) == stamp_ns for c in client.configurations), f"a map stamped {stamp_ns}"
-    )
+    objects = len(problem.scene.objects)
+    client.keep_publishing(publish, lambda: client.map_of(stamp_ns, objects) is not None, f"a map stamped {stamp_ns}")
 
 
 def test_the_node_rebuilds_a_failed_world_reports_the_tick_as_an_error_and_maps_on(
