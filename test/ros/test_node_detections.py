@@ -9,13 +9,14 @@ package would provide them.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 from conftest import PROBLEMS, SCENES
-from geometry_msgs.msg import Point, Pose, PoseArray, PoseWithCovariance, Quaternion, Vector3
+from geometry_msgs.msg import Point, Pose, PoseWithCovariance, Quaternion, Vector3
 from rclpy.serialization import serialize_message
-from ros_helpers import NodeProcess, RosClient, stamp_ns_of
+from ros_helpers import NodeProcess, RosClient
 from std_msgs.msg import Header
 from vision_msgs.msg import BoundingBox3D, Detection3D, Detection3DArray, ObjectHypothesis, ObjectHypothesisWithPose
 
@@ -28,6 +29,7 @@ from physics_mapper.search.strategy import solve
 
 NAMESPACE = "/estimator"
 STAMP_NS = 7_000_000_000
+OBJECTS = 3  # the pyramid's cubes
 
 
 def pose_msg(position: tuple[float, float, float], orientation: tuple[float, float, float, float]) -> Pose:
@@ -55,33 +57,38 @@ def detections_of_problem() -> Detection3DArray:
     return Detection3DArray(header=header, detections=detections)
 
 
+#: The node's parameters in these tests: ticks at 4 Hz, hypotheses kept a minute.
+PARAMETERS = {"rate_hz": 4.0, "deadline": 0.2, "max_age": 60.0, "diagnostics_period": 0.25}
+
+
 def test_detections_alone_give_the_map_the_problem_file_gives(tmp_path: Path) -> None:
-    parameters = {"rate_hz": 4.0, "deadline": 0.2, "max_age": 60.0, "diagnostics_period": 0.25}
-    node = NodeProcess(SCENES / "pyramid.yaml", parameters, tmp_path / "node.log", NAMESPACE)
+    node = NodeProcess(SCENES / "pyramid.yaml", PARAMETERS, tmp_path / "node.log", NAMESPACE)
     client = RosClient(NAMESPACE)
     try:
         publisher = client.node.create_publisher(Detection3DArray, "detections", 10)
         message = detections_of_problem()
-        client.keep_publishing(
-            lambda: publisher.publish(message),
-            lambda: any(stamp_ns_of(c) == STAMP_NS for c in client.configurations),
-            "a map from the detections",
-        )
+        publish_until_mapped(client, lambda: publisher.publish(message), "a map from the detections")
     finally:
         client.close()
         assert node.stop() == 0, node.output()
-    assert_the_problem_s_map(client.configurations)
+    assert_the_problem_s_map(client)
     started = next(line for line in node.output().splitlines() if "listening on" in line)
     assert f"{NAMESPACE}/detections" in started
 
 
-def assert_the_problem_s_map(configurations: list[PoseArray]) -> None:
+def publish_until_mapped(client: RosClient, publish: Callable[[], None], what: str) -> None:
+    """Publish until the node's map of the array stamped STAMP_NS holds the problem's three objects."""
+    client.keep_publishing(publish, lambda: client.map_of(STAMP_NS, OBJECTS) is not None, what)
+
+
+def assert_the_problem_s_map(client: RosClient) -> None:
     """The map of the array stamped STAMP_NS is the one the problem file's hypotheses give."""
     problem = load_problem(PROBLEMS / "pyramid.yaml")
     with PhysicsChecker(problem.scene) as checker:
         expected = solve(checker, problem.hypotheses, problem.scene.search)
     assert expected.poses is not None
-    mapped = next(c for c in configurations if stamp_ns_of(c) == STAMP_NS)
+    mapped = client.map_of(STAMP_NS, OBJECTS)
+    assert mapped is not None
     chosen = [((p.position.x, p.position.y, p.position.z)) for p in mapped.poses]
     assert chosen == [pose.position for pose in expected.poses]  # the same hypotheses, chosen the same way
 
@@ -91,21 +98,16 @@ def test_big_endian_arrays_map_the_same_and_bytes_no_reader_takes_are_refused_on
     message = TYPESTORE.deserialize_cdr(little, DETECTION_ARRAY)
     big = bytes(TYPESTORE.serialize_cdr(message, DETECTION_ARRAY, little_endian=False))
     refusal = "detections: Detection3DArray refused: 12 bytes that are no Detection3DArray ("
-    parameters = {"rate_hz": 4.0, "deadline": 0.2, "max_age": 60.0, "diagnostics_period": 0.25}
-    node = NodeProcess(SCENES / "pyramid.yaml", parameters, tmp_path / "node.log", NAMESPACE)
+    node = NodeProcess(SCENES / "pyramid.yaml", PARAMETERS, tmp_path / "node.log", NAMESPACE)
     client = RosClient(NAMESPACE)
     try:
         publisher = client.node.create_publisher(Detection3DArray, "detections", 10)
         # 12 bytes: the transport pads a payload to a multiple of 4, and the node is handed those
         client.keep_publishing(lambda: publisher.publish(little[:12]), lambda: refusal in node.output(), "a refusal")
-        client.keep_publishing(
-            lambda: publisher.publish(big),
-            lambda: any(stamp_ns_of(c) == STAMP_NS for c in client.configurations),
-            "a map from big-endian detections",
-        )
+        publish_until_mapped(client, lambda: publisher.publish(big), "a map from big-endian detections")
     finally:
         client.close()
         assert node.stop() == 0, node.output()
     assert big[:2] == b"\x00\x00"  # CDR big-endian; rclpy writes this machine's little-endian
-    assert_the_problem_s_map(client.configurations)
+    assert_the_problem_s_map(client)
     assert node.output().count(refusal) == 1  # once, however many arrived
