@@ -1,8 +1,8 @@
 """A serialised ``vision_msgs/Detection3DArray`` read without a Python object per result.
 
 rclpy turns every result of a Detection3DArray into a tree of Python objects (hypothesis, pose,
-position, orientation, covariance), and reading them back by attribute costs as much again: for
-100,000 results, hundreds of milliseconds before the rules of detections have looked at any
+position, orientation, a numpy array for the covariance), and reading them back by attribute
+costs more again: for 100,000 results, seconds before the rules of detections have looked at any
 (BENCHMARKS.md, "Detection arrays and association"). The node subscribes to the raw bytes instead
 and reads them here into :class:`~physics_mapper.mapping.detection_data.DetectionArrayData`, the
 arrays the rules read whichever reader made them.

@@ -1,9 +1,10 @@
 """What the node's subscriptions do with a received message: hypotheses for the mapper's inputs.
 
-Each handler puts a message through its adapter (:mod:`physics_mapper.msg_adapters.hypotheses`,
-:mod:`physics_mapper.mapping.detections`) into the mapper's input tracker, stamped with the time
-the middleware received it, and logs what became of a refused message once per object and note,
-in the words of its input (``PoseArray refused``, ``detection refused``). Poses in a sensor frame
+Each handler puts a message through its adapter (:mod:`physics_mapper.msg_adapters.hypotheses`;
+:mod:`physics_mapper.msg_adapters.detection_array_cdr`, then :mod:`physics_mapper.mapping.detections`)
+into the mapper's input tracker, stamped with the time the middleware received it, and logs what
+became of a refused message once per object and note, in the words of its input (``PoseArray
+refused``, ``detection refused``, ``Detection3DArray refused`` for bytes no reader takes). Poses in a sensor frame
 go into the tracker once :class:`~physics_mapper.ros.node_frames.SensorFrames` has moved them
 into the scene's frame, or refused when no transform came in time.
 """
