@@ -90,10 +90,10 @@ class _Cursor:
         return count
 
     def text(self) -> str:
-        """A string (its length counts its NUL, which is dropped)."""
+        """A string (its length counts its NUL)."""
         length = self.uint32()
         start = self.skip(length)
-        return bytes(self.body[start : max(start, self.at - 1)]).decode("utf-8", errors="replace")
+        return _decoded(bytes(self.body[start : self.at]))
 
     def array(self, dtype: str, shape: tuple[int, ...], strides: tuple[int, ...]) -> NDArray[Any]:
         """A read-only numpy view of the body at the cursor (bounds checked by the caller's :meth:`skip`)."""
@@ -178,13 +178,13 @@ def _strided(cursor: _Cursor, count: int) -> _Results | None:
     (length,) = struct.unpack_from(f"{cursor.order}I", cursor.body, start)
     text_bytes = aligned(4 + length, FLOAT_BYTES)
     stride = text_bytes + RESULT_BYTES
-    if length == 0 or start + count * stride > len(cursor.body):
+    if start + count * stride > len(cursor.body):
         return None
     lengths = cursor.array(f"{cursor.order}u4", (count,), (stride,))
     if not bool((lengths == length).all()):
         return None
     cursor.at = start + 4
-    texts = cursor.array("u1", (count, length - 1), (stride, 1))  # without the NUL
+    texts = cursor.array("u1", (count, length), (stride, 1))
     cursor.at = start + text_bytes
     rows = cursor.array(f"{cursor.order}f8", (count, RESULT_FLOATS), (stride, FLOAT_BYTES))
     cursor.at = start + count * stride
@@ -218,8 +218,13 @@ def _joined(
 def _text_classes(texts: NDArray[np.generic]) -> tuple[list[str], NDArray[np.intp]]:
     """Rows of equally long class id bytes as their distinct strings and each row's index among them."""
     if bool((texts == texts[0]).all()):
-        return [bytes(texts[0]).decode("utf-8", errors="replace")], np.zeros(len(texts), dtype=np.intp)
+        return [_decoded(bytes(texts[0]))], np.zeros(len(texts), dtype=np.intp)
     packed = np.ascontiguousarray(texts).view(np.dtype((np.void, texts.shape[1]))).ravel()
     distinct, classes = np.unique(packed, return_inverse=True)
-    names = [bytes(value).decode("utf-8", errors="replace") for value in distinct]
-    return names, classes.astype(np.intp).ravel()
+    return [_decoded(bytes(value)) for value in distinct], classes.astype(np.intp).ravel()
+
+
+def _decoded(value: bytes) -> str:
+    """A CDR string's bytes as text: its terminating NUL dropped (a last byte that is no NUL is kept, as
+    rclpy keeps it), invalid UTF-8 replaced."""
+    return value.removesuffix(b"\0").decode("utf-8", errors="replace")
