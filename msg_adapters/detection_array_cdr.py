@@ -22,11 +22,13 @@ at its predicted place. Class ids of several lengths are walked one result at a 
 reading a length and a string per result, the numbers still gathered in one numpy call).
 Another encapsulation, lengths that overrun the bytes, or more than :data:`MAX_PADDING` bytes
 left after the message are no view (None): :func:`received_detection_array` leaves those to
-rclpy's deserialiser, and bytes that it cannot read either are refused with its reason.
+rclpy's deserialiser, and bytes that it cannot read either are refused with its reason. So are all
+arrays where the installed vision_msgs lays its types out otherwise (:func:`reads_layout_of`).
 """
 
 from __future__ import annotations
 
+import importlib
 import struct
 from dataclasses import dataclass
 from typing import Any
@@ -57,6 +59,22 @@ MIN_RESULT_BYTES = 4 + RESULT_BYTES
 MIN_DETECTION_BYTES = 8 + 4 + 4 + BOX_BYTES + 4
 #: Bytes a serialiser may leave after the message (padding to a multiple of 4).
 MAX_PADDING = 3
+#: The fields of the vision_msgs types read here, as rclpy's messages list them (vision_msgs 3 and 4).
+LAYOUT = {
+    "Detection3DArray": {"header": "std_msgs/Header", "detections": "sequence<vision_msgs/Detection3D>"},
+    "Detection3D": {
+        "header": "std_msgs/Header",
+        "results": "sequence<vision_msgs/ObjectHypothesisWithPose>",
+        "bbox": "vision_msgs/BoundingBox3D",
+        "id": "string",
+    },
+    "ObjectHypothesisWithPose": {
+        "hypothesis": "vision_msgs/ObjectHypothesis",
+        "pose": "geometry_msgs/PoseWithCovariance",
+    },
+    "ObjectHypothesis": {"class_id": "string", "score": "double"},
+    "BoundingBox3D": {"center": "geometry_msgs/Pose", "size": "geometry_msgs/Vector3"},
+}
 
 
 class _Overrun(Exception):
@@ -100,11 +118,19 @@ class _Cursor:
         return np.ndarray(shape, np.dtype(dtype), buffer=self.body, offset=self.at, strides=strides)
 
 
-def received_detection_array(raw: bytes, message_type: type) -> DetectionArrayData | str:
-    """A serialised Detection3DArray (a raw subscription's message) read: viewed (:func:`detection_array_view`),
-    else deserialised by rclpy as ``message_type`` (vision_msgs' ``Detection3DArray``) and read by attribute;
-    or why neither could read it."""
-    view = detection_array_view(raw)
+def reads_layout_of(message_type: type) -> bool:
+    """Whether the message package of ``message_type`` (the installed ``vision_msgs.msg``) lays out a
+    Detection3DArray's types as :data:`LAYOUT` says, the layout :func:`detection_array_view` reads."""
+    package = importlib.import_module(message_type.__module__.rpartition(".")[0])
+    types = {name: getattr(package, name, None) for name in LAYOUT}
+    return all(t is not None and t.get_fields_and_field_types() == LAYOUT[name] for name, t in types.items())
+
+
+def received_detection_array(raw: bytes, message_type: type, *, viewable: bool = True) -> DetectionArrayData | str:
+    """A serialised Detection3DArray (a raw subscription's message) read: viewed (:func:`detection_array_view`)
+    if ``viewable`` (:func:`reads_layout_of` ``message_type``), else or failing that deserialised by rclpy
+    as ``message_type`` (vision_msgs' ``Detection3DArray``) and read by attribute; or why neither could."""
+    view = detection_array_view(raw) if viewable else None
     if view is not None:
         return view
     try:

@@ -26,7 +26,7 @@ from physics_mapper.mapping.inputs import InputSnapshot, MessageKind, ReceivedPo
 from physics_mapper.mapping.mapper import Mapper
 from physics_mapper.mapping.stamps import NANOSECONDS_PER_SECOND
 from physics_mapper.model.limits import clipped, printable
-from physics_mapper.msg_adapters.detection_array_cdr import received_detection_array
+from physics_mapper.msg_adapters.detection_array_cdr import reads_layout_of, received_detection_array
 from physics_mapper.msg_adapters.hypotheses import received_pose_array, received_weights
 from physics_mapper.ros.node_frames import SensorFrames
 
@@ -124,10 +124,11 @@ class InputHandlers:
         """The serialised ``detections`` handler (``message_type``: vision_msgs' Detection3DArray): its results
         are the hypotheses of the objects their class ids name, a class of instances's detections associated
         to instances (:meth:`Mapper.add_detections`), once their frames are moved into the scene's."""
+        viewable = reads_layout_of(message_type)
 
         def on_detections(raw: bytes, info: Mapping[str, Any]) -> None:
             received = self.received(info)
-            array = received_detection_array(raw, message_type)
+            array = received_detection_array(raw, message_type, viewable=viewable)
             if isinstance(array, str):
                 self._notes.log_once(DETECTIONS_TOPIC, f"Detection3DArray refused: {array}")
                 return

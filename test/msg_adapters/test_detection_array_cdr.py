@@ -23,6 +23,7 @@ from physics_mapper.model.scene_files import scene_from_dict
 from physics_mapper.msg_adapters.detection_array_cdr import (
     MAX_PADDING,
     detection_array_view,
+    reads_layout_of,
     received_detection_array,
 )
 from physics_mapper.msg_adapters.hypotheses import stamp_from_nanoseconds
@@ -193,6 +194,16 @@ def test_bytes_changed_at_random_are_read_as_rclpy_reads_them_or_refused_never_r
             assert_same(view, read_by_rclpy(raw))
             viewed += 1
     assert viewed > 500
+
+
+def test_the_installed_vision_msgs_is_read_by_the_view_and_another_package_s_types_by_rclpy() -> None:
+    """The view reads vision_msgs 3 and 4's layout; arrays of any other go to rclpy's deserialiser."""
+    assert reads_layout_of(Detection3DArray)
+    assert not reads_layout_of(Pose)  # geometry_msgs has no Detection3D: not the layout the view reads
+    raw = serialize_message(MESSAGES["class ids of several lengths in one detection"])
+    unviewed = received_detection_array(raw + bytes(MAX_PADDING + 1), Detection3DArray, viewable=False)
+    assert isinstance(unviewed, DetectionArrayData)
+    assert_same(unviewed, read_by_rclpy(raw))
 
 
 def test_the_rules_make_the_same_inputs_from_the_view_as_from_the_message() -> None:
