@@ -163,12 +163,12 @@ def bag_snapshots(
                     detected = detection_inputs(
                         detections_from_cdr(message.raw, bag.definitions), scene, received=received, tracks=instances
                     )
-                    for name, poses in detected.objects.items():
-                        tracker.add_poses(name, poses)
-                    if detected.association is not None:
+                    if detected.association is not None:  # first: an instance may end and start again in one array
                         taken = tuple((name, index) for index, name in sorted(detected.association.assigned.items()))
                         for name in detected.association.ended:
                             tracker.forget(name)
+                    for name, poses in detected.objects.items():
+                        tracker.add_poses(name, poses)
                 else:
                     truth = _ground_truth(message, scene)
         now = burst[-1].time_ns / NANOSECONDS_PER_SECOND

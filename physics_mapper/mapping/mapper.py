@@ -151,11 +151,11 @@ class Mapper:
                 transforms=transforms,
                 unresolved=unresolved,
             )
-            for name, poses in detected.objects.items():
-                self.inputs.add_poses(name, poses)
-            if detected.association is not None:
+            if detected.association is not None:  # first: an instance may end and start again in one array
                 self._births += detected.association.born
                 self._ended(detected.association.ended)
+            for name, poses in detected.objects.items():
+                self.inputs.add_poses(name, poses)
         return detected
 
     def _ended(self, names: tuple[str, ...]) -> None:
@@ -187,7 +187,7 @@ class Mapper:
             births, ends = tuple(self._births), tuple(self._ends)
             self._births, self._ends = [], []
             instances = tuple(self.tracks.instances_per_class().items())
-            tracking = Tracking(births, ends, instances, self.tracks.outside)
+            tracking = Tracking(births, ends, instances, self.tracks.outside, self.tracks.doubles)
             snapshot = self.inputs.snapshot(now, settings.inputs)
             hypotheses = searched_hypotheses(
                 snapshot, self.memory, self.tracks.absent_weight, now, settings.inputs.max_age
