@@ -375,12 +375,21 @@ class InstanceTracks:
 
     def _yielded(self, names: Sequence[str], matched: set[str], now: float) -> str | None:
         """With no instance free: the instance of a tentative track that no valid map held yet and this
-        array matched nothing, now ended (the one missed longest, then with the least evidence of
-        existing), or None."""
-        waiting = [n for n in names if n in self.tracks and n not in matched and not self.tracks[n].kept]
+        array's miss ends (matched nothing here nor in the ``tentative_misses`` - 1 arrays before), now
+        ended (the one with the least evidence of existing), or None."""
+        last = self.settings.tentative_misses - 1
+        waiting = [
+            n
+            for n in names
+            if n in self.tracks
+            and n not in matched
+            and self.tentative(n)
+            and not self.tracks[n].kept
+            and self.tracks[n].misses >= last
+        ]
         if not waiting:
             return None
-        name = max(waiting, key=lambda n: (self.tracks[n].misses, self.tracks[n].absent_weight()))
+        name = max(waiting, key=lambda n: self.tracks[n].absent_weight())
         self._end(name, now)
         return name
 
