@@ -27,6 +27,7 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
+from physics_mapper.mapping.association import InstanceTracks
 from physics_mapper.mapping.inputs import InputSnapshot
 from physics_mapper.model.geometry import Pose
 from physics_mapper.model.hypotheses import Hypothesis, RankedHypotheses, absent_hypothesis
@@ -155,3 +156,21 @@ def held_by_valid_map(
         return ()
     left_out = absent_objects(names, hypotheses, result)
     return tuple(name for name in names if name not in left_out)
+
+
+def learn_from_result(
+    memory: MapMemory,
+    tracks: InstanceTracks,
+    names: tuple[str, ...],
+    hypotheses: tuple[RankedHypotheses, ...],
+    result: SearchResult | None,
+    now: float,
+) -> tuple[str, ...]:
+    """What a tick's search teaches the next ticks: its map remembered if valid, the instances a valid map
+    holds confirmed, and the tentative ones physics leaves out (:func:`left_out_by_physics`) ended at
+    ``now`` (s). Returns the names whose tracks ended (their inputs are to be forgotten)."""
+    if result is None:
+        return ()
+    memory.remember(names, hypotheses, result)
+    tracks.keep(held_by_valid_map(names, hypotheses, result))
+    return tracks.reject(left_out_by_physics(names, hypotheses, result), now)
