@@ -164,8 +164,8 @@ def search_values(report: TickReport) -> list[tuple[str, str]]:
 def instance_values(report: TickReport) -> list[tuple[str, str]]:
     """What the map left out and what the association of instances did: ``absent`` (the objects the map
     leaves out, ``none``), and where the scene has classes of instances, ``instances <class>`` (instances
-    with a track), ``births`` and ``ends`` (since the previous tick) and ``detections outside every gate``
-    (since the start)."""
+    with a track), ``births`` and ``ends`` (since the previous tick), ``detections outside every gate`` and
+    ``second detections of an instance`` (since the start)."""
     tracking = report.tracking
     values = [("absent", ", ".join(report.absent) or "none")]
     if not tracking.instances:
@@ -175,6 +175,7 @@ def instance_values(report: TickReport) -> list[tuple[str, str]]:
         ("births", ", ".join(tracking.births) or "none"),
         ("ends", ", ".join(tracking.ends) or "none"),
         ("detections outside every gate", str(tracking.outside)),
+        ("second detections of an instance", str(tracking.doubles)),
     ]
     return values
 

@@ -4,7 +4,7 @@ the node parameters file of a chosen setting.
 Keys are the fields of :class:`~physics_mapper.model.scene.SearchParams` and, for a grid, those of the
 association of detections to instances as ``association.<field>``
 (:class:`~physics_mapper.mapping.association.AssociationSettings`: ``gate``, ``confirm_hits``,
-``process_noise``, ``measurement_noise``, ``max_age``). Search values are checked by
+``tentative_misses``, ``process_noise``, ``measurement_noise``, ``max_age``). Search values are checked by
 the scene files' own reader (:func:`~physics_mapper.model.scene_files.search_with_overrides`), so a
 field added to the search is accepted here with the ranges a scene file has. A value is read as a
 scene file's YAML is (:func:`~physics_mapper.model.yaml_files.parse_yaml`: ``1e-4`` is a number).
@@ -115,11 +115,14 @@ def grid_settings(base: SearchParams, grid: Sequence[str], fixed: Sequence[str] 
 
 #: Grid keys of the association of detections to instances: ``association.<field>`` of AssociationSettings.
 ASSOCIATION_PREFIX = "association."
+#: Association settings that count something: whole numbers of at least 1.
+WHOLE_ASSOCIATION_SETTINGS = ("confirm_hits", "tentative_misses")
 
 
 def _association(varied: dict[str, Any], where: str) -> AssociationSettings:
     """The association settings with the grid's ``association.<field>`` values; InputError for an unknown
-    field or a value that is not a non-negative number (``confirm_hits``: a whole number of at least 1)."""
+    field or a value that is not a non-negative number (``confirm_hits``, ``tentative_misses``: a whole number
+    of at least 1)."""
     names = {f.name for f in fields(AssociationSettings)}
     values: dict[str, Any] = {}
     for key, value in varied.items():
@@ -128,7 +131,7 @@ def _association(varied: dict[str, Any], where: str) -> AssociationSettings:
         name = key.removeprefix(ASSOCIATION_PREFIX)
         if name not in names:
             raise InputError(f"{where}: {key} is no association setting (one of: {', '.join(sorted(names))})")
-        whole = name == "confirm_hits"
+        whole = name in WHOLE_ASSOCIATION_SETTINGS
         number = isinstance(value, int) if whole else isinstance(value, int | float)
         if isinstance(value, bool) or not number or not math.isfinite(value) or value < (1 if whole else 0):
             kind = "a whole number of at least 1" if whole else "a non-negative number"
@@ -151,7 +154,11 @@ def node_rate_hz(deadline: float) -> float:
 
 
 #: Association settings the node takes as parameters, and their names there (the others stay at their defaults).
-NODE_ASSOCIATION_PARAMETERS = {"gate": "association_gate", "confirm_hits": "confirm_hits"}
+NODE_ASSOCIATION_PARAMETERS = {
+    "gate": "association_gate",
+    "confirm_hits": "confirm_hits",
+    "tentative_misses": "tentative_misses",
+}
 
 
 def node_parameters_yaml(

@@ -26,8 +26,7 @@ from physics_mapper.mapping.association import AssociationSettings, InstanceTrac
 from physics_mapper.mapping.detections import RECORDED_DETECTIONS_TOPIC, detection_inputs
 from physics_mapper.mapping.existence import (
     MapMemory,
-    held_by_valid_map,
-    left_out_by_physics,
+    learn_from_result,
     searched_hypotheses,
 )
 from physics_mapper.mapping.inputs import InputSettings, InputTracker, check_poses, check_weights
@@ -163,12 +162,12 @@ def bag_snapshots(
                     detected = detection_inputs(
                         detections_from_cdr(message.raw, bag.definitions), scene, received=received, tracks=instances
                     )
-                    for name, poses in detected.objects.items():
-                        tracker.add_poses(name, poses)
-                    if detected.association is not None:
+                    if detected.association is not None:  # first: an instance may end and start again in one array
                         taken = tuple((name, index) for index, name in sorted(detected.association.assigned.items()))
                         for name in detected.association.ended:
                             tracker.forget(name)
+                    for name, poses in detected.objects.items():
+                        tracker.add_poses(name, poses)
                 else:
                     truth = _ground_truth(message, scene)
         now = burst[-1].time_ns / NANOSECONDS_PER_SECOND
@@ -184,12 +183,7 @@ def bag_snapshots(
         stamps = tuple(o.stamp_ns for o in snapshot.objects if o.stamp_ns is not None)
         snapshots.append(BagSnapshot(burst[-1].time_ns, snapshot.stamp_ns, hypotheses, truth, stamps, taken))
         result = None if decide is None else decide(snapshots[-1])
-        if tracked and result is not None and result.code is not None:
-            # As after the node's tick (Mapper.tick): the map remembered, its instances may be confirmed,
-            # and the tentative ones a finished search left out end.
-            names = scene.object_names
-            memory.remember(names, hypotheses, result)
-            instances.keep(held_by_valid_map(names, hypotheses, result))
-            for name in instances.reject(left_out_by_physics(names, hypotheses, result), now):
+        if tracked:  # as after the node's tick (Mapper.tick)
+            for name in learn_from_result(memory, instances, scene.object_names, hypotheses, result, now):
                 tracker.forget(name)
     return snapshots

@@ -25,7 +25,11 @@ saw, and keeps no order across frames. The rules that give each detection of a *
   ``gate`` metres, or by default half the smallest extent of the class's shape: two identical
   bodies that do not overlap are at least that far from each other's gate, so a detection of
   one never matches the other.
-- **Births.** A detection matched to no instance starts a *tentative* track on a free instance
+- **Second detections.** A detection matched to no instance whose results come within the gate of
+  an instance another detection of the same array matched is a second detection of that instance
+  (an estimator that reports one object twice): counted as a *double*, not used. Two identical
+  bodies that do not overlap are never that close (see the gate).
+- **Births.** Another detection matched to no instance starts a *tentative* track on a free instance
   (one without a track): the one whose ended track was last within the gate of the detection (an
   instance seen again after a long miss keeps its name), else a never-tracked one, in scene
   order, else the one whose track ended longest ago. With no free instance it is counted as
@@ -37,7 +41,9 @@ saw, and keeps no order across frames. The rules that give each detection of a *
   a reflection in the air seen in every frame, is never confirmed by repeating itself, nor by a
   fallback's map, which holds every object it is given.
 - **Misses and ends.** An instance no detection matched keeps its own state and hypotheses; it
-  never takes another's. A tentative track ends at its first miss, and when a finished search
+  never takes another's. A tentative track ends once ``tentative_misses`` arrays in a row (2)
+  matched it no detection (an estimator misses a true object now and then, a false detection seldom
+  comes back to the same place), and when a finished search
   leaves its instance out (:meth:`InstanceTracks.reject`; a search the deadline stopped is no
   verdict); a confirmed one ends when unmatched for more than ``max_age`` seconds. An ended track
   frees its instance, and the instance's hypotheses are forgotten.
@@ -54,7 +60,7 @@ the whole array, and ties in cost go to the lower instance and detection index.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from filterpy.kalman import KalmanFilter
@@ -80,12 +86,14 @@ class AssociationSettings:
 
     gate: metres beyond which a detection never matches an instance (0: half the smallest extent
     of the class's shape). confirm_hits: matches after which a track is confirmed.
+    tentative_misses: arrays in a row without a detection matched to a tentative track, after which it ends.
     process_noise: m²/s of random walk per second. measurement_noise: m, standard deviation of a
     detection's position. max_age: seconds a confirmed track lives unmatched.
     """
 
     gate: float = 0.0
     confirm_hits: int = 3
+    tentative_misses: int = 2
     process_noise: float = 1.0e-4
     measurement_noise: float = 0.01
     max_age: float = 10.0
@@ -126,6 +134,7 @@ class Track:
     updated: float  # seconds, when the filter last took a measurement
     key: str = ""
     hits: int = 0
+    misses: int = 0  # arrays in a row that matched it no detection
     confidences: list[float] = field(default_factory=list)
     kept: bool = False  # some valid map held its instance
 
@@ -155,18 +164,20 @@ class FrameAssociation:
     born: tuple[str, ...] = ()
     ended: tuple[str, ...] = ()
     outside: dict[str, int] = field(default_factory=dict)  # class id -> detections matched to nothing
+    doubles: dict[str, int] = field(default_factory=dict)  # class id -> second detections of an instance
 
 
 @dataclass(frozen=True)
 class Tracking:
     """What the association did over a while (a tick): instances whose tracks began (``births``) and
     ended (``ends``); each tracked class's instances with a track; detections matched to no instance
-    since the start (``outside``)."""
+    (``outside``) and second detections of an instance (``doubles``) since the start."""
 
     births: tuple[str, ...] = ()
     ends: tuple[str, ...] = ()
     instances: tuple[tuple[str, int], ...] = ()
     outside: int = 0
+    doubles: int = 0
 
 
 def default_gate(shape: ObjectShape) -> float:
@@ -214,6 +225,7 @@ class InstanceTracks:
         self.births = 0
         self.ends = 0
         self.outside = 0
+        self.doubles = 0
 
     def gate(self, class_id: str) -> float:
         """The class's gate, metres."""
@@ -261,8 +273,8 @@ class InstanceTracks:
         return ended
 
     def reject(self, names: Sequence[str], now: float) -> tuple[str, ...]:
-        """End the tentative tracks of ``names``, instances a finished search left out at ``now``
-        (:func:`~physics_mapper.mapping.existence.left_out_by_physics`): physics found no place for them.
+        """End the tentative tracks of ``names``, instances physics left out at ``now``
+        (:func:`~physics_mapper.mapping.existence.left_out_by_physics`): it found no place for them.
         Returns the names whose tracks ended."""
         ended = tuple(name for name in names if self.tentative(name))
         for name in ended:
@@ -278,35 +290,64 @@ class InstanceTracks:
 
     def associate(self, observations: Sequence[Observation], now: float) -> FrameAssociation:
         """Give each observation of one array, received at ``now`` (s), an instance (module docstring)."""
-        assigned: dict[int, str] = {}
-        born: list[str] = []
-        outside: dict[str, int] = {}
+        frame = FrameAssociation({}, ended=self.expire(now))
         matched: set[str] = set()
-        ended = list(self.expire(now))
         for class_id in dict.fromkeys(o.class_id for o in observations):
             of_class = [o for o in observations if o.class_id == class_id]
             names = self.scene.objects_of_class(class_id)
             pairs = self._match(of_class, [n for n in names if n in self.tracks], class_id, now)
             for observation, name, nearest in pairs:
                 self._update(name, observation, now, nearest)
-                assigned[observation.index] = name
+                frame.assigned[observation.index] = name
                 matched.add(name)
-            unmatched = sorted((o for o in of_class if o.index not in assigned), key=Observation.place)
-            for observation in unmatched:
-                free = self._free(names, observation, self.gate(class_id))
-                if free is None:
-                    outside[class_id] = outside.get(class_id, 0) + 1
-                    continue
-                self._birth(free, observation, now)
-                assigned[observation.index] = free
-                matched.add(free)
-                born.append(free)
-        for name in [n for n in self.tracks if n not in matched and self.tentative(n)]:
-            self._end(name, now)  # a tentative track ends at its first miss
-            ended.append(name)
-        self.births += len(born)
-        self.outside += sum(outside.values())
-        return FrameAssociation(assigned, tuple(born), tuple(ended), outside)
+            unmatched = sorted((o for o in of_class if o.index not in frame.assigned), key=Observation.place)
+            frame = self._births(frame, unmatched, names, matched, now)
+        frame = replace(frame, ended=(*frame.ended, *self._miss([n for n in self.tracks if n not in matched], now)))
+        self.births += len(frame.born)
+        self.outside += sum(frame.outside.values())
+        self.doubles += sum(frame.doubles.values())
+        return frame
+
+    def _births(
+        self,
+        frame: FrameAssociation,
+        unmatched: Sequence[Observation],
+        names: Sequence[str],
+        matched: set[str],
+        now: float,
+    ) -> FrameAssociation:
+        """``frame`` with the detections of one class that matched no instance: each a second detection,
+        a new track or outside every gate (module docstring). ``matched``: the instances matched so far."""
+        born, ended = list(frame.born), list(frame.ended)
+        outside, doubles = dict(frame.outside), dict(frame.doubles)
+        for observation in unmatched:
+            gate = self.gate(observation.class_id)
+            if any(observation.nearest(self.tracks[n].position)[1] <= gate for n in matched if n in names):
+                doubles[observation.class_id] = doubles.get(observation.class_id, 0) + 1
+                continue
+            free = self._free(names, observation, gate)
+            if free is None:
+                free = self._yielded(names, matched, now)
+                ended += [] if free is None else [free]
+            if free is None:
+                outside[observation.class_id] = outside.get(observation.class_id, 0) + 1
+                continue
+            self._birth(free, observation, now)
+            frame.assigned[observation.index] = free
+            matched.add(free)
+            born.append(free)
+        return replace(frame, born=tuple(born), ended=tuple(ended), outside=outside, doubles=doubles)
+
+    def _miss(self, names: Sequence[str], now: float) -> list[str]:
+        """Count a miss of each tracked instance of ``names``; end the tentative ones missed
+        ``tentative_misses`` times in a row. Returns the names whose tracks ended."""
+        ended = []
+        for name in names:
+            self.tracks[name].misses += 1
+            if self.tentative(name) and self.tracks[name].misses >= self.settings.tentative_misses:
+                self._end(name, now)
+                ended.append(name)
+        return ended
 
     def _match(
         self, observations: list[Observation], names: list[str], class_id: str, now: float
@@ -350,6 +391,26 @@ class InstanceTracks:
             return never[0]
         return min(free, key=lambda n: self._ended_at[n], default=None)
 
+    def _yielded(self, names: Sequence[str], matched: set[str], now: float) -> str | None:
+        """With no instance free: the instance of a tentative track that no valid map held yet and this
+        array's miss ends (matched nothing here nor in the ``tentative_misses`` - 1 arrays before), now
+        ended (the one with the least evidence of existing), or None."""
+        last = self.settings.tentative_misses - 1
+        waiting = [
+            n
+            for n in names
+            if n in self.tracks
+            and n not in matched
+            and self.tentative(n)
+            and not self.tracks[n].kept
+            and self.tracks[n].misses >= last
+        ]
+        if not waiting:
+            return None
+        name = max(waiting, key=lambda n: self.tracks[n].absent_weight())
+        self._end(name, now)
+        return name
+
     def _birth(self, name: str, observation: Observation, now: float) -> None:
         kalman = KalmanFilter(dim_x=3, dim_z=3)
         kalman.x = observation.positions[observation.best].reshape(3, 1).copy()
@@ -370,6 +431,7 @@ class InstanceTracks:
             nearest, _ = observation.nearest(point)
         track.filter.update(observation.positions[nearest].reshape(3, 1))
         self._matched[name] = now
+        track.misses = 0
         self._confirm(name, observation)
 
     def _confirm(self, name: str, observation: Observation) -> None:

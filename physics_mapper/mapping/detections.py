@@ -219,6 +219,10 @@ def detection_inputs(
             f"{count} detection(s) of class {c!r} outside every gate, with no free instance"
             for c, count in sorted(association.outside.items())
         ]
+        notes += [
+            f"{count} second detection(s) of an instance of class {c!r}, not used"
+            for c, count in sorted(association.doubles.items())
+        ]
     for single in (d for d in detections if not scene.is_tracked(d.class_id)):
         collected.setdefault(scene.objects_of_class(single.class_id)[0], []).append(single)
     objects: dict[str, ReceivedPoses] = {}

@@ -27,6 +27,7 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
+from physics_mapper.mapping.association import InstanceTracks
 from physics_mapper.mapping.inputs import InputSnapshot
 from physics_mapper.model.geometry import Pose
 from physics_mapper.model.hypotheses import Hypothesis, RankedHypotheses, absent_hypothesis
@@ -99,11 +100,37 @@ def searched_hypotheses(
 def left_out_by_physics(
     names: tuple[str, ...], hypotheses: tuple[RankedHypotheses, ...], result: SearchResult | None
 ) -> tuple[str, ...]:
-    """The objects a *finished* search's map leaves out (none while the deadline stops it: its choice is
-    the best so far, not physics' verdict)."""
-    if result is None or result.code is None or not result.stats.finished:
+    """The objects physics finds no place for: those a *finished* search's map leaves out, or a *valid*
+    one's (a search the deadline stopped without a valid map gives its best so far, no verdict), and,
+    in any map, those that may be absent and whose every other rank overlaps a static body (ruled out
+    before the search began: no configuration holds them).
+
+    A valid map the deadline cut short may leave out an instance a longer search would have kept: its
+    tentative track ends, and its next detection starts it again under the same name (the association's
+    births)."""
+    if result is None:
         return ()
-    return absent_objects(names, hypotheses, result)
+    walled = _inside_static_bodies(names, hypotheses, result)
+    if result.code is None or not (result.stats.finished or result.valid):
+        return walled
+    return tuple(dict.fromkeys([*absent_objects(names, hypotheses, result), *walled]))
+
+
+def _inside_static_bodies(
+    names: tuple[str, ...], hypotheses: tuple[RankedHypotheses, ...], result: SearchResult
+) -> tuple[str, ...]:
+    """The objects with an *absent* rank whose every other rank the search ruled out against a static
+    body (a body that is none of ``names``)."""
+    walled: dict[str, set[int]] = {}
+    for ruling in result.ruled_out:
+        if ruling.other not in names:
+            walled.setdefault(ruling.object, set()).add(ruling.rank)
+    left_out = []
+    for name, ranked in zip(names, hypotheses, strict=True):
+        present = {rank for rank in range(1, len(ranked) + 1) if not ranked.is_absent(rank)}
+        if len(present) < len(ranked) and present <= walled.get(name, set()):
+            left_out.append(name)
+    return tuple(left_out)
 
 
 def absent_objects(
@@ -129,3 +156,21 @@ def held_by_valid_map(
         return ()
     left_out = absent_objects(names, hypotheses, result)
     return tuple(name for name in names if name not in left_out)
+
+
+def learn_from_result(
+    memory: MapMemory,
+    tracks: InstanceTracks,
+    names: tuple[str, ...],
+    hypotheses: tuple[RankedHypotheses, ...],
+    result: SearchResult | None,
+    now: float,
+) -> tuple[str, ...]:
+    """What a tick's search teaches the next ticks: its map remembered if valid, the instances a valid map
+    holds confirmed, and the tentative ones physics leaves out (:func:`left_out_by_physics`) ended at
+    ``now`` (s). Returns the names whose tracks ended (their inputs are to be forgotten)."""
+    if result is None:
+        return ()
+    memory.remember(names, hypotheses, result)
+    tracks.keep(held_by_valid_map(names, hypotheses, result))
+    return tracks.reject(left_out_by_physics(names, hypotheses, result), now)

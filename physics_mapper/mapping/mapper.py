@@ -21,8 +21,7 @@ from physics_mapper.mapping.detections import DetectionInputs, detection_inputs
 from physics_mapper.mapping.existence import (
     MapMemory,
     absent_objects,
-    held_by_valid_map,
-    left_out_by_physics,
+    learn_from_result,
     searched_hypotheses,
 )
 from physics_mapper.mapping.frames import Transform
@@ -152,11 +151,11 @@ class Mapper:
                 transforms=transforms,
                 unresolved=unresolved,
             )
-            for name, poses in detected.objects.items():
-                self.inputs.add_poses(name, poses)
-            if detected.association is not None:
+            if detected.association is not None:  # first: an instance may end and start again in one array
                 self._births += detected.association.born
                 self._ended(detected.association.ended)
+            for name, poses in detected.objects.items():
+                self.inputs.add_poses(name, poses)
         return detected
 
     def _ended(self, names: tuple[str, ...]) -> None:
@@ -188,7 +187,7 @@ class Mapper:
             births, ends = tuple(self._births), tuple(self._ends)
             self._births, self._ends = [], []
             instances = tuple(self.tracks.instances_per_class().items())
-            tracking = Tracking(births, ends, instances, self.tracks.outside)
+            tracking = Tracking(births, ends, instances, self.tracks.outside, self.tracks.doubles)
             snapshot = self.inputs.snapshot(now, settings.inputs)
             hypotheses = searched_hypotheses(
                 snapshot, self.memory, self.tracks.absent_weight, now, settings.inputs.max_age
@@ -204,11 +203,8 @@ class Mapper:
             fault = f"physics engine failed: {error}; the world is rebuilt and the search starts again at the next tick"
             report = TickReport(snapshot, None, 0.0, False, settings, engine_fault=fault)
         absent = absent_objects(names, hypotheses, report.result)
-        if report.result is not None and report.result.code is not None:
-            self.memory.remember(names, hypotheses, report.result)
-            with self._tracks_lock:
-                self.tracks.keep(held_by_valid_map(names, hypotheses, report.result))
-                self._ended(self.tracks.reject(left_out_by_physics(names, hypotheses, report.result), now))
+        with self._tracks_lock:
+            self._ended(learn_from_result(self.memory, self.tracks, names, hypotheses, report.result, now))
         return replace(report, hypotheses=hypotheses, absent=absent, tracking=tracking)
 
     def _search_tick(

@@ -78,6 +78,12 @@ PARAMETERS = (
         "confirm_hits", "detections that confirm an instance's track (before, it may be absent)", 3, (1, 1000)
     ),
     ParameterSpec(
+        "tentative_misses",
+        "arrays in a row matching a tentative instance's track no detection, after which the track ends",
+        2,
+        (1, 1000),
+    ),
+    ParameterSpec(
         "diagnostics_period",
         "seconds between two /diagnostics messages (the map topics follow rate_hz)",
         DEFAULT_DIAGNOSTICS_PERIOD,
@@ -138,7 +144,10 @@ def settings(values: Mapping[str, Any]) -> MapperSettings:
         require_weights=bool(values["require_weights"]),
     )
     association = AssociationSettings(
-        gate=float(values["association_gate"]), confirm_hits=int(values["confirm_hits"]), max_age=inputs.max_age
+        gate=float(values["association_gate"]),
+        confirm_hits=int(values["confirm_hits"]),
+        tentative_misses=int(values["tentative_misses"]),
+        max_age=inputs.max_age,
     )
     return MapperSettings(search, inputs, float(values["rate_hz"]), association)
 

@@ -35,9 +35,12 @@ from collections.abc import Sequence
 from dataclasses import replace
 from operator import getitem
 
+import numpy as np
+
+from physics_mapper.model.extents import stable_growth
 from physics_mapper.model.geometry import Pose
 from physics_mapper.model.hypotheses import RankedHypotheses
-from physics_mapper.model.scene import SearchParams
+from physics_mapper.model.scene import SearchParams, object_radius
 from physics_mapper.physics.checker import PhysicsChecker
 from physics_mapper.physics.collision import Collision, deepest_collision
 from physics_mapper.physics.settling import EarlyExit, PartialSettling, Settling, early_exit_rule
@@ -47,7 +50,7 @@ from physics_mapper.search.conflicts import Blame, Conflict, ConflictStore, coll
 from physics_mapper.search.grouped import GroupedSearch, GroupSearch, SettleMemo, physics_key
 from physics_mapper.search.local_settling import LocalPlan, LocalSettling
 from physics_mapper.search.results import Candidate, Code, RuledOut, TraceEntry
-from physics_mapper.search.ruling_out import RulingOut
+from physics_mapper.search.ruling_out import FreeFall, Ruling, RulingOut
 
 #: Bullet solver iterations of a trial settling (Rule 2's are 50, ``world.SOLVER_ITERATIONS``): its
 #: instability is believed, its stability confirmed by a settling with Rule 2's solver. Walls, towers
@@ -85,11 +88,22 @@ class ConflictGroupSearch(GroupSearch):
             self.params.penetration_threshold,
             self.conflicts,
         ).run(scene.static)
-        body_name = self.checker.body_name
-        self.ruled_out = tuple(
-            RuledOut(self.names[r.position], r.rank, body_name(r.other), r.depth, r.every_rank, self.trace_group)
-            for r in rulings
-        )
+        growths = [
+            stable_growth(object_radius(o.shape), self.params.jitter_threshold, self.params.angular_weight)
+            for o in scene.objects
+        ]
+        rulings += FreeFall(
+            self.objects,
+            [
+                (low + half_margin - growth, high - half_margin + growth)
+                for low, high, growth in zip(grouping.lows, grouping.highs, growths, strict=True)
+            ],
+            growths,
+            [np.array([not h.absent for h in ranked.hypotheses]) for ranked in owner.hypotheses],
+            self.params.settle_time,
+            self.conflicts,
+        ).run(scene.static)
+        self.ruled_out = tuple(self._ruled_out(r) for r in rulings)
         self.stats.conflicts += len(rulings)
         self.stats.ruled_out += len(rulings)
         self.drop_head()  # the paper's queue holds the root: the generator makes the candidates here
@@ -98,6 +112,14 @@ class ConflictGroupSearch(GroupSearch):
         )
         self._waiting: QueueItem | None = None  # the candidate whose settling the deadline interrupted
         self._expanded_codes: set[Code] = set()  # visited nodes above the bound (parents in the trace)
+
+    def _ruled_out(self, ruling: Ruling) -> RuledOut:
+        """Why a rank was ruled out, by object names."""
+        name = self.names[ruling.position]
+        if ruling.floating:
+            return RuledOut(name, ruling.rank, "", 0.0, group=self.trace_group, reason="floating")
+        other = self.checker.body_name(ruling.other)
+        return RuledOut(name, ruling.rank, other, ruling.depth, ruling.every_rank, self.trace_group)
 
     def step(self, stop_at: float | None) -> bool:
         """Make the due refined map, or else check the next candidate (the one the deadline interrupted

@@ -43,6 +43,8 @@ def trace_entry_dict(entry: TraceEntry) -> dict[str, Any]:
 
 def ruled_out_text(ruling: RuledOut) -> str:
     """Why a rank was ruled out before the search, e.g. ``mug #1: collision with floor, 21 mm``."""
+    if ruling.reason == "floating":
+        return f"{ruling.object} #{ruling.rank}: floating, nothing within reach to rest on"
     depth = f"{ruling.depth * 1000:.0f} mm"
     if ruling.every_rank:
         return (

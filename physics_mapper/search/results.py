@@ -57,8 +57,9 @@ class RuledOut:
     """A rank ruled out before the search: no valid configuration holds ``object`` at ``rank``, because
     its body there overlaps ``other`` (a static body, or with ``every_rank`` an object at each of its
     ranks still possible) ``depth`` metres deep, beyond the penetration threshold (with ``every_rank``
-    the shallowest of those overlaps). Its ``reason`` is Rule 1's: ``collision``. ``group`` is the
-    interaction group's id, as in the trace."""
+    the shallowest of those overlaps): ``reason`` Rule 1's, ``collision``. Or Rule 2's, ``floating``:
+    there it is in free fall, nothing (static, or any object at any rank) within reach to rest on
+    (``other`` empty, ``depth`` 0). ``group`` is the interaction group's id, as in the trace."""
 
     object: str
     rank: int
@@ -66,7 +67,7 @@ class RuledOut:
     depth: float
     every_rank: bool = False
     group: int | None = None
-    reason: Literal["collision"] = "collision"
+    reason: Literal["collision", "floating"] = "collision"
 
 
 @dataclass

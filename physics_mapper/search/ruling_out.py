@@ -1,4 +1,4 @@
-"""Ranks ruled out alone before a group's search starts: Rule 1 made consistent object by object.
+"""Ranks ruled out alone before a group's search starts: Rule 1 made consistent object by object, and free falls.
 
 Object p at rank a is *ruled out alone* when no valid configuration holds it
 (:mod:`physics_mapper.search.conflicts`, a one-assignment conflict {(p, a)}), which Rule 1 shows in two
@@ -9,7 +9,12 @@ ways:
   out alone already (in groups of :data:`PAIRS_FROM_OBJECTS` objects or more).
 
 The second rule feeds on the first, so it is applied until nothing changes (arc consistency on the
-pairwise Rule 1 table). A search learns the same conflicts from rejected candidates, but only once a
+pairwise Rule 1 table). Rule 2 rules out one more kind alone (:class:`FreeFall`): p at a *in free
+fall*, its stable envelope E_p(a) (:mod:`physics_mapper.search.conflicts`) meeting no static body and
+no other object's envelope at any rank, when the settling lasts long enough for a fall to leave it:
+a detection in the air, with nothing below it for any object's hypothesis to stand on.
+
+A search learns the same conflicts from rejected candidates, but only once a
 candidate holding p at a is checked: meanwhile every queued candidate holding it is skipped one by
 one, thousands in a crowded group. Learned first, those candidates are never made
 (:meth:`~physics_mapper.search.conflicts.ConflictStore.next_rank`).
@@ -32,7 +37,7 @@ from numpy.typing import NDArray
 from physics_mapper.model.extents import may_overlap_static
 from physics_mapper.model.scene import StaticBody
 from physics_mapper.physics.collision_table import CollisionTable
-from physics_mapper.search.conflicts import Conflict, ConflictStore
+from physics_mapper.search.conflicts import Conflict, ConflictStore, Region
 
 FloatArray = NDArray[np.float64]
 #: Objects a group needs for the pairwise rule: in a small group few candidates hold a rank it would
@@ -42,19 +47,23 @@ PAIRS_FROM_OBJECTS = 7
 #: Pairs of hypothesis boxes the pass compares at most; beyond, it is not made (the search is the
 #: same without it, only slower to skip what it would have ruled out).
 BOX_PAIR_LIMIT = 1 << 20
+#: m/s², along -z (REP-103): how far a body in free fall drops in a settling.
+GRAVITY = 9.81
 
 
 @dataclass(frozen=True, slots=True)
 class Ruling:
     """Why one rank was ruled out alone: the object at ``position`` (in its group) at ``rank`` overlaps
     body ``other`` (a body index: the scene's objects, then its static bodies) ``depth`` metres deep;
-    with ``every_rank``, at each rank of that object not ruled out already, ``depth`` the shallowest."""
+    with ``every_rank``, at each rank of that object not ruled out already, ``depth`` the shallowest.
+    A rank in free fall (``floating``) has no ``other`` (-1) and ``depth`` 0."""
 
     position: int
     rank: int
     other: int
     depth: float
     every_rank: bool = False
+    floating: bool = False
 
 
 @dataclass(frozen=True)
@@ -128,6 +137,53 @@ class RulingOut:
                     self.store.learn(Conflict(((p, rank),), "collision"))
                     lost.append(Ruling(p, rank, second, shallowest, every_rank=True))
         return lost
+
+
+@dataclass(frozen=True)
+class FreeFall:
+    """Rule 2's pass over one group (module docstring): its objects' scene indices by position; for
+    every object of the scene, the corners of its stable envelopes by rank (``envelopes[i]``: M_i x 3
+    lows and highs, m), their growth g_i (m) and which ranks are bodies (False: *absent*); the
+    settling's simulated seconds and the store that learns the conflicts.
+
+    Sound as the blame rule is: were a configuration holding p at a stable, every object would stay
+    in its envelope, so nothing would meet p's while p, in free fall, drops 1/2 g T² > g_p in the
+    settling's T seconds: out of its envelope, beyond the jitter threshold. Every object of the scene
+    is looked at, not only the group's: an envelope reaches further than the grouping's margin.
+    """
+
+    objects: Sequence[int]
+    envelopes: Sequence[tuple[FloatArray, FloatArray]]
+    growths: Sequence[float]
+    bodies: Sequence[NDArray[np.bool_]]
+    settle_time: float
+    store: ConflictStore
+
+    def run(self, statics: Sequence[StaticBody]) -> list[Ruling]:
+        """Learn every rank in free fall; why each, in position order."""
+        every_low = np.concatenate([low for low, _ in self.envelopes])
+        every_high = np.concatenate([high for _, high in self.envelopes])
+        owners = np.repeat(np.arange(len(self.envelopes)), [len(low) for low, _ in self.envelopes])
+        fall = 0.5 * GRAVITY * self.settle_time**2
+        rulings = []
+        for position, index in enumerate(self.objects):
+            if fall <= self.growths[index]:
+                continue  # the settling is too short for a fall to leave the envelope: no verdict
+            low, high = self.envelopes[index]
+            others = owners != index
+            met = (low[:, None, :] <= every_high[None, others]) & (high[:, None, :] >= every_low[None, others])
+            supported = np.all(met, axis=2).any(axis=1)
+            for body in statics:
+                supported |= may_overlap_static(body, low, high, 0.0)
+            for rank in (int(k) + 1 for k in np.nonzero(self.bodies[index] & ~supported)[0]):
+                corner_low, corner_high = low[rank - 1], high[rank - 1]
+                region: Region = (
+                    (float(corner_low[0]), float(corner_low[1]), float(corner_low[2])),
+                    (float(corner_high[0]), float(corner_high[1]), float(corner_high[2])),
+                )
+                if self.store.learn(Conflict(((position, rank),), "unstable", region)):
+                    rulings.append(Ruling(position, rank, -1, 0.0, floating=True))
+        return rulings
 
 
 def _box_overlaps(

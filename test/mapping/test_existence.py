@@ -74,7 +74,7 @@ def test_a_double_detection_of_a_present_box_is_one_instance() -> None:
     mapper.tick(0.6, SETTINGS)
     feed(mapper, [(0.006, 0.0, 0.05), *two], 1.0)  # box 1 detected twice, 6 mm apart, the copy first
     report = mapper.tick(1.1, SETTINGS)
-    assert report.tracking.births == ("box_3",)  # the copy matched no instance (box 1's is nearer): a tentative one
+    assert report.tracking.births == () and report.tracking.doubles == 1  # the copy: within box_1's gate
     assert report.result is not None and report.result.valid
     assert report.absent == ("box_3",) and present(report) == {"box_1": two[0], "box_2": two[1]}
 
@@ -169,18 +169,37 @@ def test_a_silent_object_s_absent_weight_starts_at_one_half_and_grows() -> None:
     assert weights[0] == 0.5 and weights == sorted(weights) and weights[-1] > 0.99
 
 
-def test_only_a_finished_search_leaves_an_instance_out_for_good() -> None:
-    """A tentative instance left out by a search the deadline stopped keeps its track (its choice is the best
-    so far, not a verdict); left out by a finished search, its track ends."""
+def test_a_finished_search_or_a_valid_map_leaves_an_instance_out_for_good() -> None:
+    """A tentative instance left out by a finished search, or by a valid map, ends; left out by an invalid
+    map of a search the deadline stopped, it keeps its track (that choice is the best so far, no verdict)."""
     mapper = Mapper(make_scene({"name": "box", "count": {"max": 4}, **BOX}))
-    feed(mapper, [*FLOOR_BOXES, (0.3, 0.3, 0.4)], 0.0)
+    # The fourth box 7 cm from the first, 3 cm into it: one of the two is left out (not ruled out alone).
+    feed(mapper, [*FLOOR_BOXES, (0.07, 0.0, 0.05)], 0.0)
     report = mapper.tick(0.1, SETTINGS)
     assert report.result is not None and report.result.stats.finished and len(report.absent) == 1
+    assert (report.absent[0], 1) not in {(r.object, r.rank) for r in report.result.ruled_out}
     names, result = report.snapshot.names, report.result
     assert left_out_by_physics(names, report.hypotheses, result) == report.absent
     stopped = replace(result, stats=replace(result.stats, end=None))  # as if the deadline had come first
-    assert left_out_by_physics(names, report.hypotheses, stopped) == ()
+    assert left_out_by_physics(names, report.hypotheses, stopped) == report.absent  # but valid
+    assert left_out_by_physics(names, report.hypotheses, replace(stopped, valid=False)) == ()
     assert report.absent[0] not in mapper.tracks.tracks  # the finished search ended it
+
+
+def test_an_instance_in_free_fall_at_every_rank_ends_whatever_the_search() -> None:
+    """Every pose of the floating detection is ruled out before the search (Rule 2, free fall): no
+    configuration holds it, a verdict even from a search the deadline stopped without a valid map."""
+    mapper = Mapper(make_scene({"name": "box", "count": {"max": 4}, **BOX}))
+    feed(mapper, [*FLOOR_BOXES, (0.3, 0.3, 0.4)], 0.0)
+    report = mapper.tick(0.1, SETTINGS)
+    assert report.result is not None and len(report.absent) == 1
+    (floating,) = report.absent
+    ranked = report.hypotheses[report.snapshot.names.index(floating)]
+    ruled = [r for r in report.result.ruled_out if r.object == floating]
+    assert {r.reason for r in ruled} == {"floating"}
+    assert {r.rank for r in ruled} == {k for k in range(1, len(ranked) + 1) if not ranked.is_absent(k)}
+    stopped = replace(report.result, valid=False, stats=replace(report.result.stats, end=None))
+    assert left_out_by_physics(report.snapshot.names, report.hypotheses, stopped) == (floating,)
 
 
 def test_a_map_that_fails_the_rules_confirms_no_instance() -> None:
@@ -203,10 +222,11 @@ def test_a_map_that_fails_the_rules_confirms_no_instance() -> None:
         feed(mapper, [*overlapping, in_wall], 0.5 * step)
         report = mapper.tick(0.5 * step + 0.1, settings)
         assert report.result is not None and not report.result.valid and report.result.fallback == "refine"
-
-        assert mapper.tracks.tentative("box_4")  # held by the fallback's map, never confirmed by it
+        assert report.tracking.births == (() if step == 3 else ("box_4",)) or step == 3
+        # held by the fallback's map, never confirmed by it: its every pose in the wall, it ends at each tick
+        assert "box_4" not in mapper.tracks.tracks
     feed(mapper, [*apart, in_wall], 3.0)
     report = mapper.tick(3.1, settings)
     assert report.result is not None and report.result.valid and report.result.stats.visited > 0
     assert report.absent == ("box_4",)
-    assert "box_4" not in mapper.tracks.tracks  # left out by a finished search: ended
+    assert "box_4" not in mapper.tracks.tracks

@@ -1,4 +1,5 @@
-"""Ranks ruled out before the search are explained: with Rule 1's reason, the other body and the depth."""
+"""Ranks ruled out before the search are explained: with Rule 1's reason, the other body and the depth, or
+Rule 2's free fall."""
 
 from __future__ import annotations
 
@@ -10,6 +11,7 @@ from core_builders import CUBE_SIZE, ON_FLOOR, cli, cube, floor_scene, ranked, s
 
 from physics_mapper.model.scene import SearchParams
 from physics_mapper.physics.checker import PhysicsChecker
+from physics_mapper.search.report import ruled_out_text
 from physics_mapper.search.results import RuledOut
 from physics_mapper.search.strategy import make_search
 
@@ -82,3 +84,35 @@ def test_a_rank_overlapping_a_neighbour_at_each_of_its_ranks_is_ruled_out_with_t
     assert ruling.depth == pytest.approx(0.02, abs=1e-3)  # the shallower overlap, with cube_1's second
     assert result.valid and result.code is not None and result.code[0] == 1
     assert result.stats.ruled_out == 1 and isinstance(ruling, RuledOut)
+
+
+def test_a_rank_in_free_fall_is_ruled_out_and_one_in_reach_of_a_neighbour_is_not() -> None:
+    """Two cubes 1 cm apart on the floor, each also seen 5 cm up (in the air); a third seen 30 cm up only
+    beside its floor pose. With the default 0.5 s settling (a fall of 1.2 m) the air pose far from
+    everything is ruled out as floating; the ones 5 cm up stay (the other cube's air pose is in reach,
+    so the search decides them); with a settling too short to fall out of the envelope, nothing is."""
+    pitch = CUBE_SIZE + 0.01
+    scene = floor_scene(cube("a"), cube("b"), cube("c"))
+    hypotheses = [
+        ranked([unrotated(0.0, 0.0, ON_FLOOR), unrotated(0.0, 0.0, ON_FLOOR + 0.05)], [2, 1]),
+        ranked([unrotated(pitch, 0.0, ON_FLOOR), unrotated(pitch, 0.0, ON_FLOOR + 0.05)], [2, 1]),
+        ranked([unrotated(0.6, 0.0, ON_FLOOR), unrotated(0.6, 0.0, 0.3)], [1, 2]),  # the air pose first
+    ]
+    with PhysicsChecker(scene) as checker:
+        result = make_search(checker, hypotheses, SearchParams()).run(None)
+        brief = make_search(checker, hypotheses, SearchParams(settle_time=0.02)).run(None)
+    (ruling,) = result.ruled_out
+    assert (ruling.object, ruling.rank, ruling.reason, ruling.other, ruling.depth) == ("c", 1, "floating", "", 0.0)
+    assert result.valid and result.code == (1, 1, 2)
+    assert brief.ruled_out == ()
+    with PhysicsChecker(scene) as checker:  # sound: every configuration holding c in the air is unstable
+        for code in ((1, 1, 1), (2, 2, 1), (1, 2, 1), (2, 1, 1)):
+            poses = [h.pose(rank) for h, rank in zip(hypotheses, code, strict=True)]
+            assert not checker.settle(poses, 0.5, SearchParams().angular_weight).is_stable(
+                SearchParams().jitter_threshold
+            )
+
+
+def test_a_floating_ruling_reads_as_one_line() -> None:
+    ruling = RuledOut("c", 1, "", 0.0, reason="floating")
+    assert ruled_out_text(ruling) == "c #1: floating, nothing within reach to rest on"
