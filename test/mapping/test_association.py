@@ -202,7 +202,7 @@ def test_the_gate_is_to_the_nearest_result_not_to_the_results_spread() -> None:
     both_sides = detection(result((-0.06, 0.0, 0.05)), result((0.06, 0.0, 0.05)))
     inputs = detection_inputs(array([both_sides]), scene, received=0.5, tracks=around)
     assert inputs.association is not None
-    assert inputs.association.assigned == {0: "box_2"} and inputs.association.ended == ("box_1",)
+    assert inputs.association.assigned == {0: "box_2"} and inputs.association.ended == ()  # box_1 missed once
     near = InstanceTracks(scene)
     detection_inputs(array([detection(result((0.0, 0.0, 0.05)))]), scene, received=0.0, tracks=near)
     spread = detection(result((0.5, 0.5, 0.05), 0.9), result((0.01, 0.0, 0.05), 0.1), result((-0.4, 0.2, 0.05)))
