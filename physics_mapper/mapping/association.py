@@ -32,10 +32,13 @@ saw, and keeps no order across frames. The rules that give each detection of a *
 - **Births.** Another detection matched to no instance starts a *tentative* track on a free instance
   (one without a track): the one whose ended track was last within the gate of the detection (an
   instance seen again after a long miss keeps its name), else a never-tracked one, in scene
-  order, else the one whose track ended longest ago. With no free instance it is counted as
-  outside every gate and not used (``count: {max: K}`` stops at K). Detections born together
+  order, else the one whose track ended longest ago. With no free instance it takes that of a
+  tentative track no valid map held and that this array's miss ends anyway; else it is counted
+  as outside every gate and not used (``count: {max: K}`` stops at K). Detections born together
   take their instances in the order of their best results' positions (x, then y, then z), not of
-  the array: even a first frame names the same boxes the same way however it is ordered.
+  the array: even a first frame names the same boxes the same way however it is ordered; those
+  whose best result lies inside a static body (below the floor, in a wall) come last, so that where
+  an array holds more detections than there are instances, they are the ones left outside.
 - **Confirmation.** A track is *tentative* until it was matched ``confirm_hits`` times and some
   *valid* map held its instance (:meth:`InstanceTracks.keep`): a detection physics finds no place for,
   a reflection in the air seen in every frame, is never confirmed by repeating itself, nor by a
@@ -68,7 +71,7 @@ from numpy.typing import NDArray
 from scipy.optimize import linear_sum_assignment
 from scipy.spatial.distance import cdist
 
-from physics_mapper.model.extents import body_box
+from physics_mapper.model.extents import body_box, inside_static
 from physics_mapper.model.geometry import ORIGIN
 from physics_mapper.model.scene import ObjectShape, Scene
 
@@ -300,7 +303,7 @@ class InstanceTracks:
                 self._update(name, observation, now, nearest)
                 frame.assigned[observation.index] = name
                 matched.add(name)
-            unmatched = sorted((o for o in of_class if o.index not in frame.assigned), key=Observation.place)
+            unmatched = sorted((o for o in of_class if o.index not in frame.assigned), key=self._birth_order)
             frame = self._births(frame, unmatched, names, matched, now)
         frame = replace(frame, ended=(*frame.ended, *self._miss([n for n in self.tracks if n not in matched], now)))
         self.births += len(frame.born)
@@ -337,6 +340,12 @@ class InstanceTracks:
             matched.add(free)
             born.append(free)
         return replace(frame, born=tuple(born), ended=tuple(ended), outside=outside, doubles=doubles)
+
+    def _birth_order(self, observation: Observation) -> tuple[bool, tuple[float, ...]]:
+        """Where a detection that matched no instance comes among those of its array (module docstring):
+        those whose best result lies inside a static body last, then by place."""
+        place = observation.place()
+        return any(inside_static(body, np.asarray(place)) for body in self.scene.static), place
 
     def _miss(self, names: Sequence[str], now: float) -> list[str]:
         """Count a miss of each tracked instance of ``names``; end the tentative ones missed

@@ -230,3 +230,13 @@ def test_a_bad_score_refuses_that_result_only() -> None:
     inputs = detection_inputs(array([bad]), scene, received=0.0)
     assert positions_of(inputs) == {"box_1": (0.0, 0.0, 0.06)}
     assert inputs.unused == ("detection 0: result 0 refused: score nan",)
+
+
+def test_a_detection_inside_a_static_body_is_born_last_and_left_outside_when_instances_run_out() -> None:
+    """Three detections for two instances, the one below the floor first in the array and first by
+    place: the two on the floor take the instances."""
+    scene = bin_scene(2)
+    buried, a, b = (-0.3, 0.0, -0.04), (0.0, 0.0, 0.05), (0.3, 0.0, 0.05)
+    inputs = detection_inputs(array([detection(result(p)) for p in (buried, a, b)]), scene, received=0.0)
+    assert positions_of(inputs) == {"box_1": a, "box_2": b}
+    assert inputs.association is not None and inputs.association.outside == {"box": 1}
