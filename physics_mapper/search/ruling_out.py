@@ -150,6 +150,9 @@ class FreeFall:
     in its envelope, so nothing would meet p's while p, in free fall, drops 1/2 g T² > g_p in the
     settling's T seconds: out of its envelope, beyond the jitter threshold. Every object of the scene
     is looked at, not only the group's: an envelope reaches further than the grouping's margin.
+    An object every rank of which falls, and that cannot be absent, keeps them all: no configuration
+    would be left to check, and the ``settled`` fallback reports the first one settled (it drops the
+    object onto what is below: a map where no combination is valid).
     """
 
     objects: Sequence[int]
@@ -175,7 +178,10 @@ class FreeFall:
             supported = np.all(met, axis=2).any(axis=1)
             for body in statics:
                 supported |= may_overlap_static(body, low, high, 0.0)
-            for rank in (int(k) + 1 for k in np.nonzero(self.bodies[index] & ~supported)[0]):
+            falling = self.bodies[index] & ~supported
+            if np.all(falling):
+                continue  # every rank falls and it cannot be absent: left to the search and its fallback
+            for rank in (int(k) + 1 for k in np.nonzero(falling)[0]):
                 corner_low, corner_high = low[rank - 1], high[rank - 1]
                 region: Region = (
                     (float(corner_low[0]), float(corner_low[1]), float(corner_low[2])),

@@ -116,3 +116,15 @@ def test_a_rank_in_free_fall_is_ruled_out_and_one_in_reach_of_a_neighbour_is_not
 def test_a_floating_ruling_reads_as_one_line() -> None:
     ruling = RuledOut("c", 1, "", 0.0, reason="floating")
     assert ruled_out_text(ruling) == "c #1: floating, nothing within reach to rest on"
+
+
+def test_an_object_every_rank_of_which_falls_keeps_them_for_the_settled_fallback() -> None:
+    """A cube seen only in the air (it cannot be absent): nothing is ruled out, every configuration is
+    found unstable, and the ``settled`` fallback reports it fallen onto the floor."""
+    scene = floor_scene(cube("a"))
+    hypotheses = [ranked([unrotated(0.0, 0.0, 0.3), unrotated(0.0, 0.0, 0.4)], [2, 1])]
+    with PhysicsChecker(scene) as checker:
+        result = make_search(checker, hypotheses, SearchParams(fallback="settled")).run(None)
+    assert result.ruled_out == () and result.stats.unstable == 2
+    assert not result.valid and result.fallback == "settled" and result.settled_poses is not None
+    assert result.settled_poses[0].position[2] == pytest.approx(ON_FLOOR, abs=0.005)
