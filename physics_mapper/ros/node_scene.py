@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import time
 from pathlib import Path
+from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from rclpy.executors import SingleThreadedExecutor
@@ -16,7 +17,7 @@ from rclpy.node import Node
 
 from physics_mapper.mapping.topics import DIAGNOSTICS_TOPIC
 from physics_mapper.model.errors import InputError
-from physics_mapper.model.limits import MAX_DIAGNOSTIC_TEXT, clipped
+from physics_mapper.model.limits import MAX_DIAGNOSTIC_TEXT, clipped, printable
 from physics_mapper.model.resources import ResourceError, resolve_resource
 from physics_mapper.model.scene import Scene
 from physics_mapper.model.scene_files import load_scene
@@ -63,13 +64,17 @@ def load_scene_spinning(node: Node, path: Path, stop: SignalStop) -> Scene:
     executor = SingleThreadedExecutor(context=node.context)
     executor.add_node(node)
     reported, shown = -float("inf"), ""
+    logger: Any = node.get_logger()  # type: ignore[no-untyped-call]  # rclpy 7 leaves it unannotated
     try:
         while not loading.done:
             if stop.requested:
                 loading.cancel()
                 raise KeyboardInterrupt
-            # Reported at once when it changes (a decomposition that starts), else once a period.
+            # Reported at once when it changes (a decomposition that starts), else once a period; a
+            # decomposition is also logged: it may end before a diagnostics subscriber is matched.
             activity = loading.activity or f"loading {path}"
+            if activity != shown and loading.activity is not None:
+                logger.info(clipped(printable(activity), MAX_DIAGNOSTIC_TEXT))
             if activity != shown or time.monotonic() - reported >= DEFAULT_DIAGNOSTICS_PERIOD:
                 reported, shown = time.monotonic(), activity
                 publisher.publish(loading_diagnostics(node, activity))

@@ -27,6 +27,7 @@ from core_builders import (
     unrotated,
 )
 from diagnostic_msgs.msg import DiagnosticStatus
+from geometry_msgs.msg import PoseArray
 from ros_helpers import NodeProcess, RosClient, search_status, stamp_ns_of, values
 
 from physics_mapper.model.bullet import pybullet
@@ -369,8 +370,14 @@ def test_the_node_publishes_the_refined_map_and_says_refine(refining_node: RosCl
         for name, hypotheses in zip(problem.scene.object_names, c111, strict=True):
             client.publish(name, *hypotheses_msgs(hypotheses, frame_id="world", stamp_ns=stamp_ns))
 
+    objects = len(problem.scene.objects)
+
+    def whole(message: PoseArray) -> bool:
+        """A refined map of this stamp holding every object (before all have come, the others are absent)."""
+        return stamp_ns_of(message) == stamp_ns and len(message.poses) == objects
+
     def refined_published() -> bool:
-        return any(stamp_ns_of(m) == stamp_ns for m in client.settled)
+        return any(whole(m) for m in client.settled)
 
     client.keep_publishing(publish, refined_published, "the refined map")
     diagnostics = client.next_diagnostics(
@@ -382,7 +389,7 @@ def test_the_node_publishes_the_refined_map_and_says_refine(refining_node: RosCl
     with PhysicsChecker(problem.scene) as checker:
         offline = make_search(checker, c111, replace(problem.scene.search, fallback="refine")).run(None)
     assert offline.settled_poses is not None
-    settled = next(m for m in client.settled if stamp_ns_of(m) == stamp_ns)
+    settled = next(m for m in client.settled if whole(m))
     got = [(p.position.x, p.position.y, p.position.z) for p in settled.poses]
     assert got == [pose.position for pose in offline.settled_poses]  # the same map, bit for bit
     client.wait_for(lambda: bool(client.markers) and bool(client.markers[-1].markers), what="markers")
