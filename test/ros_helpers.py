@@ -58,6 +58,9 @@ PHYSICS_MAPPER = Path(sys.executable).parent / "physics-mapper"
 #: Generous liveness bounds (seconds): a shared 2-core machine may be slow, never this slow.
 STARTUP_TIMEOUT = 30.0
 REPLY_TIMEOUT = 15.0
+#: Seconds after which a request without an answer is sent again: a service's first answer is lost when
+#: it comes before the client's response reader is matched (service_is_ready sees the request side only).
+RESEND_AFTER = 2.0
 
 
 class NodeProcess:
@@ -206,6 +209,16 @@ class RosClient:
         assert result is not None
         return result
 
+    def answered(self, call: Callable[[], Any], what: str) -> Any:
+        """The result of the request ``call()`` sends (its future), sent again every :data:`RESEND_AFTER`
+        seconds until answered: for requests that may be repeated (reads, sets of the same values)."""
+        end = time.monotonic() + REPLY_TIMEOUT
+        while True:
+            future = call()
+            if self.spin_until(future.done, RESEND_AFTER):
+                return future.result()
+            assert time.monotonic() < end, f"timed out after {REPLY_TIMEOUT:g} s waiting for {what}"
+
     def set_parameter(self, name: str, value: object) -> tuple[bool, str]:
         """Set one of the node's parameters through its SetParameters service: (successful, reason)."""
         return self.set_parameters({name: value})[0]
@@ -214,26 +227,27 @@ class RosClient:
         """Set several parameters in one SetParameters request, in the mapping's order: each (successful, reason)."""
         self.wait_for(lambda: self.parameters.wait_for_services(timeout_sec=0.1), what="parameter services")
         request = [Parameter(name, value=value) for name, value in values.items()]  # type: ignore[no-untyped-call]
-        future = self.parameters.set_parameters(request)
-        self.wait_for(future.done, what=f"set_parameters {', '.join(values)}")
-        results = future.result().results  # type: ignore[no-untyped-call]
+        answer = self.answered(lambda: self.parameters.set_parameters(request), f"set_parameters {', '.join(values)}")
+        results = answer.results
         return [(bool(result.successful), str(result.reason)) for result in results]
 
     def set_parameters_atomically(self, values: Mapping[str, object]) -> tuple[bool, str]:
         """Set several parameters through the SetParametersAtomically service: (successful, reason)."""
         self.wait_for(lambda: self.parameters.wait_for_services(timeout_sec=0.1), what="parameter services")
         request = [Parameter(name, value=value) for name, value in values.items()]  # type: ignore[no-untyped-call]
-        future = self.parameters.set_parameters_atomically(request)
-        self.wait_for(future.done, what=f"set_parameters_atomically {', '.join(values)}")
-        result = future.result().result  # type: ignore[no-untyped-call]
+        answer = self.answered(
+            lambda: self.parameters.set_parameters_atomically(request), f"set_parameters_atomically {', '.join(values)}"
+        )
+        result = answer.result
         return bool(result.successful), str(result.reason)
 
     def get_parameters(self, *names: str) -> list[object]:
         """The node's current values of ``names``."""
         self.wait_for(lambda: self.parameters.wait_for_services(timeout_sec=0.1), what="parameter services")
-        future = self.parameters.get_parameters(list(names))
-        self.wait_for(future.done, what=f"get_parameters {', '.join(names)}")
-        return [parameter_value_to_python(v) for v in future.result().values]  # type: ignore[no-untyped-call]
+        answer = self.answered(
+            lambda: self.parameters.get_parameters(list(names)), f"get_parameters {', '.join(names)}"
+        )
+        return [parameter_value_to_python(v) for v in answer.values]
 
     def latched(self, msg_type: type, topic: str) -> list[Any]:
         """Subscribe anew (a late joiner) to one of the node's latched outputs; its messages arrive in the list."""

@@ -3,7 +3,6 @@ current state has none for (activate while unconfigured, configure after finaliz
 
 from __future__ import annotations
 
-import time
 from pathlib import Path
 
 from conftest import SCENES
@@ -33,11 +32,8 @@ def test_unregistered_transition_ids_and_labels_are_refused_and_logged(tmp_path:
             client.wait_for(future.done, REPLY_TIMEOUT, "get_state")
             return int(future.result().current_state.id)  # type: ignore[no-untyped-call]
 
-        # A service's first response may be lost while the client's response reader is not matched yet
-        # (service_is_ready sees the request side only): ask the state, which changes nothing, until answered.
-        end = time.monotonic() + STARTUP_TIMEOUT
-        while not client.spin_until(get.call_async(GetState.Request()).done, 2.0):
-            assert time.monotonic() < end, "no answer to get_state"
+        # A service's first answer may be lost (RosClient.answered): ask the state, which changes nothing, first.
+        client.answered(lambda: get.call_async(GetState.Request()), "get_state")
         assert not request(Transition(id=Transition.TRANSITION_ACTIVATE))  # while unconfigured
         assert not request(Transition(id=250))  # no transition has it
         assert not request(Transition(label="fly\naway"))
