@@ -36,11 +36,10 @@ class Lifecycle:
             STARTUP_TIMEOUT,
             "the lifecycle services",
         )
+        self.state()  # answered once: the services' answers reach this client (RosClient.answered)
 
     def state(self) -> int:
-        future = self._get.call_async(GetState.Request())
-        self.client.wait_for(future.done, REPLY_TIMEOUT, "get_state")
-        return int(future.result().current_state.id)  # type: ignore[no-untyped-call]
+        return int(self.client.answered(lambda: self._get.call_async(GetState.Request()), "get_state").current_state.id)
 
     def change(self, transition: int) -> bool:
         future = self._change.call_async(ChangeState.Request(transition=Transition(id=transition)))
