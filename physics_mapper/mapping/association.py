@@ -329,9 +329,8 @@ class InstanceTracks:
                 doubles[observation.class_id] = doubles.get(observation.class_id, 0) + 1
                 continue
             free = self._free(names, observation, gate)
-            if free is None:
-                free = self._yielded(names, matched, now)
-                ended += [] if free is None else [free]
+            if free is None and (free := self._yielded(names, matched, now)) is not None:
+                ended.append(free)  # the track whose instance it takes
             if free is None:
                 outside[observation.class_id] = outside.get(observation.class_id, 0) + 1
                 continue
@@ -405,14 +404,10 @@ class InstanceTracks:
         array's miss ends (matched nothing here nor in the ``tentative_misses`` - 1 arrays before), now
         ended (the one with the least evidence of existing), or None."""
         last = self.settings.tentative_misses - 1
-        waiting = [
+        waiting = [  # a track no valid map held is tentative
             n
             for n in names
-            if n in self.tracks
-            and n not in matched
-            and self.tentative(n)
-            and not self.tracks[n].kept
-            and self.tracks[n].misses >= last
+            if n in self.tracks and n not in matched and not self.tracks[n].kept and self.tracks[n].misses >= last
         ]
         if not waiting:
             return None

@@ -102,33 +102,33 @@ def left_out_by_physics(
 ) -> tuple[str, ...]:
     """The objects physics finds no place for: those a *finished* search's map leaves out, or a *valid*
     one's (a search the deadline stopped without a valid map gives its best so far, no verdict), and,
-    in any map, those that may be absent and whose every other rank overlaps a static body (ruled out
-    before the search began: no configuration holds them).
+    in any map, those that may be absent and whose every other rank overlaps a static body or falls
+    freely (ruled out before the search began: no configuration holds them).
 
     A valid map the deadline cut short may leave out an instance a longer search would have kept: its
     tentative track ends, and its next detection starts it again under the same name (the association's
     births)."""
     if result is None:
         return ()
-    walled = _inside_static_bodies(names, hypotheses, result)
+    placeless = _ruled_out_alone(names, hypotheses, result)
     if result.code is None or not (result.stats.finished or result.valid):
-        return walled
-    return tuple(dict.fromkeys([*absent_objects(names, hypotheses, result), *walled]))
+        return placeless
+    return tuple(dict.fromkeys([*absent_objects(names, hypotheses, result), *placeless]))
 
 
-def _inside_static_bodies(
+def _ruled_out_alone(
     names: tuple[str, ...], hypotheses: tuple[RankedHypotheses, ...], result: SearchResult
 ) -> tuple[str, ...]:
-    """The objects with an *absent* rank whose every other rank the search ruled out against a static
-    body (a body that is none of ``names``)."""
-    walled: dict[str, set[int]] = {}
+    """The objects with an *absent* rank whose every other rank the search ruled out before it began
+    by a body that is none of ``names`` (a static body), or as a free fall (no ``other``)."""
+    ruled: dict[str, set[int]] = {}
     for ruling in result.ruled_out:
         if ruling.other not in names:
-            walled.setdefault(ruling.object, set()).add(ruling.rank)
+            ruled.setdefault(ruling.object, set()).add(ruling.rank)
     left_out = []
     for name, ranked in zip(names, hypotheses, strict=True):
         present = {rank for rank in range(1, len(ranked) + 1) if not ranked.is_absent(rank)}
-        if len(present) < len(ranked) and present <= walled.get(name, set()):
+        if len(present) < len(ranked) and present <= ruled.get(name, set()):
             left_out.append(name)
     return tuple(left_out)
 
