@@ -95,6 +95,8 @@ def _search_level_and_message(report: TickReport) -> tuple[Level, str]:
     if result.valid:
         left_out = f"; left out: {', '.join(report.absent)}" if report.absent else ""
         text = f"valid {code_text(result.code)}, p(C)={result.probability:.4g}, J={result.jitter:.4g}{left_out}"
+        if result.previous_map:
+            text += "; the previous map's configuration (the search found no valid one of its own)"
         return Level.OK, text
     if result.refinement is not None:
         refined = f"{code_text(result.code)} refined ({refinement_text(result.refinement)}) and settled"
@@ -123,6 +125,7 @@ def search_values(report: TickReport) -> list[tuple[str, str]]:
         ("valid", str(result is not None and result.valid).lower()),
         ("fallback used", str(result is not None and result.fallback_used).lower()),
         ("fallback", report.settings.search.fallback),
+        ("previous map", str(result is not None and result.previous_map).lower()),
         ("p(C)", _number(result.probability if result is not None else None)),
         ("J", _number(result.jitter if result is not None else None)),
         ("nodes visited", str(stats.visited)),

@@ -29,6 +29,7 @@ from physics_mapper.evaluation.identity import identity_metrics, identity_text, 
 from physics_mapper.evaluation.scoring import position_errors, rank_one_poses
 from physics_mapper.evaluation.snapshots import BagSnapshot, bag_snapshots
 from physics_mapper.mapping.association import AssociationSettings
+from physics_mapper.mapping.previous_map import run_with_previous_map
 from physics_mapper.mapping.topics import MAP_TOPIC_QOS, RECORDED_CONFIGURATION_TOPIC, RECORDED_SETTLED_TOPIC
 from physics_mapper.model.geometry import Pose, is_same_pose
 from physics_mapper.model.hypotheses import RankedHypotheses
@@ -94,7 +95,9 @@ class OfflineSearch:
         self.results: list[SnapshotResult] = []
 
     def __call__(self, snapshot: BagSnapshot) -> SearchResult:
-        found = make_search(self.checker, snapshot.hypotheses, self.scene.search).run(self.budget)
+        search = make_search(self.checker, snapshot.hypotheses, self.scene.search)
+        remembered = dict(snapshot.remembered)
+        found, _ = run_with_previous_map(search, self.checker, self.scene.object_names, remembered, self.budget)
         self.results.append(SnapshotResult(snapshot, found.code, found.poses, found.settled_poses, found))
         if self.progress is not None:
             self.progress(len(self.results) - 1, found)
@@ -307,9 +310,9 @@ def snapshot_result_dict(result: SnapshotResult, names: Sequence[str]) -> dict[s
     (:func:`estimate_errors`), the detection each instance took in the snapshot's last array (``detections``:
     name -> its index there), the map's and the truth's positions (``positions``: ``map`` by object name,
     :func:`map_positions`; ``truth`` in scene order, None without a ground truth) and, for an offline search,
-    ``valid``, ``fallback_used``, ``visited`` (configurations checked) and ``stopped_at_deadline`` (None for a
-    live node's choice). Wall-clock times are left out, so that the same search gives the same data on any
-    machine."""
+    ``valid``, ``fallback_used``, ``previous_map`` (:mod:`~physics_mapper.mapping.previous_map`), ``visited``
+    (configurations checked) and ``stopped_at_deadline`` (None for a live node's choice). Wall-clock times
+    are left out, so that the same search gives the same data on any machine."""
     snapshot, search = result.snapshot, result.search
     truth = snapshot.ground_truth
     return {
@@ -319,6 +322,7 @@ def snapshot_result_dict(result: SnapshotResult, names: Sequence[str]) -> dict[s
         "code_text": code_text(result.code),
         "valid": None if search is None else search.valid,
         "fallback_used": None if search is None else search.fallback_used,
+        "previous_map": None if search is None else search.previous_map,
         "visited": None if search is None else search.stats.visited,
         "stopped_at_deadline": None if search is None else search.stats.stopped_at_deadline,
         "errors": estimate_errors(result),

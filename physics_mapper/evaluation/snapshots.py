@@ -51,7 +51,9 @@ class BagSnapshot:
     the hypotheses used (the node's output stamp); ``stamps_ns``: the header stamp of each
     object's PoseArray in use, in scene order (what the node's diagnostics show as ``stamp [ns]``);
     ``ground_truth``: newest ``/ground_truth`` so far; ``detections``: (instance, index of the detection
-    it took in the burst's last ``Detection3DArray``) for each instance the association gave one.
+    it took in the burst's last ``Detection3DArray``) for each instance the association gave one;
+    ``remembered``: (object, pose) where each object the last valid map held came to rest (a node's
+    :class:`~physics_mapper.mapping.existence.MapMemory`, where the bag's snapshots follow the maps chosen).
     """
 
     time_ns: int
@@ -60,6 +62,7 @@ class BagSnapshot:
     ground_truth: tuple[Pose, ...] | None
     stamps_ns: tuple[int, ...] = ()
     detections: tuple[tuple[str, int], ...] = ()
+    remembered: tuple[tuple[str, Pose], ...] = ()
 
 
 def _bursts(messages: Sequence[BagMessage]) -> Iterator[list[BagMessage]]:
@@ -181,7 +184,10 @@ def bag_snapshots(
         if hypotheses is None or snapshot.stamp_ns is None or not new:
             continue
         stamps = tuple(o.stamp_ns for o in snapshot.objects if o.stamp_ns is not None)
-        snapshots.append(BagSnapshot(burst[-1].time_ns, snapshot.stamp_ns, hypotheses, truth, stamps, taken))
+        remembered = tuple(memory.settled.items())
+        snapshots.append(
+            BagSnapshot(burst[-1].time_ns, snapshot.stamp_ns, hypotheses, truth, stamps, taken, remembered)
+        )
         result = None if decide is None else decide(snapshots[-1])
         if tracked:  # as after the node's tick (Mapper.tick)
             for name in learn_from_result(memory, instances, scene.object_names, hypotheses, result, now):

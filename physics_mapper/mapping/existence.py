@@ -47,9 +47,11 @@ def with_absent(ranked: RankedHypotheses, index: int, weight: float) -> RankedHy
 
 @dataclass
 class MapMemory:
-    """What the valid maps held: each object's last pose in one (the chosen one), and since when each is silent."""
+    """What the valid maps held: each object's last pose in one (the chosen hypothesis's, ``poses``, and where
+    it came to rest in Rule 2's settling, ``settled``), and since when each is silent."""
 
     poses: dict[str, Pose] = field(default_factory=dict)
+    settled: dict[str, Pose] = field(default_factory=dict)
     silent_since: dict[str, float] = field(default_factory=dict)
 
     def remember(self, names: tuple[str, ...], hypotheses: tuple[RankedHypotheses, ...], result: SearchResult) -> None:
@@ -58,13 +60,16 @@ class MapMemory:
         An invalid map (a fallback's, or a search's best so far that failed a rule) is not remembered:
         its poses may lie inside a wall or another object, and kept as a silent object's only pose
         beside *absent* they would feed that conflict to every later search."""
-        if not result.valid or result.code is None or result.poses is None:
+        if not result.valid or result.code is None or result.poses is None or result.settled_poses is None:
             return
-        for name, ranked, rank, pose in zip(names, hypotheses, result.code, result.poses, strict=True):
+        chosen = zip(names, hypotheses, result.code, result.poses, result.settled_poses, strict=True)
+        for name, ranked, rank, pose, settled in chosen:
             if ranked.is_absent(rank):
                 self.poses.pop(name, None)
+                self.settled.pop(name, None)
             else:
                 self.poses[name] = pose
+                self.settled[name] = settled
 
 
 def searched_hypotheses(
@@ -105,13 +110,14 @@ def left_out_by_physics(
     in any map, those that may be absent and whose every other rank overlaps a static body or falls
     freely (ruled out before the search began: no configuration holds them).
 
-    A valid map the deadline cut short may leave out an instance a longer search would have kept: its
-    tentative track ends, and its next detection starts it again under the same name (the association's
-    births)."""
+    The previous map's configuration (:mod:`~physics_mapper.mapping.previous_map`) is no verdict either:
+    it leaves out what the last map did not hold. A valid map the deadline cut short may leave out an
+    instance a longer search would have kept: its tentative track ends, and its next detection starts it
+    again under the same name (the association's births)."""
     if result is None:
         return ()
     placeless = _ruled_out_alone(names, hypotheses, result)
-    if result.code is None or not (result.stats.finished or result.valid):
+    if result.code is None or result.previous_map or not (result.stats.finished or result.valid):
         return placeless
     return tuple(dict.fromkeys([*absent_objects(names, hypotheses, result), *placeless]))
 

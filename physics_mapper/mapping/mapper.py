@@ -26,6 +26,7 @@ from physics_mapper.mapping.existence import (
 )
 from physics_mapper.mapping.frames import Transform
 from physics_mapper.mapping.inputs import InputSettings, InputSnapshot, InputTracker
+from physics_mapper.mapping.previous_map import PreviousMapCheck, run_with_previous_map
 from physics_mapper.model.hypotheses import RankedHypotheses
 from physics_mapper.model.scene import Scene, SearchParams, search_params_problem
 from physics_mapper.physics.checker import PhysicsChecker
@@ -130,6 +131,7 @@ class Mapper:
         self._ends: list[str] = []
         self._checker: PhysicsChecker | None = PhysicsChecker(scene)
         self._search: BranchAndBound | GroupedSearch | None = None
+        self._previous_map: PreviousMapCheck | None = None  # the last tick's check of the previous map
 
     def add_detections(
         self,
@@ -220,7 +222,11 @@ class Mapper:
         started = time.monotonic()
         previous = self._search
         search = self._search = make_search(self.checker, hypotheses, settings.search, previous)
-        result = search.run(max(0.0, settings.search.deadline - (time.monotonic() - started)))
+        budget = max(0.0, settings.search.deadline - (time.monotonic() - started))
+        names, remembered = self.scene.object_names, self.memory.settled
+        result, self._previous_map = run_with_previous_map(
+            search, self.checker, names, remembered, budget, self._previous_map
+        )
         elapsed = time.monotonic() - started
         group = search.settling_group if isinstance(search, GroupedSearch) else None
         return TickReport(

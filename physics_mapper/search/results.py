@@ -181,7 +181,9 @@ class SearchResult:
     map), ``object_jitters`` each object's J_i (their sum is ``jitter``). ``fallback`` names the
     fallback that gave the map (None for a valid one or none), and ``refinement`` tells how the
     refined map was made. ``groups`` are the interaction groups searched (one, with every
-    object, for a joint search).
+    object, for a joint search). ``previous_map``: the map is the previous map's configuration,
+    valid, which a tick checked before a search that found no valid one of its own
+    (:mod:`physics_mapper.mapping.previous_map`).
     """
 
     valid: bool
@@ -197,6 +199,7 @@ class SearchResult:
     fallback: Fallback | None = None
     refinement: RefinedMap | None = None
     groups: tuple[GroupResult, ...] = ()
+    previous_map: bool = False
 
     @property
     def ruled_out(self) -> tuple[RuledOut, ...]:

@@ -1,0 +1,148 @@
+"""The previous map first: a tick keeps a valid map while the scene stands still (ROS-free).
+
+The search visits configurations in decreasing p(C) and stops at its deadline with its best so far.
+In a bin of identical boxes, a box whose best pose is wrong (a few centimetres too high, say) makes
+every configuration that holds it unstable, and the blame rule's conflict also holds its neighbours at
+their ranks; their other ranks, nearly as probable, come first, and the deadline can pass before the
+box's own second rank is tried. Yet the last tick's map was valid and the bin has not moved.
+
+So before a new search runs, the tick checks one configuration, the *previous map's*:
+
+- an object the last valid map held (:class:`~physics_mapper.mapping.existence.MapMemory`) takes
+  its hypothesis whose position is nearest where it came to rest in that map's settling, if one lies
+  within :data:`NEAR` metres (the rest pose, not the chosen hypothesis: a hypothesis near where the
+  object rests is one it rests at); else rank 1;
+- an object the map did not hold takes its *absent* rank where it has one (a tentative instance, a
+  silent object the map left out), else rank 1.
+
+It is checked by Rule 1 (the collision pass of every object) and Rule 2 (a settling of every object,
+ended early at rest as the search's are), within half the deadline. The search's own answer stands
+whenever it is valid: it is the paper's. Only when the search ends without a valid configuration is a
+valid previous-map configuration the tick's map, valid, with ``previous_map`` set in the result.
+
+Such a map is no verdict on the objects it leaves out (:func:`~physics_mapper.mapping.existence.left_out_by_physics`):
+a new instance is left out only because the last map did not hold it, so its track goes on and the
+next searches place it. A search resumed with unchanged hypotheses reuses the last check instead of
+settling again (the world also holds the search's interrupted settling).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, replace
+
+from physics_mapper.model.geometry import Pose
+from physics_mapper.model.hypotheses import RankedHypotheses
+from physics_mapper.model.scene import SearchParams
+from physics_mapper.physics.checker import PhysicsChecker
+from physics_mapper.physics.settling import Settling, early_exit_rule
+from physics_mapper.search.branch_and_bound import Search
+from physics_mapper.search.results import Code, SearchResult
+
+#: How far (m) a hypothesis may lie from the previous map's pose of its object to stand for it there.
+NEAR = 0.02
+
+
+def previous_map_code(
+    names: Sequence[str], hypotheses: Sequence[RankedHypotheses], remembered: Mapping[str, Pose]
+) -> Code | None:
+    """The previous map's configuration among this tick's ``hypotheses`` (module docstring), or None when
+    the last valid map held none of ``names``."""
+    if not any(name in remembered for name in names):
+        return None
+    return tuple(_rank(ranked, remembered.get(name)) for name, ranked in zip(names, hypotheses, strict=True))
+
+
+def _rank(ranked: RankedHypotheses, remembered: Pose | None) -> int:
+    present = [rank for rank in range(1, len(ranked) + 1) if not ranked.is_absent(rank)]
+    if remembered is None:
+        absent = [rank for rank in range(1, len(ranked) + 1) if ranked.is_absent(rank)]
+        return absent[0] if absent else 1
+    distances = {rank: math.dist(ranked.pose(rank).position, remembered.position) for rank in present}
+    nearest = min(distances, key=distances.__getitem__, default=None)
+    return nearest if nearest is not None and distances[nearest] <= NEAR else 1
+
+
+@dataclass(frozen=True)
+class PreviousMapCheck:
+    """The previous map's configuration ``code`` for ``hypotheses``, and its settling if it passed both
+    rules (None: it failed one, or the check ran out of time)."""
+
+    hypotheses: tuple[RankedHypotheses, ...]
+    code: Code
+    settling: Settling | None
+
+
+def check_previous_map(
+    checker: PhysicsChecker,
+    hypotheses: tuple[RankedHypotheses, ...],
+    code: Code,
+    params: SearchParams,
+    stop_at: float | None,
+) -> PreviousMapCheck:
+    """Rule 1 and Rule 2 of configuration ``code`` over every object, the settling stopped at ``stop_at``
+    (a ``time.monotonic()`` instant; an unfinished check counts as failed)."""
+    poses = tuple(ranked.pose(rank) for ranked, rank in zip(hypotheses, code, strict=True))
+    if checker.find_collision(poses, params.penetration_threshold) is not None:
+        return PreviousMapCheck(hypotheses, code, None)
+    early_exit = early_exit_rule(params, complete=False, moving=True)
+    outcome = checker.settle(poses, params.settle_time, params.angular_weight, stop_at, early_exit=early_exit)
+    valid = isinstance(outcome, Settling) and outcome.is_stable(params.jitter_threshold)
+    return PreviousMapCheck(hypotheses, code, outcome if valid and isinstance(outcome, Settling) else None)
+
+
+def run_with_previous_map(
+    search: Search,
+    checker: PhysicsChecker,
+    names: Sequence[str],
+    remembered: Mapping[str, Pose],
+    budget: float | None,
+    last: PreviousMapCheck | None = None,
+) -> tuple[SearchResult, PreviousMapCheck | None]:
+    """Check the previous map's configuration (within half of ``budget`` seconds; ``last`` is reused if it
+    checked the same configuration of the same hypotheses), run ``search`` for the rest of ``budget``, and
+    give its result, or the previous map where that is the valid one (module docstring); with the check."""
+    started = time.monotonic()
+    hypotheses = search.hypotheses
+    code = previous_map_code(names, hypotheses, remembered)
+    check = last if last is not None and (last.hypotheses, last.code) == (hypotheses, code) else None
+    # A settling the deadline interrupted lives in the world until the search resumes it.
+    if check is None and code is not None and search.settling_in_progress is None:
+        stop_at = None if budget is None else started + budget / 2.0
+        check = check_previous_map(checker, hypotheses, code, search.params, stop_at)
+    remaining = None if budget is None else max(0.0, budget - (time.monotonic() - started))
+    return with_previous_map(search.run(remaining), check), check
+
+
+def with_previous_map(result: SearchResult, check: PreviousMapCheck | None) -> SearchResult:
+    """``result`` where it is valid (or no previous map passed); else the previous map's configuration, valid."""
+    if result.valid or check is None or check.settling is None:
+        return result
+    code, settling, hypotheses = check.code, check.settling, check.hypotheses
+    groups = tuple(
+        replace(
+            group,
+            valid=True,
+            code=tuple(code[i] for i in group.objects),
+            probability=math.prod(hypotheses[i].weight(code[i]) for i in group.objects),
+            jitter=sum(settling.jitters[i] for i in group.objects),
+        )
+        for group in result.groups
+    )
+    return replace(
+        result,
+        valid=True,
+        code=code,
+        probability=math.prod(ranked.weight(rank) for ranked, rank in zip(hypotheses, code, strict=True)),
+        jitter=settling.total_jitter,
+        poses=tuple(ranked.pose(rank) for ranked, rank in zip(hypotheses, code, strict=True)),
+        settled_poses=settling.settled_poses,
+        object_jitters=settling.jitters,
+        fallback_used=False,
+        fallback=None,
+        refinement=None,
+        groups=groups,
+        previous_map=True,
+    )

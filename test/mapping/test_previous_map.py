@@ -1,0 +1,117 @@
+"""The previous map first: the configuration nearest the last valid map, checked before a new search and
+the tick's map only where the search finds no valid one of its own (real pybullet, the node's ROS-free tick)."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+from detection_builders import array, detection, result
+
+from physics_mapper.mapping.inputs import InputSettings, check_poses, check_weights
+from physics_mapper.mapping.mapper import Mapper, MapperSettings, TickReport
+from physics_mapper.mapping.previous_map import NEAR, previous_map_code
+from physics_mapper.model.geometry import IDENTITY, Pose
+from physics_mapper.model.hypotheses import Hypothesis, RankedHypotheses, absent_hypothesis
+from physics_mapper.model.scene import SearchParams
+from physics_mapper.model.scene_files import scene_from_dict
+
+BOX = {"shape": "box", "size": [0.1, 0.1, 0.1], "mass": 0.2}
+BOTTOM, TOP = (0.0, 0.0, 0.05), (0.0, 0.0, 0.15)
+FLOATING = (0.0, 0.0, 0.19)  # 4 cm above TOP: it falls twice the jitter threshold
+#: The joint search, its bound above p(root): it checks the root alone and ends (it expands nothing).
+ROOT_ONLY = SearchParams(deadline=5.0, strategy="joint", bound="absolute", probability_threshold=0.95)
+#: A generous deadline: these tests check what the tick decides, not how fast.
+GENEROUS = SearchParams(deadline=5.0)
+INPUTS = InputSettings(max_age=1.0)
+STACK = scene_from_dict(
+    {"objects": [{"name": "a", **BOX}, {"name": "b", **BOX}], "static": [{"name": "floor", "shape": "plane"}]},
+    "test",
+)
+
+
+def at(*positions: tuple[float, float, float]) -> RankedHypotheses:
+    return RankedHypotheses(tuple(Hypothesis(Pose(p, IDENTITY), 1.0 / (i + 1)) for i, p in enumerate(positions)))
+
+
+def test_each_object_takes_its_hypothesis_nearest_where_the_last_map_left_it() -> None:
+    remembered = {"a": Pose(BOTTOM, IDENTITY), "b": Pose(TOP, IDENTITY)}
+    far = (0.0, 0.0, 0.05 + NEAR + 0.01)
+    with_absent = RankedHypotheses((Hypothesis(Pose(TOP, IDENTITY), 0.6), absent_hypothesis(2, 0.4)))
+    hypotheses = (at(far, BOTTOM), at(FLOATING, (0.0, 0.005, 0.15), TOP), with_absent, at(TOP))
+    # a: its rank 2 lies where a rested; b: rank 3 is nearest; c (not in the map): absent; d: rank 1
+    assert previous_map_code("abcd", hypotheses, remembered) == (2, 3, 2, 1)
+    assert previous_map_code("ab", (at(far), at(FLOATING)), remembered) == (1, 1)  # none near: rank 1
+    assert previous_map_code("ab", hypotheses[:2], {}) is None  # no previous map
+
+
+def feed_poses(mapper: Mapper, name: str, positions: Sequence[tuple[float, float, float]], time: float) -> None:
+    """Named input: ``positions`` as hypotheses, weights 0.9, 0.1, ..."""
+    received = check_poses(
+        [(p, (0.0, 0.0, 0.0, 1.0)) for p in positions],
+        frame_id="world",
+        expected_frame="world",
+        workspace=STACK.workspace,
+        stamp_ns=int(time * 1e9),
+        received=time,
+    )
+    weights = [0.9, 0.1][: len(positions)]
+    mapper.inputs.add_poses(name, received.with_weights(check_weights(weights, received=time)))
+
+
+def stack_then(b_positions: Sequence[tuple[float, float, float]], params: SearchParams) -> TickReport:
+    """A valid stack mapped first, then b's new hypotheses searched under ``params``."""
+    mapper = Mapper(STACK)
+    feed_poses(mapper, "a", [BOTTOM], 0.0)
+    feed_poses(mapper, "b", [TOP], 0.0)
+    first = mapper.tick(0.1, MapperSettings(GENEROUS, INPUTS, rate_hz=0.1))
+    assert first.result is not None and first.result.valid and not first.result.previous_map
+    feed_poses(mapper, "b", b_positions, 0.5)
+    return mapper.tick(0.6, MapperSettings(params, INPUTS, rate_hz=0.1))
+
+
+def test_the_previous_map_is_the_map_where_the_search_finds_no_valid_one() -> None:
+    report = stack_then([FLOATING, TOP], ROOT_ONLY)
+    result = report.result
+    assert result is not None and result.stats.visited == 1 and result.stats.finished  # only the root, unstable
+    assert result.trace[0].outcome == "unstable"
+    assert result.valid and result.previous_map and result.code == (1, 2)  # b where it rested: its rank 2
+    assert result.fallback is None and result.groups[0].valid and result.groups[0].code == (1, 2)
+
+
+def test_the_search_s_own_valid_answer_stands() -> None:
+    result = stack_then([FLOATING, TOP], GENEROUS).result
+    assert result is not None and result.valid and result.code == (1, 2) and not result.previous_map
+
+
+def test_a_previous_map_the_new_hypotheses_cannot_hold_is_not_used() -> None:
+    result = stack_then([FLOATING], ROOT_ONLY).result  # b's only pose floats: nothing near where it rested
+    assert result is not None and not result.valid and not result.previous_map
+
+
+def box_detection(*positions: Sequence[float]) -> Any:
+    """A detection whose results are ``positions``, scored 0.9, 0.1, ..."""
+    return detection(*(result(p, score) for p, score in zip(positions, (0.9, 0.1), strict=False)))
+
+
+def test_a_new_instance_the_previous_map_leaves_out_keeps_its_track() -> None:
+    scene = scene_from_dict(
+        {"objects": [{"name": "box", "count": {"max": 3}, **BOX}], "static": [{"name": "floor", "shape": "plane"}]},
+        "test",
+    )
+    mapper = Mapper(scene)
+    first, second, new = (0.0, 0.0, 0.05), (0.3, 0.0, 0.05), (0.6, 0.0, 0.05)
+    for time in (0.0, 0.3):
+        mapper.add_detections(array([box_detection(first), box_detection(second)]), received=time)
+    held = mapper.tick(0.4, MapperSettings(GENEROUS, INPUTS, rate_hz=0.1))
+    assert held.result is not None and held.result.valid and held.absent == ("box_3",)
+    lifted = (first[0], first[1], first[2] + 0.04)  # box_1's best result now 4 cm up: the root is unstable
+    arrays = [box_detection(lifted, first), box_detection(second), box_detection(new)]
+    mapper.add_detections(array(arrays), received=0.8)
+    report = mapper.tick(0.9, MapperSettings(ROOT_ONLY, INPUTS, rate_hz=0.1))
+    assert report.tracking.births == ("box_3",)
+    assert report.result is not None and report.result.valid and report.result.previous_map
+    assert report.absent == ("box_3",)  # the last map did not hold it
+    after = mapper.tick(1.0, MapperSettings(GENEROUS, INPUTS, rate_hz=0.1))
+    assert after.tracking.ends == ()  # no verdict on box_3: its track goes on
+    assert after.result is not None and after.result.valid and after.absent == ()  # and the search places it
