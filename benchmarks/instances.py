@@ -1,27 +1,34 @@
 """Bins of identical objects as an estimator reports them: identities, maps and time per tick, in one run.
 
 Run: ``.venv/bin/python benchmarks/instances.py [--frames 30] [--particles 300] [--sizes 6 12 24] [--shapes box
-cylinder mesh] [--layers 1 2] [--seed 0] [-o DIR]``, or ``physics-mapper bench instances`` with the same options.
+cylinder mesh] [--layers 1 2] [--seed 0] [--scaled] [-o DIR]``, or ``physics-mapper bench instances`` with the
+same options.
 
 For each bin (N identical objects of one shape, in one or two layers, in a bin of four walls on a
-floor; ``count: N`` in the scene file), ``physics-mapper generate`` writes two bags from the same seed,
+floor; ``count: N`` in the scene file), ``physics-mapper generate`` writes three bags from the same seed,
 so with the same particle-filter hypotheses (the faults draw from a stream of their own):
 
 * **faulty**: ``--format detections`` at 2 Hz with the estimator's faults: order shuffled, 10 % misses,
   10 % false positives (half in the air, half inside the walls or the floor), 5 % double detections,
   3-5 results per detection, 25 % with a wrong pose (3 cm off) first, the best result scored 0.7 to 0.95,
   no ids;
-* **named**: the same hypotheses as PoseArrays per object name, in a stable order, without faults:
-  what a user gets when every object has a name of its own.
+* **identified**: the faulty bag's very detections (the same draws: ids draw nothing), each true object's
+  with a tracker's stable ``Detection3D.id`` (``--ids stable``; a double or a false positive gets an id of
+  its own): the same estimator with identities given, the reference for the position error by identity;
+* **named**: the same particle-filter hypotheses as PoseArrays per object name, in a stable order,
+  without any fault (no wrong pose first either): what a user gets from a faultless estimator that
+  names every object.
 
 Each bag is replayed offline as the node would tick (``replay_offline``: each snapshot searched to the
-scene's deadline, 0.2 s, the node's default, and the next snapshots following the map chosen: the map
+scene's deadline, 0.2 s, the node's default, or with ``--scaled`` to that deadline scaled to this
+machine, 0.2 s x reference / 6.3 ms; the next snapshots following the map chosen: the map
 remembered, instances confirmed by valid maps, left-out tentative ones ended) and scored by identity
 (:mod:`physics_mapper.evaluation.identity`). Printed per bin: identity switches, IDF1, MOTA, false
 positives in the map (map objects matched to no true object: a false detection or a second instance
-of one object), misses, snapshots with a valid map, the position error by identity of the faulty and
-the named bag, and the share of ticks whose search finished within the deadline (else it stopped
-there with its best so far). The reference settling (Rule 2 on the pyramid's three-cube stack, the
+of one object), misses, snapshots with a valid map (and among them the previous map's,
+:mod:`physics_mapper.mapping.previous_map`), the position error by identity of the faulty, the
+identified and the named bag, and the share of ticks whose search finished within the deadline (else it
+stopped there with its best so far). The reference settling (Rule 2 on the pyramid's three-cube stack, the
 median of 9, measured in this run) is printed first: deadlines scale with it (0.2 s at 6.3 ms).
 """
 
@@ -61,7 +68,11 @@ FAULTS = [
     "--format", "detections", "--shuffle", "--miss", "0.1", "--false-positives", "0.1", "--air-share", "0.5",
     "--double", "0.05", "--results", "3-5", "--wrong-first", "0.25", "--confidence", "0.7-0.95",
 ]  # fmt: skip
+#: The bags of one bin and their ``generate`` options (module docstring).
+BAGS = {"faulty": FAULTS, "identified": [*FAULTS, "--ids", "stable"], "named": []}
 GAP = 0.01  # metres between neighbours
+DEADLINE = 0.2  # s, the node's default
+NOMINAL_REFERENCE = 0.0063  # s, the reference settling on the machine the default deadline was set on
 
 
 def _extent(entry: dict[str, Any]) -> tuple[float, float, float]:
@@ -112,7 +123,7 @@ def bin_scene(shape: str, count: int, layers: int) -> dict[str, Any]:
             "jitter_threshold": 0.02,
             "angular_weight": 0.1,
             "settle_time": 0.5,
-            "deadline": 0.2,
+            "deadline": DEADLINE,
             "fallback": "refine",
         },
     }
@@ -140,9 +151,9 @@ def _generate(scene_file: Path, bag: Path, extra: list[str], frames: int, partic
         assert cli_main(arguments) == 0
 
 
-def replay(scene: Scene, bag: Path) -> dict[str, Any]:
-    """The offline replay's figures of one bag (module docstring)."""
-    results = replay_offline(read_bag(bag, input_topics(scene)), scene, scene.search.deadline)
+def replay(scene: Scene, bag: Path, deadline: float) -> dict[str, Any]:
+    """The offline replay's figures of one bag, each snapshot searched for ``deadline`` seconds (module docstring)."""
+    results = replay_offline(read_bag(bag, input_topics(scene)), scene, deadline)
     records = [snapshot_result_dict(r, scene.object_names) for r in results]
     identity = identity_metrics(record_frames(records))
     assert identity is not None
@@ -150,6 +161,7 @@ def replay(scene: Scene, bag: Path) -> dict[str, Any]:
     return {
         "snapshots": len(results),
         "valid": sum(1 for r in results if r.search is not None and r.search.valid),
+        "previous_map": sum(1 for r in results if r.search is not None and r.search.previous_map),
         "finished": finished,
         "identity": identity,
     }
@@ -163,14 +175,19 @@ def main() -> None:
     parser.add_argument("--shapes", nargs="+", default=list(SHAPES))
     parser.add_argument("--layers", type=int, nargs="+", default=[1, 2])
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument(
+        "--scaled", action="store_true", help="search each snapshot to the deadline scaled to this machine's reference"
+    )
     parser.add_argument("-o", "--output", type=Path, help="keep the scenes and bags here (default: a temporary folder)")
     args = parser.parse_args()
     reference = reference_settling()
-    print(f"reference settling (pyramid stack, Rule 2): {reference * 1000:.1f} ms; the 0.2 s deadline scaled to "
-          f"this machine is {0.2 * reference / 0.0063:.2f} s")  # fmt: skip
+    scaled = DEADLINE * reference / NOMINAL_REFERENCE
+    deadline = scaled if args.scaled else DEADLINE
+    print(f"reference settling (pyramid stack, Rule 2): {reference * 1000:.1f} ms; the {DEADLINE} s deadline scaled to "
+          f"this machine is {scaled:.2f} s; each snapshot searched for {deadline:.2f} s")  # fmt: skip
     header = (
-        "| bin | objects | switches | IDF1 | MOTA | FP in map | misses | valid maps | error by identity, faulty / "
-        "named [cm] | ticks finished within 0.2 s |"
+        "| bin | objects | switches | IDF1 | MOTA | FP in map | misses | valid maps (previous map's) | error by "
+        "identity, faulty / identified / named [cm] | ticks finished within the deadline |"
     )
     print(header)
     print("| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |")
@@ -184,16 +201,16 @@ def main() -> None:
                     scene_file = folder / f"{name}.yaml"
                     scene_file.write_text(yaml.safe_dump(bin_scene(shape, count, layers), sort_keys=False))
                     scene = load_scene(scene_file)
-                    _generate(scene_file, folder / f"{name}_faulty", FAULTS, args.frames, args.particles, args.seed)
-                    _generate(scene_file, folder / f"{name}_named", [], args.frames, args.particles, args.seed)
-                    faulty = replay(scene, folder / f"{name}_faulty")
-                    named = replay(scene, folder / f"{name}_named")
+                    for bag, extra in BAGS.items():
+                        _generate(scene_file, folder / f"{name}_{bag}", extra, args.frames, args.particles, args.seed)
+                    faulty = replay(scene, folder / f"{name}_faulty", deadline)
+                    references = [replay(scene, folder / f"{name}_{bag}", deadline) for bag in ("identified", "named")]
+                    errors = " / ".join(_cm(r["identity"]["identity_error_m"]) for r in (faulty, *references))
                     i, n = faulty["identity"], faulty["snapshots"]
-                    error = f"{_cm(i['identity_error_m'])} / {_cm(named['identity']['identity_error_m'])}"
                     print(
                         f"| {shape}, {layers} layer(s) | {count} | {i['switches']} | {i['idf1']:.3f} | "
-                        f"{i['mota']:.3f} | {i['false_positives']} | {i['misses']} | {faulty['valid']}/{n} | "
-                        f"{error} | {faulty['finished']}/{n} |",
+                        f"{i['mota']:.3f} | {i['false_positives']} | {i['misses']} | {faulty['valid']}/{n} "
+                        f"({faulty['previous_map']}) | {errors} | {faulty['finished']}/{n} |",
                         flush=True,
                     )
 
