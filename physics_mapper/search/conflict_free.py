@@ -8,7 +8,14 @@ them (its *prefix*), and its priority bounds the p(C) of every completion,
 
 the maximum over the ranks r of j that no one-assignment conflict rules out and that complete no
 conflict whose other objects are all in the prefix, each at one of the conflict's ranks (forward
-checking; ranks are in decreasing weight, so the first such rank). f never grows from a prefix to its
+checking; ranks are in decreasing weight, so the first such rank), divided by what resolving the
+conflicts the prefix holds costs the unassigned objects at least: a conflict with two or more objects
+after the prefix, whose objects in the prefix are all at its ranks, needs one of those objects at a rank
+outside its ranks, and object j pays at least its *penalty* there, w_j(first live rank) / w_j(best live
+rank outside the conflict's ranks); a conflict costs the least penalty of its objects, and conflicts
+without a common object (and without an object forward checking already priced) each cost theirs, so
+their costs multiply (an admissible bound: every completion pays them; a conflict none of whose objects
+can leave it kills the prefix). f never grows from a prefix to its
 children, so complete assignments come off the queue in decreasing p(C): a best-first enumeration. A
 prefix that holds a known conflict, or leaves some object no rank, is dropped with all its completions,
 so no candidate that holds a known conflict is ever made. Conflicts learned while nodes wait apply when
@@ -50,7 +57,7 @@ from collections.abc import Callable, Sequence
 from typing import NamedTuple
 
 from physics_mapper.search.branch_and_bound import tie_key
-from physics_mapper.search.conflicts import ConflictStore
+from physics_mapper.search.conflicts import Conflict, ConflictStore
 from physics_mapper.search.results import Code
 
 #: Relative slack of a prefix's key over the best p(C) of its completions: far more than the rounding of
@@ -228,7 +235,32 @@ class ConflictFreeCandidates:
         self._suffix = [math.prod(self._first[k:]) for k in range(count + 1)]
         self._open_from = [all(self._live[k:]) for k in range(count + 1)]
         self._held_at = [[j for j in range(k, count) if self._but[k][j]] for k in range(count + 1)]
+        self._penalties = [self._penalty(conflict) for conflict in self.store]
+        self._open: dict[int, list[tuple[int, float, frozenset[int]]]] = {}
         self._indexed = len(self.store)
+
+    def _penalty(self, conflict: Conflict) -> dict[int, float]:
+        """Per object of ``conflict`` (variable index j), what resolving it costs j at best: its first live
+        rank's weight over the weight of its best live rank outside the conflict's ranks (inf: none)."""
+        penalties = {}
+        for position, ranks in zip(conflict.positions, conflict.ranks, strict=True):
+            j = self._variable[position]
+            outside = [rank for rank in self._live[j] if rank not in ranks]
+            best = self._w[j][outside[0] - 1] if outside else 0.0
+            penalties[j] = self._first[j] / best if best > 0.0 else math.inf
+        return penalties
+
+    def _open_at(self, k: int) -> list[tuple[int, float, frozenset[int]]]:
+        """The conflicts with two or more objects at variable index k or after: (bit, the least any of those
+        objects pays to resolve it, those objects)."""
+        if k not in self._open:
+            found = []
+            for bit, penalties in enumerate(self._penalties):
+                after = {j: penalty for j, penalty in penalties.items() if j >= k}
+                if len(after) > 1:
+                    found.append((1 << bit, min(after.values()), frozenset(after)))
+            self._open[k] = found
+        return self._open[k]
 
     def _excluded(self, k: int, rank: int) -> int:
         return self.store.excluded(self._order[k], rank)
@@ -250,10 +282,12 @@ class ConflictFreeCandidates:
         best = self._suffix[k]
         inside = ~prefix.outside
         but = self._but[k]
+        forced: set[int] = set()
         for j in self._held_at[k]:
             held = but[j] & inside
             if not held:
                 continue
+            forced.add(j)
             live = self._live[j]
             excluded = self.store.excluded
             position = self._order[j]
@@ -264,6 +298,22 @@ class ConflictFreeCandidates:
                 return None
             if rank != live[0] and best > 0.0:  # the first live rank's weight is in the suffix product
                 best *= self._w[j][rank - 1] / self._first[j]
+        return self._resolving(k, inside, forced, best)
+
+    def _resolving(self, k: int, inside: int, forced: set[int], best: float) -> float | None:
+        """``best`` divided by what resolving the conflicts the prefix of length k holds (``inside``: bits of
+        those it does not resolve) costs the objects after it at least (None: one cannot be resolved). Each
+        needs one of its objects after k at a rank outside its ranks, for at least that object's penalty
+        (:meth:`_penalty`); conflicts without a common object, and none of the ``forced`` objects (forward
+        checking priced them), need that many: their least penalties multiply."""
+        held = sorted(((penalty, objects) for bit, penalty, objects in self._open_at(k) if bit & inside), reverse=True)
+        used = forced
+        for penalty, objects in held:
+            if math.isinf(penalty):
+                return None
+            if penalty > 1.0 and not objects & used:
+                best /= penalty
+                used = used | objects
         return best
 
     def _take_up(self, node: _Node) -> _Candidate | None:
