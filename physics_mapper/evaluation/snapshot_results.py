@@ -29,7 +29,7 @@ from physics_mapper.evaluation.identity import identity_metrics, identity_text, 
 from physics_mapper.evaluation.scoring import position_errors, rank_one_poses
 from physics_mapper.evaluation.snapshots import BagSnapshot, bag_snapshots
 from physics_mapper.mapping.association import AssociationSettings
-from physics_mapper.mapping.previous_map import run_with_previous_map
+from physics_mapper.mapping.previous_map import search_with_previous_map
 from physics_mapper.mapping.topics import MAP_TOPIC_QOS, RECORDED_CONFIGURATION_TOPIC, RECORDED_SETTLED_TOPIC
 from physics_mapper.model.geometry import Pose, is_same_pose
 from physics_mapper.model.hypotheses import RankedHypotheses
@@ -37,7 +37,6 @@ from physics_mapper.model.scene import Scene
 from physics_mapper.physics.checker import PhysicsChecker
 from physics_mapper.search.report import code_text
 from physics_mapper.search.results import Code, SearchResult
-from physics_mapper.search.strategy import make_search
 
 #: A published pose is a hypothesis whose position is this close (metres) and whose orientation q'
 #: has 1 - |q . q'| at most :data:`SAME_ORIENTATION` (an angle of 2.8e-6 rad). Not a tolerance on the
@@ -95,9 +94,10 @@ class OfflineSearch:
         self.results: list[SnapshotResult] = []
 
     def __call__(self, snapshot: BagSnapshot) -> SearchResult:
-        search = make_search(self.checker, snapshot.hypotheses, self.scene.search)
         remembered = dict(snapshot.remembered)
-        found, _ = run_with_previous_map(search, self.checker, self.scene.object_names, remembered, self.budget)
+        _, found, _ = search_with_previous_map(
+            self.checker, snapshot.hypotheses, self.scene.search, remembered, self.budget
+        )
         self.results.append(SnapshotResult(snapshot, found.code, found.poses, found.settled_poses, found))
         if self.progress is not None:
             self.progress(len(self.results) - 1, found)

@@ -26,7 +26,7 @@ from physics_mapper.mapping.existence import (
 )
 from physics_mapper.mapping.frames import Transform
 from physics_mapper.mapping.inputs import InputSettings, InputSnapshot, InputTracker
-from physics_mapper.mapping.previous_map import PreviousMapCheck, run_with_previous_map
+from physics_mapper.mapping.previous_map import PreviousMapCheck, search_with_previous_map
 from physics_mapper.model.hypotheses import RankedHypotheses
 from physics_mapper.model.scene import Scene, SearchParams, search_params_problem
 from physics_mapper.physics.checker import PhysicsChecker
@@ -35,7 +35,6 @@ from physics_mapper.physics.world import PhysicsEngineError
 from physics_mapper.search.branch_and_bound import BranchAndBound
 from physics_mapper.search.grouped import GroupedSearch
 from physics_mapper.search.results import Code, SearchResult
-from physics_mapper.search.strategy import make_search
 
 #: Seconds a tick's search may run past its deadline: the search looks at the clock every
 #: few simulation steps and then assembles its result. The overrun measured here is about a
@@ -221,12 +220,16 @@ class Mapper:
             load_solver()  # the first time: 0.2 s outside the deadline (not imported before, for memory)
         started = time.monotonic()
         previous = self._search
-        search = self._search = make_search(self.checker, hypotheses, settings.search, previous)
-        budget = max(0.0, settings.search.deadline - (time.monotonic() - started))
-        names, remembered = self.scene.object_names, self.memory.settled
-        result, self._previous_map = run_with_previous_map(
-            search, self.checker, names, remembered, budget, self._previous_map
+        search, result, self._previous_map = search_with_previous_map(
+            self.checker,
+            hypotheses,
+            settings.search,
+            self.memory.settled,
+            settings.search.deadline,
+            previous,
+            self._previous_map,
         )
+        self._search = search
         elapsed = time.monotonic() - started
         group = search.settling_group if isinstance(search, GroupedSearch) else None
         return TickReport(

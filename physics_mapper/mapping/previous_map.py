@@ -18,7 +18,10 @@ So before a new search runs, the tick checks one configuration, the *previous ma
 It is checked by Rule 1 (the collision pass of every object) and Rule 2 (a settling of every object,
 ended early at rest as the search's are), within half the deadline. The search's own answer stands
 whenever it is valid: it is the paper's. Only when the search ends without a valid configuration is a
-valid previous-map configuration the tick's map, valid, with ``previous_map`` set in the result.
+valid previous-map configuration the tick's map, valid, with ``previous_map`` set in the result. Where
+it passed, the search runs without its ``fallback``: a fallback map (the refined root, the settled first
+collision-free configuration) would only stand in for a valid map that exists, and making it takes the
+search's time (the refined root of 24 cylinders in two layers took most of a 0.2 s tick).
 
 Such a map is no verdict on the objects it leaves out (:func:`~physics_mapper.mapping.existence.left_out_by_physics`):
 a new instance is left out only because the last map did not hold it, so its track goes on and the
@@ -38,8 +41,10 @@ from physics_mapper.model.hypotheses import RankedHypotheses
 from physics_mapper.model.scene import SearchParams
 from physics_mapper.physics.checker import PhysicsChecker
 from physics_mapper.physics.settling import Settling, early_exit_rule
-from physics_mapper.search.branch_and_bound import Search
+from physics_mapper.search.branch_and_bound import BranchAndBound, Search
+from physics_mapper.search.grouped import GroupedSearch
 from physics_mapper.search.results import Code, SearchResult
+from physics_mapper.search.strategy import make_search, searchable
 
 #: How far (m) a hypothesis may lie from the previous map's pose of its object to stand for it there.
 NEAR = 0.02
@@ -93,27 +98,34 @@ def check_previous_map(
     return PreviousMapCheck(hypotheses, code, outcome if valid and isinstance(outcome, Settling) else None)
 
 
-def run_with_previous_map(
-    search: Search,
+def search_with_previous_map(
     checker: PhysicsChecker,
-    names: Sequence[str],
+    hypotheses: Sequence[RankedHypotheses],
+    params: SearchParams,
     remembered: Mapping[str, Pose],
     budget: float | None,
+    previous: Search | None = None,
     last: PreviousMapCheck | None = None,
-) -> tuple[SearchResult, PreviousMapCheck | None]:
-    """Check the previous map's configuration (within half of ``budget`` seconds; ``last`` is reused if it
-    checked the same configuration of the same hypotheses), run ``search`` for the rest of ``budget``, and
-    give its result, or the previous map where that is the valid one (module docstring); with the check."""
+) -> tuple[BranchAndBound | GroupedSearch, SearchResult, PreviousMapCheck | None]:
+    """A tick's search with the previous map first (module docstring): the previous map's configuration
+    checked within half of ``budget`` seconds (``last`` reused if it checked the same configuration of the
+    same hypotheses), then the search made (:func:`~physics_mapper.search.strategy.make_search`, carrying
+    over ``previous``) and run for the rest of ``budget``. Where the previous map passed, the search runs
+    without its fallback (a fallback map would only stand in for the previous map). Returns the search, its
+    result or the previous map's where that is the valid one, and the check."""
     started = time.monotonic()
-    hypotheses = search.hypotheses
-    code = previous_map_code(names, hypotheses, remembered)
+    hypotheses = searchable(hypotheses)
+    code = previous_map_code(checker.scene.object_names, hypotheses, remembered)
     check = last if last is not None and (last.hypotheses, last.code) == (hypotheses, code) else None
     # A settling the deadline interrupted lives in the world until the search resumes it.
-    if check is None and code is not None and search.settling_in_progress is None:
+    waiting = previous is not None and previous.settling_in_progress is not None
+    if check is None and code is not None and not waiting:
         stop_at = None if budget is None else started + budget / 2.0
-        check = check_previous_map(checker, hypotheses, code, search.params, stop_at)
+        check = check_previous_map(checker, hypotheses, code, params, stop_at)
+    passed = check is not None and check.settling is not None
+    search = make_search(checker, hypotheses, replace(params, fallback="none") if passed else params, previous)
     remaining = None if budget is None else max(0.0, budget - (time.monotonic() - started))
-    return with_previous_map(search.run(remaining), check), check
+    return search, with_previous_map(search.run(remaining), check), check
 
 
 def with_previous_map(result: SearchResult, check: PreviousMapCheck | None) -> SearchResult:

@@ -34,8 +34,7 @@ def make_search(
     parameters that only change the deadline or the fallback, ``previous`` itself is returned, to be
     resumed; a grouped search also keeps every group whose objects' hypotheses are unchanged.
     """
-    # Bounded before any pairwise step (grouping, the collision table), whatever the caller passed.
-    hypotheses = tuple(ranked.heaviest(MAX_SEARCHED_HYPOTHESES) for ranked in hypotheses)
+    hypotheses = searchable(hypotheses)
     if params.fallback == "refine":
         load_solver()  # before the deadline starts (once per process)
     if params.strategy == "joint":
@@ -46,6 +45,13 @@ def make_search(
     if params.strategy == "grouped":
         return GroupedSearch.following(checker, hypotheses, params, previous)
     return ConflictSearch.following(checker, hypotheses, params, previous)
+
+
+def searchable(hypotheses: Sequence[RankedHypotheses]) -> tuple[RankedHypotheses, ...]:
+    """Each object's heaviest :data:`~physics_mapper.model.limits.MAX_SEARCHED_HYPOTHESES`, the hypotheses
+    a search ranks: bounded before any pairwise step (grouping, the collision table), whatever the caller
+    passed."""
+    return tuple(ranked.heaviest(MAX_SEARCHED_HYPOTHESES) for ranked in hypotheses)
 
 
 def solve(checker: PhysicsChecker, hypotheses: Sequence[RankedHypotheses], params: SearchParams) -> SearchResult:
