@@ -31,8 +31,7 @@ from physics_mapper.model.scene import Scene, SearchParams, search_params_proble
 from physics_mapper.physics.checker import PhysicsChecker
 from physics_mapper.physics.refine import load_solver
 from physics_mapper.physics.world import PhysicsEngineError
-from physics_mapper.search.branch_and_bound import BranchAndBound
-from physics_mapper.search.grouped import GroupedSearch
+from physics_mapper.search.best_first import Search
 from physics_mapper.search.results import Code, SearchResult
 from physics_mapper.search.strategy import make_search
 
@@ -129,7 +128,7 @@ class Mapper:
         self._births: list[str] = []
         self._ends: list[str] = []
         self._checker: PhysicsChecker | None = PhysicsChecker(scene)
-        self._search: BranchAndBound | GroupedSearch | None = None
+        self._search: Search | None = None
 
     def add_detections(
         self,
@@ -222,7 +221,12 @@ class Mapper:
         search = self._search = make_search(self.checker, hypotheses, settings.search, previous)
         result = search.run(max(0.0, settings.search.deadline - (time.monotonic() - started)))
         elapsed = time.monotonic() - started
-        group = search.settling_group if isinstance(search, GroupedSearch) else None
         return TickReport(
-            snapshot, result, elapsed, search is previous, settings, search.settling_in_progress, settling_group=group
+            snapshot,
+            result,
+            elapsed,
+            search is previous,
+            settings,
+            search.settling_in_progress,
+            settling_group=search.settling_group,
         )
