@@ -23,7 +23,7 @@ from typing import Generic, Protocol, cast
 
 from physics_mapper.model.hypotheses import RankedHypotheses
 from physics_mapper.model.limits import MAX_SEARCHED_HYPOTHESES
-from physics_mapper.model.scene import SearchParams
+from physics_mapper.model.scene import SearchParams, Strategy
 from physics_mapper.physics.checker import PhysicsChecker
 from physics_mapper.physics.collision_table import CollisionTable
 from physics_mapper.physics.refine import load_solver
@@ -157,7 +157,7 @@ class Grouped(Generic[G, R]):
 
 
 #: Every ``strategy:``, as the parts it is composed of (module docstring).
-STRATEGIES: dict[str, Composition] = {
+STRATEGIES: dict[Strategy, Composition] = {
     "joint": Joint(),
     "grouped": Grouped(paper_group, NothingCarried()),
     "conflict": Grouped(conflict_group, ConflictCarryOver()),
