@@ -72,6 +72,8 @@ from physics_mapper.search.results import (
 WeightTable = tuple[tuple[float, ...], ...]
 #: A conflict named for the trace: its assignments as (object name, rank).
 NamedConflict = tuple[tuple[str, int], ...]
+#: The counters of :class:`SearchStats` a group's part of a result (:class:`GroupResult`) carries.
+GROUP_COUNTERS = ("visited", "conflicts", "conflicts_kept", "skipped", "local_settlings", "full_settlings")
 
 
 def tie_key(probability: float) -> float:
@@ -295,16 +297,6 @@ class BestFirst(Generic[G, R]):
     def poses(self, code: Code) -> tuple[Pose, ...]:
         """The chosen hypotheses' poses, in object order."""
         return tuple(h.pose(rank) for h, rank in zip(self.hypotheses, code, strict=True))
-
-    @property
-    def root_probability(self) -> float:
-        """p(root): a grouped search schedules groups by p(C) relative to it."""
-        return self.bound.root_probability
-
-    @property
-    def ruled_out(self) -> tuple[RuledOut, ...]:
-        """Ranks the generator ruled out before the first candidate, with why."""
-        return self.candidates.ruled_out
 
     @property
     def settling_in_progress(self) -> Code | None:
@@ -531,15 +523,10 @@ class BestFirst(Generic[G, R]):
             code=None if chosen is None else chosen.code,
             probability=None if chosen is None else chosen.probability,
             jitter=None if chosen is None else chosen.settling.total_jitter,
-            visited=stats.visited,
             end=stats.end,
             kept=kept,
-            conflicts=stats.conflicts,
-            conflicts_kept=stats.conflicts_kept,
-            skipped=stats.skipped,
-            local_settlings=stats.local_settlings,
-            full_settlings=stats.full_settlings,
-            ruled_out=self.ruled_out,
+            ruled_out=self.candidates.ruled_out,
+            **{name: getattr(stats, name) for name in GROUP_COUNTERS},
         )
 
     @property

@@ -343,7 +343,12 @@ class GroupedSearch(Generic[G, R]):
             return (0, 0, -1.0, group.objects[0])  # work the last deadline interrupted, or a due refined map
         next_probability = group.next_probability
         assert next_probability is not None
-        return (1, 0 if group.best_valid is None else 1, -next_probability / group.root_probability, group.objects[0])
+        return (
+            1,
+            0 if group.best_valid is None else 1,
+            -next_probability / group.bound.root_probability,
+            group.objects[0],
+        )
 
     def _reschedule(self, group_id: int) -> None:
         group = self._groups[group_id]

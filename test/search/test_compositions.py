@@ -7,13 +7,15 @@ parts alone, without a new class, with the joint search's answers on the shipped
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import replace
-from typing import get_args
+from typing import Any, get_args
 
 import pytest
 from conftest import REPO
 
-from physics_mapper.model.scene import Strategy
+from physics_mapper.model.hypotheses import RankedHypotheses
+from physics_mapper.model.scene import SearchParams, Strategy
 from physics_mapper.model.scene_files import load_problem
 from physics_mapper.physics.checker import PhysicsChecker
 from physics_mapper.physics.collision_table import CollisionTable
@@ -30,6 +32,8 @@ from physics_mapper.search.strategy import STRATEGIES, make_search, paper_search
 from physics_mapper.search.trial_settling import TrialSettling
 
 PAPER_PROBLEMS = ("stack", "pyramid", "peg_in_hole", "sphere_groove")
+#: A core composed in a test from parts (of whatever kinds).
+Composed = BestFirst[Any, Any]
 
 
 def decisions(result: SearchResult) -> list[tuple[object, ...]]:
@@ -59,29 +63,67 @@ def test_each_strategy_is_one_composition_of_parts_in_one_table() -> None:
     }
 
 
-@pytest.mark.parametrize("problem", PAPER_PROBLEMS)
-def test_the_pairwise_table_with_full_settling_gives_the_joint_trace(problem: str) -> None:
-    """The paper's queue and full settling with Rule 1 from the pairwise table: no strategy's parts, the
-    joint search's trace node for node (the table decides Rule 1 as the full pass does)."""
+#: Makes a core over every object from its parts, given the checker, hypotheses, parameters and a pairwise table.
+CoreMaker = Callable[[PhysicsChecker, tuple[RankedHypotheses, ...], SearchParams, CollisionTable], Composed]
+
+
+def with_joint(problem: str, make: CoreMaker) -> tuple[SearchResult, SearchResult]:
+    """The paper problem searched to its end by the core ``make`` composes, and by the joint search."""
     loaded = load_problem(REPO / "config" / "problems" / f"{problem}.yaml", lambda _: None)
     scene, hypotheses = loaded.scene, loaded.hypotheses
     params = replace(scene.search, trace_limit=None)
     with PhysicsChecker(scene) as checker:
         joint = paper_search(checker, hypotheses, params).run(None)
-        objects = checker.all_objects
-        table = CollisionTable(checker, hypotheses)
-        composed = BestFirst(
-            checker,
-            hypotheses,
-            params,
-            objects,
-            candidates=PaperQueue(hypotheses, params.queue_limit),
-            rule1=PairwiseTable(checker, objects, params.penetration_threshold, lambda: table),
-            rule2=FullSettling(checker, objects, params),
-            bound=Bound.of(params, weight_table(hypotheses)),
-            trace=Trace(params.trace_limit),
-        )
-        result = composed.run(None)
+        return make(checker, hypotheses, params, CollisionTable(checker, hypotheses)).run(None), joint
+
+
+def table_and_full_settling(
+    checker: PhysicsChecker, hypotheses: tuple[RankedHypotheses, ...], params: SearchParams, table: CollisionTable
+) -> Composed:
+    objects = checker.all_objects
+    queue = PaperQueue(hypotheses, params.queue_limit)
+    from_table = PairwiseTable(checker, objects, params.penetration_threshold, lambda: table)
+    bound = Bound.of(params, weight_table(hypotheses))
+    return BestFirst(
+        checker,
+        hypotheses,
+        params,
+        objects,
+        candidates=queue,
+        rule1=from_table,
+        rule2=FullSettling(checker, objects, params),
+        bound=bound,
+        trace=Trace(params.trace_limit),
+    )
+
+
+def conflict_free_and_full_pass(
+    checker: PhysicsChecker, hypotheses: tuple[RankedHypotheses, ...], params: SearchParams, table: CollisionTable
+) -> Composed:
+    objects, scene = checker.all_objects, checker.scene
+    bound = Bound.of(params, weight_table(hypotheses))
+    blame = Blame([o.shape for o in scene.objects], hypotheses, params)
+    grouping = interaction_groups(scene, hypotheses, params.interaction_margin)
+    return BestFirst(
+        checker,
+        hypotheses,
+        params,
+        objects,
+        candidates=ConflictDirectedCandidates(
+            checker, objects, hypotheses, params, grouping, lambda: table, blame, bound, None
+        ),
+        rule1=FullCollisionPass(checker, params.penetration_threshold),
+        rule2=FullSettling(checker, objects, params),
+        bound=bound,
+        trace=Trace(params.trace_limit),
+    )
+
+
+@pytest.mark.parametrize("problem", PAPER_PROBLEMS)
+def test_the_pairwise_table_with_full_settling_gives_the_joint_trace(problem: str) -> None:
+    """The paper's queue and full settling with Rule 1 from the pairwise table: no strategy's parts, the
+    joint search's trace node for node (the table decides Rule 1 as the full pass does)."""
+    result, joint = with_joint(problem, table_and_full_settling)
     assert decisions(result) == decisions(joint) and len(result.trace) == joint.stats.visited
     assert (result.valid, result.code, result.stats.end) == (joint.valid, joint.code, joint.stats.end)
     assert result.stats.settle_steps == joint.stats.settle_steps  # the same settlings, counted by the part
@@ -92,31 +134,7 @@ def test_conflict_free_generation_with_the_full_collision_pass_gives_the_joint_a
     """Conflict-free generation with the full collision pass and full settling, over every object: the
     joint search's answer, found checking only configurations the joint search checks, the same valid
     ones among them (no valid configuration holds a conflict)."""
-    loaded = load_problem(REPO / "config" / "problems" / f"{problem}.yaml", lambda _: None)
-    scene, hypotheses = loaded.scene, loaded.hypotheses
-    params = replace(scene.search, trace_limit=None)
-    with PhysicsChecker(scene) as checker:
-        joint = paper_search(checker, hypotheses, params).run(None)
-        objects = checker.all_objects
-        table = CollisionTable(checker, hypotheses)
-        bound = Bound.of(params, weight_table(hypotheses))
-        blame = Blame([o.shape for o in scene.objects], hypotheses, params)
-        grouping = interaction_groups(scene, hypotheses, params.interaction_margin)
-        candidates = ConflictDirectedCandidates(
-            checker, objects, hypotheses, params, grouping, lambda: table, blame, bound, None
-        )
-        composed = BestFirst(
-            checker,
-            hypotheses,
-            params,
-            objects,
-            candidates=candidates,
-            rule1=FullCollisionPass(checker, params.penetration_threshold),
-            rule2=FullSettling(checker, objects, params),
-            bound=bound,
-            trace=Trace(params.trace_limit),
-        )
-        result = composed.run(None)
+    result, joint = with_joint(problem, conflict_free_and_full_pass)
     assert (result.valid, result.code) == (joint.valid, joint.code)
     checked = {entry.code: entry.outcome for entry in result.trace}
     paper = {entry.code: entry.outcome for entry in joint.trace}
