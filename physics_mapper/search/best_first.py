@@ -561,10 +561,9 @@ class BestFirst(Generic[G, R]):
 
 
 class Search(Protocol):
-    """What every search offers its callers (a :class:`BestFirst` over all objects, or a grouped search).
-
-    ``strategy`` names the composition it was built as (:mod:`physics_mapper.search.strategy`).
-    """
+    """What every search offers its callers (a :class:`BestFirst` over all objects, or a grouped search):
+    run it to a deadline and resume it, its result so far, whether it is done, what it holds queued, and
+    the candidate (and its group's id, for a grouped search) whose settling the deadline cut short."""
 
     checker: PhysicsChecker
     hypotheses: tuple[RankedHypotheses, ...]
