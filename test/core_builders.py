@@ -20,8 +20,8 @@ from physics_mapper.model.hypotheses import Hypothesis, RankedHypotheses
 from physics_mapper.model.scene import Box, ObjectModel, Plane, Scene, SearchParams, StaticBody
 from physics_mapper.model.scene_files import load_scene
 from physics_mapper.physics.checker import PhysicsChecker
-from physics_mapper.search.branch_and_bound import BranchAndBound
 from physics_mapper.search.results import Code, SearchResult
+from physics_mapper.search.strategy import paper_search
 
 #: Edge length of the test cubes.
 CUBE_SIZE = 0.1
@@ -81,7 +81,7 @@ def run_search(
 ) -> SearchResult:
     """Search until the queue is empty (no deadline) in a fresh checker."""
     with PhysicsChecker(scene) as checker:
-        return BranchAndBound(checker, hypotheses, params or SearchParams()).run(None)
+        return paper_search(checker, hypotheses, params or SearchParams()).run(None)
 
 
 def shipped_scene(scene_file: str) -> Scene:

@@ -32,8 +32,7 @@ from physics_mapper.model.scene import Scene, SearchParams, search_params_proble
 from physics_mapper.physics.checker import PhysicsChecker
 from physics_mapper.physics.refine import load_solver
 from physics_mapper.physics.world import PhysicsEngineError
-from physics_mapper.search.branch_and_bound import BranchAndBound
-from physics_mapper.search.grouped import GroupedSearch
+from physics_mapper.search.best_first import Search
 from physics_mapper.search.results import Code, SearchResult
 
 #: Seconds a tick's search may run past its deadline: the search looks at the clock every
@@ -129,7 +128,7 @@ class Mapper:
         self._births: list[str] = []
         self._ends: list[str] = []
         self._checker: PhysicsChecker | None = PhysicsChecker(scene)
-        self._search: BranchAndBound | GroupedSearch | None = None
+        self._search: Search | None = None
         self._previous_map: PreviousMapCheck | None = None  # the last tick's check of the previous map
 
     def add_detections(
@@ -231,7 +230,12 @@ class Mapper:
         )
         self._search = search
         elapsed = time.monotonic() - started
-        group = search.settling_group if isinstance(search, GroupedSearch) else None
         return TickReport(
-            snapshot, result, elapsed, search is previous, settings, search.settling_in_progress, settling_group=group
+            snapshot,
+            result,
+            elapsed,
+            search is previous,
+            settings,
+            search.settling_in_progress,
+            settling_group=search.settling_group,
         )

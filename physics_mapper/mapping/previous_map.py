@@ -41,8 +41,7 @@ from physics_mapper.model.hypotheses import RankedHypotheses
 from physics_mapper.model.scene import SearchParams
 from physics_mapper.physics.checker import PhysicsChecker
 from physics_mapper.physics.settling import Settling, early_exit_rule
-from physics_mapper.search.branch_and_bound import BranchAndBound, Search
-from physics_mapper.search.grouped import GroupedSearch
+from physics_mapper.search.best_first import Search
 from physics_mapper.search.results import Code, SearchResult
 from physics_mapper.search.strategy import make_search, searchable
 
@@ -106,7 +105,7 @@ def search_with_previous_map(
     budget: float | None,
     previous: Search | None = None,
     last: PreviousMapCheck | None = None,
-) -> tuple[BranchAndBound | GroupedSearch, SearchResult, PreviousMapCheck | None]:
+) -> tuple[Search, SearchResult, PreviousMapCheck | None]:
     """A tick's search with the previous map first (module docstring): the previous map's configuration
     checked within half of ``budget`` seconds (``last`` reused if it checked the same configuration of the
     same hypotheses), then the search made (:func:`~physics_mapper.search.strategy.make_search`, carrying

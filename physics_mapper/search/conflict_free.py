@@ -56,7 +56,7 @@ import time
 from collections.abc import Callable, Sequence
 from typing import NamedTuple
 
-from physics_mapper.search.branch_and_bound import tie_key
+from physics_mapper.search.best_first import tie_key
 from physics_mapper.search.conflicts import Conflict, ConflictStore
 from physics_mapper.search.results import Code
 

@@ -1,19 +1,21 @@
-"""The paper's Algorithm 1 per interaction group, under one shared deadline.
+"""Interaction groups under one shared deadline: the grouped scheduler.
 
 Objects of different interaction groups (:mod:`physics_mapper.search.groups`) never influence each
-other's Rule 1 or Rule 2 outcomes, so each group is searched on its own, by :class:`GroupSearch`:
-Algorithm 1 with its own queue, tie rule and bound (relative to the group's root with
-``bound: relative``), only the group's objects simulated (the others parked, massless), Rule 1 from
-the shared pairwise table (:mod:`physics_mapper.physics.collision_table`). A scene is valid iff every
-group is; its code joins the groups' codes, p(C) is the product of theirs, J the sum.
+other's Rule 1 or Rule 2 outcomes, so each group is searched on its own, by a
+:class:`~physics_mapper.search.best_first.BestFirst` core the *group builder* makes (the paper's parts,
+or the conflict-directed ones: :mod:`physics_mapper.search.strategy`): its own queue, tie rule and bound
+(relative to the group's root with ``bound: relative``), only the group's objects simulated (the others
+parked, massless), Rule 1 from the shared pairwise table (:mod:`physics_mapper.physics.collision_table`).
+A scene is valid iff every group is; its code joins the groups' codes, p(C) is the product of theirs,
+J the sum.
 
-One deadline for all groups. The search visits one node at a time, always of the group first in
+One deadline for all groups. The search visits one candidate at a time, always of the group first in
 this order:
 
 1. the group whose settling the last deadline interrupted (it continues where it stopped);
 2. groups without a valid configuration yet, before groups that have one (the scene is valid only
    once every group is);
-3. the group whose next node is the most probable relative to its root, p(C) / p(root);
+3. the group whose next candidate is the most probable relative to its root, p(C) / p(root);
 4. the group of the lowest object index.
 
 The result, at any moment, combines every group's best so far (or its fallback).
@@ -23,10 +25,14 @@ volume, the groups concerned are merged and the merged group is searched again f
 visits of the groups it replaces leave the trace). Merged objects stay together in later searches
 (the node's next ticks) while their hypotheses are unchanged.
 
-Settle memo: each group remembers up to its share of :data:`SETTLE_MEMO_LIMIT` settlings by sub-code.
-A group searched again with the same objects, hypotheses and physics parameters (settle_time,
-angular_weight, jitter_threshold, settle_exit), e.g. after a change of T, reuses them instead of
-simulating; anything else starts an empty memo.
+Settle memo: each group remembers up to its share of :data:`~physics_mapper.search.rule2.SETTLE_MEMO_LIMIT`
+settlings by sub-code (:class:`~physics_mapper.search.rule2.SettleMemo`), kept by a group searched
+again with the same objects and hypotheses.
+
+Carry-over: a group searched anew because some of its objects got new hypotheses keeps, through the
+*carry-over* part, what the previous search's groups learned about the others (the conflict-directed
+search's conflicts and stable contexts); so does a group the escape guard merged, of the groups it
+replaces.
 """
 
 from __future__ import annotations
@@ -34,10 +40,9 @@ from __future__ import annotations
 import heapq
 import math
 import time
-from array import array
 from collections.abc import Sequence
-from dataclasses import replace
-from typing import NamedTuple
+from dataclasses import dataclass
+from typing import Generic, Protocol
 
 import numpy as np
 
@@ -48,20 +53,11 @@ from physics_mapper.model.scene import SearchParams
 from physics_mapper.physics.checker import PhysicsChecker
 from physics_mapper.physics.collision_table import CollisionTable
 from physics_mapper.physics.refine import RefinedMap
-from physics_mapper.physics.settling import PartialSettling, SettleStop, Settling
-from physics_mapper.search.branch_and_bound import BranchAndBound, Search, continuable, resumable
+from physics_mapper.physics.settling import Settling
+from physics_mapper.search.best_first import BestFirst, G, R, Trace, continuable, resumable
 from physics_mapper.search.groups import Grouping, interaction_groups
 from physics_mapper.search.results import Code, SearchEnd, SearchResult, SearchStats, TraceEntry
-
-#: Settlings a grouped search remembers (each group an equal share), a few hundred bytes each.
-SETTLE_MEMO_LIMIT = 5_000
-
-#: The parameters a settling's outcome depends on (a memo is valid while they are unchanged).
-PhysicsKey = tuple[float, float, float, str]
-
-
-def physics_key(params: SearchParams) -> PhysicsKey:
-    return (params.settle_time, params.angular_weight, params.jitter_threshold, params.settle_exit)
+from physics_mapper.search.rule2 import SETTLE_MEMO_LIMIT, SettleMemo, physics_key
 
 
 class Escape(Exception):  # not an error: the guard's signal to merge groups
@@ -72,101 +68,46 @@ class Escape(Exception):  # not an error: the guard's signal to merge groups
         self.groups = groups
 
 
-class _FlatSettling(NamedTuple):
-    """A settling in a few hundred bytes: its numbers in one array (which the garbage collector skips)."""
+class GroupLink:
+    """What a group's parts share with the grouped search that holds the group: the pairwise table, the
+    grouping and the trace. A later search that adopts the group points them at its own."""
 
-    stopped: SettleStop | None
-    steps: int
-    steps_total: int
-    numbers: array[float]  # per object its jitter, then per object position x, y, z and orientation x, y, z, w
+    def __init__(self, table: CollisionTable, grouping: Grouping, trace: Trace) -> None:
+        self.table = table
+        self.grouping = grouping
+        self.trace = trace
 
-    @classmethod
-    def of(cls, settling: Settling) -> _FlatSettling:
-        numbers = array("d", settling.jitters)
-        for pose in settling.settled_poses:
-            numbers.extend((*pose.position, *pose.orientation))
-        return cls(settling.stopped, settling.steps, settling.steps_total, numbers)
+    def collision_table(self) -> CollisionTable:
+        return self.table
 
-    def settling(self) -> Settling:
-        n = self.numbers
-        count = len(n) // 8
-        poses = tuple(
-            Pose((n[i], n[i + 1], n[i + 2]), (n[i + 3], n[i + 4], n[i + 5], n[i + 6])) for i in range(count, len(n), 7)
-        )
-        return Settling(poses, tuple(n[:count]), self.stopped, self.steps, self.steps_total)
+    def record(self, entry: TraceEntry) -> None:
+        self.trace.record(entry)
 
+    @property
+    def entries(self) -> list[TraceEntry]:
+        return self.trace.entries
 
-class SettleMemo:
-    """Settlings of one group's sub-configurations, valid for given hypotheses and physics parameters.
-
-    A settling stopped beyond the jitter threshold does not serve a node that needs a complete one.
-    Settlings are kept as numbers only, so a full memo costs no garbage-collection pauses.
-    """
-
-    def __init__(self, hypotheses: tuple[RankedHypotheses, ...], key: PhysicsKey, limit: int) -> None:
-        self.hypotheses = hypotheses
-        self.key = key
-        self.limit = limit
-        self._settlings: dict[Code, _FlatSettling] = {}
-
-    def serves(self, hypotheses: tuple[RankedHypotheses, ...], key: PhysicsKey) -> bool:
-        return self.hypotheses == hypotheses and self.key == key
-
-    def get(self, code: Code, complete: bool) -> Settling | None:
-        flat = self._settlings.get(code)
-        if flat is None or (complete and flat.stopped == "beyond_threshold"):
-            return None
-        return flat.settling()
-
-    def put(self, code: Code, settling: Settling) -> None:
-        if code not in self._settlings and len(self._settlings) >= self.limit and self._settlings:
-            del self._settlings[next(iter(self._settlings))]  # the oldest
-        self._settlings[code] = _FlatSettling.of(settling)
+    @property
+    def untraced(self) -> int:
+        return self.trace.untraced
 
 
-class GroupSearch(BranchAndBound):
-    """Algorithm 1 on one interaction group of a :class:`GroupedSearch` (codes rank its objects only)."""
+class EscapeGuard:
+    """Raises :class:`Escape` when a body of the group's ``objects`` went where it can reach another
+    group's volume, after a settling or a refined map (observer of both)."""
 
-    tracks_reach = True
+    def __init__(self, checker: PhysicsChecker, objects: tuple[int, ...], link: GroupLink) -> None:
+        self.checker = checker
+        self.objects = objects
+        self.link = link
 
-    def __init__(self, owner: GroupedSearch, group_id: int, objects: tuple[int, ...], memo: SettleMemo) -> None:
-        hypotheses = tuple(owner.hypotheses[i] for i in objects)
-        super().__init__(owner.checker, hypotheses, owner.params, objects, owner.table)
-        self.owner = owner
-        self.group_id = group_id
-        self.memo = memo
-        self.kept = False
-        # Trace entries name the group unless it holds every object (then its codes are whole codes).
-        self.trace_group = None if objects == owner.checker.all_objects else group_id
-
-    def settle_node(self, code: Code, poses: tuple[Pose, ...], stop_at: float | None) -> Settling | PartialSettling:
-        memoised = self.memoised(code)
-        if memoised is not None:
-            return memoised
-        return super().settle_node(code, poses, stop_at)
-
-    def memoised(self, code: Code) -> Settling | None:
-        """The memo's settling of ``code`` for this node (None: none serves), counted as a memo hit."""
-        memoised = self.memo.get(code, complete=self.settling_completely)
-        if memoised is not None:
-            self.stats.memo_hits += 1
-        return memoised
-
-    def on_settled(self, code: Code, settling: Settling) -> None:
-        super().on_settled(code, settling)
-        self.guard(code, settling)
-        self.memo.put(code, settling)
-
-    def guard(self, code: Code, settling: Settling) -> None:
-        """Raise :class:`Escape` if an object's body went where it can reach another group's volume.
-
-        A body that stayed inside its own volume box at its hypothesis meets no other group's volume:
-        only objects that went further are looked up.
-        """
-        assert settling.extent is not None  # tracked by every group search
-        if len(self.owner.grouping.groups) == 1:
+    def settled(self, code: Code, settling: Settling) -> None:
+        """A body that stayed inside its own volume box at its hypothesis meets no other group's volume:
+        only objects that went further are looked up."""
+        assert settling.extent is not None  # tracked by every group's settlings
+        grouping = self.link.grouping
+        if len(grouping.groups) == 1:
             return  # no other group to reach
-        grouping = self.owner.grouping
         intruded: set[int] = set()
         for index, rank, (low, high) in zip(self.objects, code, settling.extent, strict=True):
             if not grouping.inside(index, rank, low, high):
@@ -174,49 +115,92 @@ class GroupSearch(BranchAndBound):
         if intruded:
             raise Escape(tuple(sorted(intruded)))
 
-    def _refine(self, stop_at: float | None) -> bool:
-        """Make the root's refined map; raise :class:`Escape` if one of its bodies went where it can reach
-        another group's volume (a floating object refined onto a neighbouring pile)."""
-        made = super()._refine(stop_at)
-        refined = self.refined
-        if made and refined is not None and len(self.owner.grouping.groups) > 1:
-            intruded: set[int] = set()
-            models = self.checker.scene.objects
-            poses = zip(self.objects, refined.depenetrated_poses, refined.settled_poses, strict=True)
-            for index, start, end in poses:
-                (low_a, high_a), (low_b, high_b) = (body_box(models[index].shape, pose) for pose in (start, end))
-                low, high = np.minimum(low_a, low_b), np.maximum(high_a, high_b)
-                intruded.update(self.owner.grouping.intruded(index, tuple(low), tuple(high)))
-            if intruded:
-                raise Escape(tuple(sorted(intruded)))
-        return made
-
-    def record(self, entry: TraceEntry) -> None:
-        self.owner.record(entry)
-        self.count(entry)
+    def refined(self, refined: RefinedMap) -> None:
+        """A refined map whose body went where it can reach another group's volume (a floating object
+        refined onto a neighbouring pile)."""
+        grouping = self.link.grouping
+        if len(grouping.groups) == 1:
+            return
+        intruded: set[int] = set()
+        models = self.checker.scene.objects
+        poses = zip(self.objects, refined.depenetrated_poses, refined.settled_poses, strict=True)
+        for index, start, end in poses:
+            (low_a, high_a), (low_b, high_b) = (body_box(models[index].shape, pose) for pose in (start, end))
+            low, high = np.minimum(low_a, low_b), np.maximum(high_a, high_b)
+            intruded.update(grouping.intruded(index, tuple(low), tuple(high)))
+        if intruded:
+            raise Escape(tuple(sorted(intruded)))
 
 
-class GroupedSearch:
-    """Algorithm 1 per interaction group, anytime and resumable like :class:`BranchAndBound` (module docstring).
+@dataclass(frozen=True)
+class GroupSpec:
+    """What a group builder gets: the scene's checker and every object's hypotheses, the parameters, the
+    group's ``objects`` (scene indices) and trace id (None: the group holds every object), what it shares
+    with the grouped search (``link``), its settle memo and escape guard."""
 
-    Build one with :func:`~physics_mapper.search.strategy.make_search` (``strategy: grouped``), or
-    :meth:`following` to carry over a previous search's groups. Subclasses search each group with
-    :attr:`group_search`.
+    checker: PhysicsChecker
+    hypotheses: tuple[RankedHypotheses, ...]
+    params: SearchParams
+    objects: tuple[int, ...]
+    trace_group: int | None
+    link: GroupLink
+    memo: SettleMemo
+    guard: EscapeGuard
+
+
+class GroupBuilder(Protocol[G, R]):
+    """Makes the core that searches one group, from its parts."""
+
+    def __call__(self, spec: GroupSpec) -> BestFirst[G, R]: ...
+
+
+class CarryOver(Protocol[G, R]):
+    """What a new group keeps of an older group it overlaps."""
+
+    def holds(self, learned_under: SearchParams, params: SearchParams) -> bool:
+        """Whether what was learned under ``learned_under`` holds under ``params``."""
+        ...
+
+    def carry(self, old: BestFirst[G, R], new: BestFirst[G, R], changed: set[int]) -> None:
+        """Take what ``old`` learned that still holds into ``new`` (``changed``: scene indices with new hypotheses)."""
+        ...
+
+
+class NothingCarried:
+    """The carry-over of the paper's parts: they learn nothing beyond the settle memo."""
+
+    def holds(self, learned_under: SearchParams, params: SearchParams) -> bool:
+        return False
+
+    def carry(self, old: object, new: object, changed: set[int]) -> None:
+        return None
+
+
+ScheduleKey = tuple[int, int, float, int]
+
+
+class GroupedSearch(Generic[G, R]):
+    """Interaction groups under one deadline, each searched by a core ``build`` makes (module docstring);
+    anytime and resumable like :class:`~physics_mapper.search.best_first.BestFirst`.
+
+    Build one with :func:`~physics_mapper.search.strategy.make_search`; with ``previous`` (a grouped search
+    of the same composition), the groups still valid are carried over (:meth:`following`).
     """
-
-    #: The search each interaction group gets.
-    group_search: type[GroupSearch] = GroupSearch
 
     def __init__(
         self,
         checker: PhysicsChecker,
         hypotheses: Sequence[RankedHypotheses],
         params: SearchParams,
-        previous: GroupedSearch | None = None,
+        build: GroupBuilder[G, R],
+        carry_over: CarryOver[G, R],
+        previous: GroupedSearch[G, R] | None = None,
     ) -> None:
         self.checker = checker
         self.hypotheses = tuple(hypotheses)
         self.params = params
+        self.build = build
+        self.carry_over = carry_over
         if previous is not None and previous.checker is not checker:
             previous = None
         unchanged = (
@@ -233,26 +217,34 @@ class GroupedSearch:
         )
         self.grouping: Grouping = interaction_groups(checker.scene, hypotheses, params.interaction_margin, self.links)
         self._next_id: int = 0 if previous is None else previous.next_group_id
-        self._groups: dict[int, GroupSearch] = {}
-        self._trace: list[TraceEntry] = []
-        self._untraced = 0
+        self._groups: dict[int, BestFirst[G, R]] = {}
+        self._links: dict[int, GroupLink] = {}
+        self._memos: dict[int, SettleMemo] = {}
+        self._kept: set[int] = set()
+        self._trace = Trace(params.trace_limit)
         self._merges = 0
         self._search_time = 0.0
         self._stopped_at_deadline = False
-        self._schedule: list[tuple[tuple[int, int, float, int], int]] = []
-        self._keys: dict[int, tuple[int, int, float, int]] = {}
-        earlier = {} if previous is None else {group.objects: group for group in previous.groups()}
+        self._schedule: list[tuple[ScheduleKey, int]] = []
+        self._keys: dict[int, ScheduleKey] = {}
+        carried = previous is not None and carry_over.holds(previous.params, params)
+        #: Objects whose hypotheses changed since ``previous`` (what their groups learned is stale).
+        self._changed = {i for i, same in enumerate(unchanged) if not same} if carried else set()
+        earlier: list[BestFirst[G, R]] = [] if previous is None or not carried else previous.groups()
+        by_objects = {} if previous is None else {group.objects: group_id for group_id, group in previous.items()}
         for objects in self.grouping.groups:
-            old = earlier.get(objects)
-            same = old is not None and all(unchanged[i] for i in objects)
-            if old is not None and same and continuable(old.params, params):
-                self._adopt(old)
+            old_id = by_objects.get(objects)
+            same = old_id is not None and all(unchanged[i] for i in objects)
+            if previous is not None and old_id is not None and same:
+                if continuable(previous._groups[old_id].params, params):
+                    self._adopt(previous, old_id)
+                else:
+                    self._add_group(objects, previous._memos[old_id], earlier)
             else:
-                memo = old.memo if old is not None and same else None
-                self.add_group(objects, memo)
+                self._add_group(objects, None, earlier)
         if previous is not None:
-            kept = {group.trace_group for group in self._groups.values() if group.kept}
-            self._trace = [entry for entry in previous.trace if entry.group in kept]
+            kept = {self._groups[group_id].trace_group for group_id in self._kept}
+            self._trace.entries = [entry for entry in previous.trace if entry.group in kept]
         self._share_limits()
 
     @classmethod
@@ -261,113 +253,131 @@ class GroupedSearch:
         checker: PhysicsChecker,
         hypotheses: Sequence[RankedHypotheses],
         params: SearchParams,
-        previous: Search | None,
-    ) -> GroupedSearch:
-        """A search for ``hypotheses``: ``previous`` itself, resumed, if nothing but the deadline or the
-        fallback changed; else a new one that keeps every group of ``previous`` still valid."""
+        build: GroupBuilder[G, R],
+        carry_over: CarryOver[G, R],
+        previous: GroupedSearch[G, R] | None,
+    ) -> GroupedSearch[G, R]:
+        """A search for ``hypotheses``: ``previous`` (of the same composition) itself, resumed, if nothing but
+        the deadline or the fallback changed; else a new one that keeps every group of ``previous`` still valid."""
         hypotheses = tuple(hypotheses)
-        if not isinstance(previous, cls) or type(previous) is not cls:  # another class searches its groups otherwise
-            return cls(checker, hypotheses, params)
+        if previous is None:
+            return cls(checker, hypotheses, params, build, carry_over)
         if resumable(previous, checker, hypotheses, params):
             previous.params = params
-            for group in previous.groups():
+            for group_id, group in previous.items():
                 group.params = params
-                group.kept = True
+                previous._kept.add(group_id)
             return previous
-        return cls(checker, hypotheses, params, previous)
+        return cls(checker, hypotheses, params, build, carry_over, previous)
 
     # --- groups -----------------------------------------------------------------------------------
 
-    def add_group(self, objects: tuple[int, ...], memo: SettleMemo | None) -> GroupSearch:
-        """A new group search of ``objects``, scheduled (extension point: a subclass seeds it)."""
+    def _add_group(self, objects: tuple[int, ...], memo: SettleMemo | None, earlier: Sequence[BestFirst[G, R]]) -> None:
+        """A new group search of ``objects``, scheduled, keeping what the ``earlier`` groups it overlaps learned."""
         hypotheses = tuple(self.hypotheses[i] for i in objects)
         if memo is None or not memo.serves(hypotheses, physics_key(self.params)):
             memo = SettleMemo(hypotheses, physics_key(self.params), SETTLE_MEMO_LIMIT)
-        group = self.group_search(self, self._next_id, objects, memo)
+        group_id = self._next_id
         self._next_id += 1
-        self._groups[group.group_id] = group
-        self._reschedule(group)
-        return group
+        link = GroupLink(self.table, self.grouping, self._trace)
+        # Trace entries name the group unless it holds every object (then its codes are whole codes).
+        trace_group = None if objects == self.checker.all_objects else group_id
+        spec = GroupSpec(
+            self.checker, self.hypotheses, self.params, objects, trace_group, link, memo,
+            EscapeGuard(self.checker, objects, link),
+        )  # fmt: skip
+        group = self._groups[group_id] = self.build(spec)
+        self._links[group_id] = link
+        self._memos[group_id] = memo
+        self._reschedule(group_id)
+        for old in earlier:
+            if set(old.objects) & set(objects):
+                self.carry_over.carry(old, group, self._changed)
 
-    def _adopt(self, group: GroupSearch) -> None:
+    def _adopt(self, previous: GroupedSearch[G, R], group_id: int) -> None:
         """Take over a previous search's group, progress and all."""
-        group.owner = self
-        group.collisions = self.table
+        group = previous._groups[group_id]
+        link = previous._links[group_id]
+        link.table, link.grouping, link.trace = self.table, self.grouping, self._trace
         group.params = self.params
-        group.kept = True
-        self._groups[group.group_id] = group
-        self._reschedule(group)
+        self._groups[group_id] = group
+        self._links[group_id] = link
+        self._memos[group_id] = previous._memos[group_id]
+        self._kept.add(group_id)
+        self._reschedule(group_id)
 
     def _share_limits(self) -> None:
         """Give each group an equal share of the queue and memo limits."""
         count = len(self._groups)
-        for group in self._groups.values():
-            group.queue_limit = max(1, self.params.queue_limit // count)
-            group.memo.limit = max(1, SETTLE_MEMO_LIMIT // count)
+        for group_id, group in self._groups.items():
+            group.candidates.queue_limit = max(1, self.params.queue_limit // count)
+            self._memos[group_id].limit = max(1, SETTLE_MEMO_LIMIT // count)
 
-    def merge_groups(self, escaped: GroupSearch, positions: tuple[int, ...]) -> None:
-        """The escape guard's answer: replace ``escaped`` and the groups at ``positions`` by one, searched
-        anew (extension point: a subclass carries over what they learned)."""
-        by_objects = {group.objects: group for group in self._groups.values()}
-        merged = [escaped, *(by_objects[self.grouping.groups[p]] for p in positions)]
+    def _merge(self, escaped_id: int, positions: tuple[int, ...]) -> None:
+        """The escape guard's answer: replace the group ``escaped_id`` and the groups at ``positions`` by one,
+        searched anew, keeping what they learned."""
+        escaped = self._groups[escaped_id]
+        merged = [escaped, *(g for g in self.groups() if self.grouping.group_of(g.objects[0]) in positions)]
         objects = tuple(sorted(i for group in merged for i in group.objects))
-        gone = {group.group_id for group in merged}
+        gone = {group_id for group_id, group in self._groups.items() if any(group is m for m in merged)}
+        gone_groups = {self._groups[group_id].trace_group for group_id in gone}
         for group_id in gone:
-            del self._groups[group_id]
+            del self._groups[group_id], self._links[group_id], self._memos[group_id]
             self._keys.pop(group_id, None)
-        self._trace = [entry for entry in self._trace if entry.group not in gone]
+            self._kept.discard(group_id)
+        self._trace.entries = [entry for entry in self._trace.entries if entry.group not in gone_groups]
         self.links.append(frozenset(objects))
         self.grouping = interaction_groups(
             self.checker.scene, self.hypotheses, self.params.interaction_margin, self.links
         )
+        for link in self._links.values():
+            link.grouping = self.grouping
         self._merges += 1
-        self.add_group(objects, None)
+        self._add_group(objects, None, merged)
         self._share_limits()
-
-    def record(self, entry: TraceEntry) -> None:
-        """Keep a group's trace entry, in visiting order, up to ``trace_limit`` entries in all."""
-        limit = self.params.trace_limit
-        if limit is None or len(self._trace) < limit:
-            self._trace.append(entry)
-        else:
-            self._untraced += 1
 
     # --- scheduling (module docstring) ----------------------------------------------------------------
 
-    def _priority(self, group: GroupSearch) -> tuple[int, int, float, int]:
+    def _priority(self, group: BestFirst[G, R]) -> ScheduleKey:
         if group.settling_in_progress is not None or group.refinement_due:
             return (0, 0, -1.0, group.objects[0])  # work the last deadline interrupted, or a due refined map
         next_probability = group.next_probability
         assert next_probability is not None
-        return (1, 0 if group.best_valid is None else 1, -next_probability / group.root_probability, group.objects[0])
+        return (
+            1,
+            0 if group.best_valid is None else 1,
+            -next_probability / group.bound.root_probability,
+            group.objects[0],
+        )
 
-    def _reschedule(self, group: GroupSearch) -> None:
+    def _reschedule(self, group_id: int) -> None:
+        group = self._groups[group_id]
         if group.done:
-            self._keys.pop(group.group_id, None)
+            self._keys.pop(group_id, None)
             return
         key = self._priority(group)
-        self._keys[group.group_id] = key
-        heapq.heappush(self._schedule, (key, group.group_id))
+        self._keys[group_id] = key
+        heapq.heappush(self._schedule, (key, group_id))
 
-    def _next_group(self) -> GroupSearch | None:
-        """The group whose node comes next, taken off the schedule (None: every group is done)."""
+    def _next_group(self) -> int | None:
+        """The id of the group whose candidate comes next, taken off the schedule (None: every group is done)."""
         while self._schedule:
             key, group_id = heapq.heappop(self._schedule)
             if self._keys.get(group_id) == key:
                 del self._keys[group_id]
-                return self._groups[group_id]
+                return group_id
         return None
 
     # --- searching ------------------------------------------------------------------------------------
 
     @property
     def queued(self) -> int:
-        """Nodes in the groups' queues (at most ``queue_limit`` in all)."""
+        """Candidates in the groups' generators (at most ``queue_limit`` in all)."""
         return sum(group.queued for group in self._groups.values())
 
     @property
     def done(self) -> bool:
-        """True once every group's queue is empty."""
+        """True once no group has a candidate left."""
         return all(group.done for group in self._groups.values())
 
     @property
@@ -380,28 +390,28 @@ class GroupedSearch:
     def settling_group(self) -> int | None:
         """The id of the group whose settling the deadline interrupted (None: none, or the group of every object)."""
         group = self._interrupted_group()
-        return None if group is None else group.trace_group
+        return None if group is None else group.settling_group
 
-    def _interrupted_group(self) -> GroupSearch | None:
+    def _interrupted_group(self) -> BestFirst[G, R] | None:
         return next((g for g in self._groups.values() if g.settling_in_progress is not None), None)
 
     def run(self, budget: float | None = None) -> SearchResult:
-        """Search every group for at most ``budget`` wall-clock seconds in all (None: until every queue empties)."""
+        """Search every group for at most ``budget`` wall-clock seconds in all (None: until no candidate is left)."""
         start = time.monotonic()
         stop_at = None if budget is None else start + budget
         self._stopped_at_deadline = False
         try:
-            while (group := self._next_group()) is not None:
+            while (group_id := self._next_group()) is not None:
                 if stop_at is not None and time.monotonic() >= stop_at:
-                    self._reschedule(group)
+                    self._reschedule(group_id)
                     self._stopped_at_deadline = True
                     break
                 try:
-                    finished = group.step(stop_at)
+                    finished = self._groups[group_id].step(stop_at)
                 except Escape as escape:
-                    self.merge_groups(group, escape.groups)
+                    self._merge(group_id, escape.groups)
                     continue
-                self._reschedule(group)
+                self._reschedule(group_id)
                 if not finished:  # the deadline cut a settling (or a refinement) short
                     self._stopped_at_deadline = True
                     break
@@ -419,31 +429,39 @@ class GroupedSearch:
     @property
     def trace(self) -> tuple[TraceEntry, ...]:
         """Every group's trace entries, in visiting order."""
-        return tuple(self._trace)
+        return tuple(self._trace.entries)
 
-    def groups(self) -> list[GroupSearch]:
-        """The current groups, in order of their first object."""
-        return sorted(self._groups.values(), key=lambda group: group.objects[0])
+    def items(self) -> list[tuple[int, BestFirst[G, R]]]:
+        """The current groups with their ids, in order of their first object."""
+        return sorted(self._groups.items(), key=lambda item: item[1].objects[0])
+
+    def groups(self) -> list[BestFirst[G, R]]:
+        """The current groups' searches, in order of their first object."""
+        return [group for _, group in self.items()]
 
     def stats(self) -> SearchStats:
         """Every group's counters added up, with the grouped search's time and how it ended."""
         stats = SearchStats()
         groups = self.groups()
-        for group in groups:
-            stats.add(replace(group.stats, queued=group.queued))
+        group_stats = [group.stats for group in groups]
+        for each in group_stats:
+            stats.add(each)
         stats.search_time = self._search_time
         stats.stopped_at_deadline = self._stopped_at_deadline
-        stats.untraced = self._untraced
+        stats.untraced = self._trace.untraced
         stats.merges = self._merges
-        stats.end = _combined_end([group.stats.end for group in groups])
+        stats.end = _combined_end([each.end for each in group_stats])
         return stats
 
     def result(self) -> SearchResult:
         """Every group's best so far combined: valid iff every group's is, J their sum, p(C) their product."""
-        groups = self.groups()
+        items = self.items()
+        groups = [group for _, group in items]
         choices = [group.chosen() for group in groups]
-        group_results = tuple(group.group_result(group.trace_group, group.kept) for group in groups)
-        stats, trace = self.stats(), tuple(self._trace)
+        group_results = tuple(
+            group.group_result(group.trace_group, group_id in self._kept) for group_id, group in items
+        )
+        stats, trace = self.stats(), self.trace
         chosen = [candidate for candidate, _ in choices if candidate is not None]
         if len(chosen) < len(groups):
             return SearchResult(False, None, None, None, None, None, None, False, stats, trace, groups=group_results)

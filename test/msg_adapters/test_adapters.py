@@ -58,7 +58,7 @@ from physics_mapper.msg_adapters.results import (
     static_markers_msg,
 )
 from physics_mapper.physics.checker import PhysicsChecker
-from physics_mapper.search.branch_and_bound import BranchAndBound
+from physics_mapper.search.strategy import paper_search
 
 #: A 20 m box about the origin, as a scene's default workspace may be.
 WORKSPACE = Workspace((-10.0, -10.0, -10.0), (10.0, 10.0, 10.0))
@@ -236,7 +236,7 @@ RESTING = (Pose((0.0, 0.0, 0.03)), Pose((0.5, 0.0, 0.05)), Pose((-0.5, 0.0, 0.05
 def mixed_result() -> object:
     hypotheses = [RankedHypotheses.from_weighted([Hypothesis(pose, 1.0)]) for pose in RESTING]
     with PhysicsChecker(MIXED) as checker:
-        return BranchAndBound(checker, hypotheses, MIXED.search).run(None)
+        return paper_search(checker, hypotheses, MIXED.search).run(None)
 
 
 def test_configuration_messages_hold_chosen_and_settled_poses(mixed_result: object) -> None:
@@ -328,7 +328,7 @@ def test_a_fallback_is_drawn_orange_at_its_settled_poses() -> None:
     """With fallback settled, the map shown is the corrected estimate: the ball at rest in the groove."""
     problem = load_problem(PROBLEMS / "sphere_groove.yaml")
     with PhysicsChecker(problem.scene) as checker:
-        result = BranchAndBound(checker, problem.hypotheses, problem.scene.search).run(None)
+        result = paper_search(checker, problem.hypotheses, problem.scene.search).run(None)
     assert result.fallback_used and result.settled_poses is not None and result.poses is not None
     (shape,) = [m for m in markers_msg(result, problem.scene, stamp_ns=0).markers if m.ns == SHAPE_NAMESPACE]
     settled = result.settled_poses[0].position
@@ -342,7 +342,7 @@ def test_nothing_chosen_gives_no_configuration_and_no_markers() -> None:
         RankedHypotheses.from_weighted([Hypothesis(pose, 1.0)]) for pose in RESTING[1:]
     ]
     with PhysicsChecker(MIXED) as checker:
-        result = BranchAndBound(checker, floating, MIXED.search).run(None)
+        result = paper_search(checker, floating, MIXED.search).run(None)
     assert result.code is None
     assert configuration_msgs(result, frame_id="table", stamp_ns=0) is None
     assert markers_msg(result, MIXED, stamp_ns=0).markers == []
@@ -448,7 +448,7 @@ def test_a_mesh_object_is_a_mesh_resource_and_fixed_bodies_are_drawn_grey() -> N
     scene = load_inline(floor_scene_dict(mug, static=(table,)), SCENES)
     with PhysicsChecker(scene) as checker:
         hypotheses = [RankedHypotheses.from_weighted([Hypothesis(Pose((0.0, 0.0, 0.6)), 1.0)])]
-        result = BranchAndBound(checker, hypotheses, scene.search).run(None)
+        result = paper_search(checker, hypotheses, scene.search).run(None)
     assert result.valid
     markers = markers_msg(result, scene, stamp_ns=0).markers
     (shape,) = [m for m in markers if m.ns == SHAPE_NAMESPACE]

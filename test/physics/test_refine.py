@@ -54,9 +54,8 @@ from physics_mapper.physics.refine import (
 )
 from physics_mapper.physics.settling import REST_SHARE, Settling, early_exit_rule
 from physics_mapper.physics.world import SOLVER_ITERATIONS, TIME_STEP
-from physics_mapper.search.branch_and_bound import BranchAndBound
 from physics_mapper.search.results import SearchResult
-from physics_mapper.search.strategy import make_search
+from physics_mapper.search.strategy import make_search, paper_search
 
 REFINE = SearchParams(fallback="refine")
 #: A time.monotonic() instant long past: every deadline-aware call stops as soon as it may.
@@ -271,8 +270,8 @@ def test_an_interrupted_refinement_goes_on_where_it_stopped_and_ends_the_same(
     scene, hypotheses = problem()
     params = replace(scene.search, fallback="refine")
     with PhysicsChecker(scene) as checker:
-        whole = BranchAndBound(checker, hypotheses, params).run(None)
-        search = BranchAndBound(checker, hypotheses, params)
+        whole = paper_search(checker, hypotheses, params).run(None)
+        search = paper_search(checker, hypotheses, params)
         runs = [search.run(0.0002) for _ in range(1000)]
     pieces = [r for r in runs if r.settled_poses is not None]
     assert runs[0].code is None and pieces, "the first run stops early; a later one ends the refinement"
@@ -286,7 +285,7 @@ def test_an_interrupted_refinement_goes_on_where_it_stopped_and_ends_the_same(
 def test_fallback_switched_to_refine_mid_search_makes_the_map_without_revisiting_nodes() -> None:
     scene, c111 = pyramid_c111()
     with PhysicsChecker(scene) as checker:
-        search = BranchAndBound(checker, c111, replace(scene.search, fallback="none"))
+        search = paper_search(checker, c111, replace(scene.search, fallback="none"))
         nothing = search.run(None)
         search.params = replace(search.params, fallback="refine")  # as the node does at its next tick
         refined = search.run(None)
@@ -304,7 +303,7 @@ def test_a_valid_configuration_is_reported_exactly_as_without_refine(name: str) 
     def solved(fallback: Fallback) -> SearchResult:
         params = replace(problem.scene.search, fallback=fallback)
         with PhysicsChecker(problem.scene) as checker:
-            return BranchAndBound(checker, problem.hypotheses, params).run(None)
+            return paper_search(checker, problem.hypotheses, params).run(None)
 
     plain, refining = solved("none"), solved("refine")
     assert refining.valid and refining.fallback is None and refining.refinement is None

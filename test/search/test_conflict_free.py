@@ -10,7 +10,7 @@ from collections.abc import Callable
 from hypothesis import given
 from hypothesis import strategies as st
 
-from physics_mapper.search.branch_and_bound import tie_key
+from physics_mapper.search.best_first import tie_key
 from physics_mapper.search.conflict_free import ConflictFreeCandidates
 from physics_mapper.search.conflicts import Conflict, ConflictStore
 from physics_mapper.search.results import Code

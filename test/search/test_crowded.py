@@ -12,7 +12,7 @@ import json
 import random
 from dataclasses import replace
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import pytest
 import yaml
@@ -42,24 +42,34 @@ from physics_mapper.scenarios.crowded_suite import (
     same_answer,
     truth_is_valid,
 )
-from physics_mapper.search.conflict_directed import TRIAL_SOLVER_ITERATIONS, ConflictGroupSearch, ConflictSearch
+from physics_mapper.search.best_first import Search
+from physics_mapper.search.conflict_directed import ConflictDirectedCandidates, ConflictGroup
 from physics_mapper.search.conflicts import Conflict, ConflictStore
+from physics_mapper.search.grouped import GroupedSearch
 from physics_mapper.search.results import Code, SearchResult
 from physics_mapper.search.strategy import make_search
+from physics_mapper.search.trial_settling import TRIAL_SOLVER_ITERATIONS
 
 Outcomes = dict[tuple[tuple[int, ...], Code], str]
 #: A problem, the paper's search of it per group, the conflict-directed one, and its groups.
-CaseRuns = tuple[CrowdedProblem, SearchResult, SearchResult, list[ConflictGroupSearch]]
+CaseRuns = tuple[CrowdedProblem, SearchResult, SearchResult, list[ConflictGroup]]
 
 
-def searched(problem: CrowdedProblem, **changes: object) -> tuple[SearchResult, list[ConflictGroupSearch]]:
+def searched(problem: CrowdedProblem, **changes: object) -> tuple[SearchResult, list[ConflictGroup]]:
     """``problem`` searched to the end with the defaults changed by ``changes``, and its conflict groups."""
     params = replace(problem.problem.scene.search, trace_limit=None, **changes)  # type: ignore[arg-type]
     with PhysicsChecker(problem.problem.scene) as checker:
         search = make_search(checker, problem.problem.hypotheses, params)
         result = search.run(None)
-    groups = search.groups() if isinstance(search, ConflictSearch) else []
-    return result, [g for g in groups if isinstance(g, ConflictGroupSearch)]
+    return result, conflict_groups(search) if params.strategy == "conflict" else []
+
+
+def conflict_groups(search: Search) -> list[ConflictGroup]:
+    """The groups of a conflict-directed search, each its core with the conflict-directed parts."""
+    assert isinstance(search, GroupedSearch)
+    groups = search.groups()
+    assert all(isinstance(group.candidates, ConflictDirectedCandidates) for group in groups)
+    return cast(list[ConflictGroup], groups)
 
 
 def outcomes(result: SearchResult) -> Outcomes:
@@ -96,7 +106,7 @@ def test_conflicts_are_sound(case_runs: CaseRuns) -> None:
     checked = outcomes(paper)
     contained = 0
     for group in groups:
-        conflicts: list[Conflict] = list(group.conflicts)
+        conflicts: list[Conflict] = list(group.candidates.conflicts)
         assert conflicts
         for (objects, code), outcome in checked.items():
             if objects == group.objects and any(conflict.holds_in(code) for conflict in conflicts):
@@ -117,7 +127,7 @@ def test_conflicts_hold_for_more_ranks_than_the_rejected_candidate_s() -> None:
         _, groups = searched(problem)
         rejected = [(objects, code) for (objects, code), outcome in outcomes(paper).items() if outcome != "valid"]
         for group in groups:
-            conflicts = list(group.conflicts)
+            conflicts = list(group.candidates.conflicts)
             for conflict in conflicts:
                 wider[conflict.kind] += any(len(ranks) > 1 for ranks in conflict.ranks)
             exact = [Conflict(c.assignments, c.kind) for c in conflicts]
@@ -139,7 +149,7 @@ def test_a_collision_conflict_s_rank_sets_collide_in_every_combination() -> None
     with PhysicsChecker(scene) as checker:
         for group in groups:
             ranks = [range(1, len(h) + 1) for h in group.hypotheses]
-            for conflict in group.conflicts:
+            for conflict in group.candidates.conflicts:
                 if conflict.kind != "collision" or len(conflict.assignments) != 2:
                     continue
                 wide += any(len(rank_set) > 1 for rank_set in conflict.ranks)
@@ -147,7 +157,10 @@ def test_a_collision_conflict_s_rank_sets_collide_in_every_combination() -> None
                     code = [rng.choice(r) for r in ranks]
                     for position, rank in zip(conflict.positions, chosen, strict=True):
                         code[position] = rank
-                    if any(group.conflicts.rules_out(p, r) for p, r in zip(conflict.positions, chosen, strict=True)):
+                    if any(
+                        group.candidates.conflicts.rules_out(p, r)
+                        for p, r in zip(conflict.positions, chosen, strict=True)
+                    ):
                         continue
                     poses = [hypotheses[i].pose(r) for i, r in zip(group.objects, code, strict=True)]
                     assert checker.find_collision(poses, params.penetration_threshold) is not None, code
@@ -189,11 +202,11 @@ def test_trials_run_fewer_solver_iterations_and_valid_verdicts_rule_2_s() -> Non
         checker.settle = counted
         search = make_search(checker, problem.problem.hypotheses, params)
         result = search.run(None)
-    assert isinstance(search, ConflictSearch) and (result.code, result.valid) == (problem.answer, True)
+    assert (result.code, result.valid) == (problem.answer, True)
     assert result.stats.local_settlings > 0
     assert iterations.count(TRIAL_SOLVER_ITERATIONS) >= result.stats.local_settlings
     assert None in iterations  # the confirmations: Rule 2's solver
-    best = [group.best_valid for group in search.groups()]
+    best = [group.best_valid for group in conflict_groups(search)]
     assert all(candidate is not None and candidate.settling.solver_iterations is None for candidate in best)
 
 
@@ -275,11 +288,9 @@ def test_new_hypotheses_for_one_object_keep_the_conflicts_of_the_others() -> Non
         before = first.run(None)
         second = make_search(checker, changed, scene.search, first)
         after = second.run(None)
-        assert isinstance(first, ConflictSearch) and isinstance(second, ConflictSearch)
-        old, new = first.groups()[0], second.groups()[0]
-        assert isinstance(old, ConflictGroupSearch) and isinstance(new, ConflictGroupSearch)
-        kept = [c for c in old.conflicts if 9 not in c.positions]
-        assert 0 < new.stats.conflicts_kept <= len(kept) < len(old.conflicts)
+        old, new = conflict_groups(first)[0], conflict_groups(second)[0]
+        kept = [c for c in old.candidates.conflicts if 9 not in c.positions]
+        assert 0 < new.stats.conflicts_kept <= len(kept) < len(old.candidates.conflicts)
     assert (after.code, after.valid) == (before.code, before.valid) == (problem.answer, True)
     assert after.stats.visited < before.stats.visited
 
@@ -332,15 +343,14 @@ def test_ranks_ruled_out_alone_are_in_collision_in_every_configuration() -> None
         scene, hypotheses, params = problem.problem.scene, problem.problem.hypotheses, problem.problem.scene.search
         with PhysicsChecker(scene) as checker:
             search = make_search(checker, hypotheses, params)
-            assert isinstance(search, ConflictSearch)
-            (group,) = search.groups()
-            assert isinstance(group, ConflictGroupSearch) and group.objects == checker.all_objects
-            ruled_out = list(group.conflicts)
+            (group,) = conflict_groups(search)
+            assert group.objects == checker.all_objects
+            ruled_out = list(group.candidates.conflicts)
             assert ruled_out and group.stats.visited == 0
             ranks = [range(1, len(h) + 1) for h in group.hypotheses]
             for conflict in ruled_out:
                 ((position, rank),) = conflict.assignments
-                assert rank not in group.conflicts.live_ranks(position) and problem.answer[position] != rank
+                assert rank not in group.candidates.conflicts.live_ranks(position) and problem.answer[position] != rank
                 codes = (
                     [c for c in itertools.product(*ranks) if c[position] == rank]
                     if sample is None

@@ -27,11 +27,10 @@ from physics_mapper.physics.collision import Collision
 from physics_mapper.physics.collision_table import CollisionTable
 from physics_mapper.physics.settling import REST_SHARE, PartialSettling
 from physics_mapper.scenarios.scale_suite import ScaleCase, ScaleProblem, scale_problem
-from physics_mapper.search.branch_and_bound import BranchAndBound
 from physics_mapper.search.grouped import GroupedSearch
 from physics_mapper.search.report import result_dict, trace_tree
 from physics_mapper.search.results import Code, SearchResult, TraceEntry
-from physics_mapper.search.strategy import make_search
+from physics_mapper.search.strategy import make_search, paper_search
 
 SHIPPED = ("stack", "pyramid", "peg_in_hole", "sphere_groove")
 #: The search this file is about: the paper's per interaction group, bounded relative to each group's root.
@@ -155,7 +154,7 @@ def test_each_group_is_searched_as_algorithm_1_on_its_own_objects(reduced_suite:
     with PhysicsChecker(scene) as checker:
         table = CollisionTable(checker, hypotheses)
         for group in compared.grouped.groups:
-            alone = BranchAndBound(checker, [hypotheses[i] for i in group.objects], params, group.objects, table)
+            alone = paper_search(checker, [hypotheses[i] for i in group.objects], params, group.objects, table)
             own = alone.run(None).trace
             mine = [e for e in compared.grouped.trace if e.group == group.id]
             assert [(e.code, e.outcome, e.jitter, e.parent) for e in mine] == [

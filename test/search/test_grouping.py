@@ -15,10 +15,9 @@ from physics_mapper.model.geometry import Pose, quaternion_about_axis
 from physics_mapper.model.hypotheses import RankedHypotheses
 from physics_mapper.model.scene import Box, ObjectModel, Scene, SearchParams, Sphere, StaticBody, object_radius
 from physics_mapper.physics.checker import PhysicsChecker
-from physics_mapper.search.branch_and_bound import BranchAndBound
 from physics_mapper.search.grouped import GroupedSearch
 from physics_mapper.search.groups import interaction_groups
-from physics_mapper.search.strategy import make_search
+from physics_mapper.search.strategy import make_search, paper_search
 
 MARGIN = SearchParams().interaction_margin
 #: Half-edge of a test cube's volume boxes (unrotated): half its edge plus half the margin.
@@ -123,7 +122,7 @@ def test_a_ball_rolling_into_another_pile_merges_the_groups_and_the_search_start
         search = make_search(checker, hypotheses, scene.search)
         assert isinstance(search, GroupedSearch)
         grouped = search.run(None)
-        joint = BranchAndBound(checker, hypotheses, scene.search).run(None)
+        joint = paper_search(checker, hypotheses, scene.search).run(None)
         params = scene.search
         alone = checker.settle([hypotheses[1].pose(1)], params.settle_time, params.angular_weight, objects=(1,))
         hit = checker.settle([h.pose(1) for h in hypotheses], params.settle_time, params.angular_weight)

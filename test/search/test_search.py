@@ -31,8 +31,8 @@ from physics_mapper.model.scene_files import load_problem
 from physics_mapper.physics.checker import PhysicsChecker
 from physics_mapper.physics.settling import CLOCK_CHECK_STEPS
 from physics_mapper.physics.world import TIME_STEP
-from physics_mapper.search.branch_and_bound import BranchAndBound
 from physics_mapper.search.results import Code, SearchResult, TraceEntry
+from physics_mapper.search.strategy import paper_search
 
 #: A 4 x 3 x 3 problem with distinct, unequal weights (normalised by the ranking).
 UNEVEN_WEIGHTS = ((0.5, 0.3, 0.15, 0.05), (0.6, 0.25, 0.15), (0.45, 0.35, 0.2))
@@ -130,7 +130,7 @@ def test_tiny_deadline_returns_best_so_far_and_resuming_continues_the_same_trace
     reference = run_search(scene, hypotheses, params)
 
     with PhysicsChecker(scene) as checker:
-        search = BranchAndBound(checker, hypotheses, params)
+        search = paper_search(checker, hypotheses, params)
         results = [search.run(0.0)]
         budget = 0.001  # seconds; doubled after a run that could not finish one node
         while not search.done:
@@ -169,7 +169,7 @@ def test_settlings_longer_than_the_budget_continue_across_runs_to_the_uninterrup
     max_runs = 3 * (len(reference.trace) + steps // CLOCK_CHECK_STEPS)
 
     with PhysicsChecker(problem.scene) as checker:
-        search = BranchAndBound(checker, problem.hypotheses, params)
+        search = paper_search(checker, problem.hypotheses, params)
         results = [search.run(budget)]
         while not search.done and len(results) < max_runs:
             results.append(search.run(budget))
