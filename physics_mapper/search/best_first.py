@@ -173,6 +173,9 @@ class CandidateGenerator(Protocol):
     @property
     def ruled_out(self) -> tuple[RuledOut, ...]: ...
 
+    @property
+    def live_root(self) -> Code: ...
+
     def count_into(self, stats: SearchStats) -> None: ...
 
 
@@ -288,6 +291,7 @@ class BestFirst(Generic[G, R]):
         self._refinement: Refinement | None = None
         self._refined: RefinedMap | None = None
         self._root: Code = tuple(1 for _ in self.hypotheses)
+        self._refined_root: Code = self._root  # the code the refined map is of
         self._absent_weights = tuple(ranked.absent_weight() for ranked in self.hypotheses)
 
     def probability(self, code: Code) -> float:
@@ -389,11 +393,18 @@ class BestFirst(Generic[G, R]):
         )
 
     def _refine(self, stop_at: float | None) -> bool:
-        """Make (or go on making) the root's refined map; False if ``stop_at`` came first."""
+        """Make (or go on making) the refined map of the live root (the generator's
+        :attr:`~CandidateGenerator.live_root`: each object at its most probable rank nothing ruled out
+        alone, so a detection inside a wall or in free fall is left out where it may be absent); False if
+        ``stop_at`` came first."""
         if self._refinement is None:
             params = self.params
-            start = [refinement_start(h, params.refine_mean_radius) for h in self.hypotheses]
-            self._refinement = Refinement(self.checker, self.objects, start, self.poses(self._root), params)
+            self._refined_root = root = self.candidates.live_root
+            start = [
+                refinement_start(h, params.refine_mean_radius) if rank == 1 else h.pose(rank)
+                for h, rank in zip(self.hypotheses, root, strict=True)
+            ]
+            self._refinement = Refinement(self.checker, self.objects, start, self.poses(root), params)
         self._refined = self._refinement.run(stop_at)
         if self._refined is None:
             return False
@@ -496,7 +507,8 @@ class BestFirst(Generic[G, R]):
             if refined is None:
                 return None, False
             settling = Settling(refined.settled_poses, refined.jitters)
-            return Candidate(self._root, self.probability(self._root), settling), False
+            root = self._refined_root
+            return Candidate(root, self.probability(root), settling), False
         candidate = self._first_collision_free
         if candidate is None or self.params.fallback != "settled":
             return None, False

@@ -245,6 +245,12 @@ class ConflictDirectedCandidates:
     def ruled_out(self) -> tuple[RuledOut, ...]:
         return self._ruled_out
 
+    @property
+    def live_root(self) -> Code:
+        """Each object at its most probable rank no one-assignment conflict rules out (rank 1 where every
+        rank is: the refinement still gives it a place)."""
+        return tuple(next(iter(self.conflicts.live_ranks(p)), 1) for p in range(len(self._root)))
+
     def keep_from(
         self, old: ConflictDirectedCandidates, moved: dict[int, int], stale: set[int], newcomers: Sequence[int]
     ) -> None:

@@ -9,6 +9,7 @@ import pytest
 import yaml
 from core_builders import CUBE_SIZE, ON_FLOOR, cli, cube, floor_scene, ranked, solve_json, unrotated
 
+from physics_mapper.model.hypotheses import Hypothesis, RankedHypotheses, absent_hypothesis
 from physics_mapper.model.scene import SearchParams
 from physics_mapper.physics.checker import PhysicsChecker
 from physics_mapper.search.report import ruled_out_text
@@ -128,3 +129,30 @@ def test_an_object_every_rank_of_which_falls_keeps_them_for_the_settled_fallback
     assert result.ruled_out == () and result.stats.unstable == 2
     assert not result.valid and result.fallback == "settled" and result.settled_poses is not None
     assert result.settled_poses[0].position[2] == pytest.approx(ON_FLOOR, abs=0.005)
+
+
+def test_the_refined_map_leaves_out_a_detection_in_free_fall_that_may_be_absent() -> None:
+    """Two cubes estimated 4 cm into each other (no valid configuration: the ``refine`` fallback's map),
+    and a third that may be absent, seen 30 cm up only: its air ranks are ruled out, so the refined map
+    starts from its *absent* rank (the live root) and leaves it out instead of dropping it onto the others;
+    the paper's search, which rules nothing out, refines it in (C11..1)."""
+    scene = floor_scene(cube("a"), cube("b"), cube("c"))
+    hypotheses = [
+        ranked([unrotated(0.0, 0.0, ON_FLOOR)], [1]),
+        ranked([unrotated(CUBE_SIZE - 0.04, 0.0, ON_FLOOR)], [1]),
+        RankedHypotheses.from_weighted(
+            [
+                Hypothesis(unrotated(0.05, 0.0, 0.3), 0.6),
+                Hypothesis(unrotated(0.05, 0.0, 0.31), 0.3),
+                absent_hypothesis(2, 0.1),
+            ]
+        ),
+    ]
+    with PhysicsChecker(scene) as checker:
+        default = make_search(checker, hypotheses, SearchParams(fallback="refine")).run(None)
+        joint = make_search(checker, hypotheses, SearchParams(fallback="refine", strategy="joint")).run(None)
+    assert {(r.object, r.rank, r.reason) for r in default.ruled_out} == {("c", 1, "floating"), ("c", 2, "floating")}
+    assert not default.valid and default.fallback == "refine" and default.code == (1, 1, 3)
+    assert hypotheses[2].is_absent(3)
+    assert not joint.valid and joint.fallback == "refine" and joint.code == (1, 1, 1)
+    assert joint.settled_poses is not None and joint.settled_poses[2].position[2] < 0.3  # refined in, fallen
