@@ -25,8 +25,9 @@ search's time (the refined root of 24 cylinders in two layers took most of a 0.2
 
 Such a map is no verdict on the objects it leaves out (:func:`~physics_mapper.mapping.existence.left_out_by_physics`):
 a new instance is left out only because the last map did not hold it, so its track goes on and the
-next searches place it. A search resumed with unchanged hypotheses reuses the last check instead of
-settling again (the world also holds the search's interrupted settling).
+next searches place it. A search resumed with unchanged hypotheses checks nothing new (it reuses the last
+check of the same configuration, if any): it touches no physics unless it still has candidates, and the
+world may hold its interrupted settling.
 """
 
 from __future__ import annotations
@@ -41,7 +42,7 @@ from physics_mapper.model.hypotheses import RankedHypotheses
 from physics_mapper.model.scene import SearchParams
 from physics_mapper.physics.checker import PhysicsChecker
 from physics_mapper.physics.settling import Settling, early_exit_rule
-from physics_mapper.search.best_first import Search
+from physics_mapper.search.best_first import Search, resumable
 from physics_mapper.search.results import Code, SearchResult
 from physics_mapper.search.strategy import make_search, searchable
 
@@ -116,9 +117,11 @@ def search_with_previous_map(
     hypotheses = searchable(hypotheses)
     code = previous_map_code(checker.scene.object_names, hypotheses, remembered)
     check = last if last is not None and (last.hypotheses, last.code) == (hypotheses, code) else None
-    # A settling the deadline interrupted lives in the world until the search resumes it.
+    # A search resumed had its chance at the last tick (and one that finished touches no physics); a
+    # settling the deadline interrupted lives in the world until the search resumes it.
+    resumed = previous is not None and resumable(previous, checker, hypotheses, params)
     waiting = previous is not None and previous.settling_in_progress is not None
-    if check is None and code is not None and not waiting:
+    if check is None and code is not None and not resumed and not waiting:
         stop_at = None if budget is None else started + budget / 2.0
         check = check_previous_map(checker, hypotheses, code, params, stop_at)
     passed = check is not None and check.settling is not None
