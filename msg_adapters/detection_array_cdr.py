@@ -46,7 +46,7 @@ from physics_mapper.mapping.detection_data import (
 )
 from physics_mapper.mapping.inputs import POSE_COLUMNS
 from physics_mapper.mapping.stamps import to_nanoseconds
-from physics_mapper.msg_adapters.pose_array_cdr import BYTE_ORDERS, ENCAPSULATION_BYTES, aligned
+from physics_mapper.msg_adapters.pose_array_cdr import BYTE_ORDERS, ENCAPSULATION_BYTES, aligned, cdr_text
 
 FLOAT_BYTES = 8
 #: A result's float64 after its class id: score, pose (7), covariance (36).
@@ -111,7 +111,7 @@ class _Cursor:
         """A string (its length counts its NUL)."""
         length = self.uint32()
         start = self.skip(length)
-        return _decoded(bytes(self.body[start : self.at]))
+        return cdr_text(bytes(self.body[start : self.at]))
 
     def array(self, dtype: str, shape: tuple[int, ...], strides: tuple[int, ...]) -> NDArray[Any]:
         """A read-only numpy view of the body at the cursor (bounds checked by the caller's :meth:`skip`)."""
@@ -244,13 +244,7 @@ def _joined(
 def _text_classes(texts: NDArray[np.generic]) -> tuple[list[str], NDArray[np.intp]]:
     """Rows of equally long class id bytes as their distinct strings and each row's index among them."""
     if bool((texts == texts[0]).all()):
-        return [_decoded(bytes(texts[0]))], np.zeros(len(texts), dtype=np.intp)
+        return [cdr_text(bytes(texts[0]))], np.zeros(len(texts), dtype=np.intp)
     packed = np.ascontiguousarray(texts).view(np.dtype((np.void, texts.shape[1]))).ravel()
     distinct, classes = np.unique(packed, return_inverse=True)
-    return [_decoded(bytes(value)) for value in distinct], classes.astype(np.intp).ravel()
-
-
-def _decoded(value: bytes) -> str:
-    """A CDR string's bytes as text: its terminating NUL dropped (a last byte that is no NUL is kept, as
-    rclpy keeps it), invalid UTF-8 replaced."""
-    return value.removesuffix(b"\0").decode("utf-8", errors="replace")
+    return [cdr_text(bytes(value)) for value in distinct], classes.astype(np.intp).ravel()

@@ -44,6 +44,12 @@ def aligned(offset: int, size: int) -> int:
     return offset + (-offset % size)
 
 
+def cdr_text(value: bytes) -> str:
+    """A CDR string's bytes as text: its terminating NUL dropped (a last byte that is no NUL is kept, as
+    rclpy keeps it), invalid UTF-8 replaced."""
+    return value.removesuffix(b"\0").decode("utf-8", errors="replace")
+
+
 def pose_array_view(raw: bytes) -> PoseArrayView | None:
     """A serialised PoseArray in plain CDR (either byte order), viewed; None for anything else or overrun lengths."""
     order = BYTE_ORDERS.get(bytes(raw[:2]))
@@ -53,7 +59,7 @@ def pose_array_view(raw: bytes) -> PoseArrayView | None:
     try:
         sec, nanosec, text_length = struct.unpack_from(f"{order}iII", body, 0)
         text_end = 12 + text_length
-        frame_id = bytes(body[12 : max(12, text_end - 1)]).decode("utf-8", errors="replace")  # without its NUL
+        frame_id = cdr_text(bytes(body[12:text_end]))
         count_at = aligned(text_end, 4)
         (count,) = struct.unpack_from(f"{order}I", body, count_at)
         poses_at = aligned(count_at + 4, 8)

@@ -10,7 +10,7 @@ from conftest import PROBLEMS, SCENES
 from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PoseArray
 from mesh_builders import MUG_FILE, floor_scene_dict, load_inline, mesh_object
-from rclpy.serialization import serialize_message
+from rclpy.serialization import deserialize_message, serialize_message
 from ros_helpers import REQUIRED_DIAGNOSTIC_KEYS
 from rosbags.typesys import Stores, get_typestore
 from std_msgs.msg import Float64MultiArray
@@ -122,6 +122,15 @@ def test_serialised_pose_arrays_are_read_like_rclpy_reads_them() -> None:
                 assert view.poses.tolist() == expected
     assert pose_array_view(serialize_message(msg)[:-1]) is None  # truncated
     assert pose_array_view(b"\x00\x07\x00\x00" + bytes(serialize_message(msg))[4:]) is None  # not plain CDR
+
+
+def test_a_frame_id_without_its_nul_reads_as_rclpy_reads_it() -> None:
+    """A publisher's bytes whose frame_id ends in no NUL: its last byte is kept, as rclpy keeps it."""
+    raw = bytearray(serialize_message(pose_array(((0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0)), frame="world")))
+    at = raw.index(b"world\0") + len("world")
+    raw[at] = ord("x")
+    view = pose_array_view(bytes(raw))
+    assert view is not None and view.frame_id == deserialize_message(bytes(raw), PoseArray).header.frame_id == "worldx"
 
 
 def big_endian(raw: bytes) -> bytes:
