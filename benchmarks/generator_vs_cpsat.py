@@ -56,7 +56,7 @@ def learned(scene_file: Path, bag: Path, snapshot: int) -> tuple[list[list[float
 
 def by_generator(weights: list[list[float]], store: ConflictStore, count: int) -> list[Code]:
     generator = ConflictFreeCandidates(weights, store, lambda _: False, queue_limit=1_000_000)
-    codes = []
+    codes: list[Code] = []
     while len(codes) < count and (found := generator.take()) is not None:
         codes.append(found[0])
     return codes

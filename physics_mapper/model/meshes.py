@@ -27,6 +27,7 @@ pybullet takes (an inertial frame at c turned by R, and a diagonal inertia m * l
 
 from __future__ import annotations
 
+import functools
 import io
 import re
 from dataclasses import dataclass, field
@@ -122,14 +123,15 @@ class MeshGeometry:
     decomposition: Decomposition | None
     mass_properties: MassProperties | None
 
-    @property
+    # Cached: searches ask for every object's bounds and radius per group (mesh vertices, ~50 us a call).
+    @functools.cached_property
     def bounds(self) -> tuple[Vector3, Vector3]:
         """Axis-aligned bounding box (min corner, max corner) of the mesh and its parts, m, mesh frame."""
         points = self._points()
         low, high = points.min(axis=0), points.max(axis=0)
         return (float(low[0]), float(low[1]), float(low[2])), (float(high[0]), float(high[1]), float(high[2]))
 
-    @property
+    @functools.cached_property
     def bounding_radius(self) -> float:
         """Largest distance (m) from the mesh frame's origin to a point of the mesh or of its parts."""
         return float(np.linalg.norm(self._points(), axis=1).max())
