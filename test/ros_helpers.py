@@ -17,6 +17,8 @@ from typing import IO, Any
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import PoseArray
+from lifecycle_msgs.msg import Transition
+from lifecycle_msgs.srv import ChangeState, GetState
 from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.parameter import Parameter, parameter_value_to_python
@@ -278,3 +280,27 @@ def last_error_line(completed: subprocess.CompletedProcess[str], *fragments: str
     line = completed.stderr.splitlines()[-1]
     assert ": error: " in line and all(fragment in line for fragment in fragments), line
     return line
+
+
+class Lifecycle:
+    """A client of one lifecycle node's get_state and change_state services."""
+
+    def __init__(self, client: RosClient, namespace: str) -> None:
+        self.client = client
+        node = node_full_name(namespace)
+        self._get = client.node.create_client(GetState, f"{node}/get_state")
+        self._change = client.node.create_client(ChangeState, f"{node}/change_state")
+        client.wait_for(
+            lambda: self._get.service_is_ready() and self._change.service_is_ready(),
+            STARTUP_TIMEOUT,
+            "the lifecycle services",
+        )
+        self.state()  # answered once: the services' answers reach this client (RosClient.answered)
+
+    def state(self) -> int:
+        return int(self.client.answered(lambda: self._get.call_async(GetState.Request()), "get_state").current_state.id)
+
+    def change(self, transition: int) -> bool:
+        future = self._change.call_async(ChangeState.Request(transition=Transition(id=transition)))
+        self.client.wait_for(future.done, REPLY_TIMEOUT, f"change_state {transition}")
+        return bool(future.result().success)  # type: ignore[no-untyped-call]

@@ -9,8 +9,7 @@ from typing import Any
 import pytest
 from conftest import PROBLEMS, SCENES
 from lifecycle_msgs.msg import State, Transition
-from lifecycle_msgs.srv import ChangeState, GetState
-from ros_helpers import REPLY_TIMEOUT, STARTUP_TIMEOUT, NodeProcess, RosClient, node_full_name, stamp_ns_of
+from ros_helpers import Lifecycle, NodeProcess, RosClient, stamp_ns_of
 
 from physics_mapper.mapping.topics import CONFIGURATION_TOPIC, output_topic
 from physics_mapper.model.geometry import Pose
@@ -21,30 +20,6 @@ from physics_mapper.msg_adapters.hypotheses import hypotheses_msgs
 NAMESPACE = "/managed"
 #: Ticks a second: the deactivated node is watched for a few of its tick periods.
 RATE_HZ = 4.0
-
-
-class Lifecycle:
-    """A client of one lifecycle node's get_state and change_state services."""
-
-    def __init__(self, client: RosClient, namespace: str) -> None:
-        self.client = client
-        node = node_full_name(namespace)
-        self._get = client.node.create_client(GetState, f"{node}/get_state")
-        self._change = client.node.create_client(ChangeState, f"{node}/change_state")
-        client.wait_for(
-            lambda: self._get.service_is_ready() and self._change.service_is_ready(),
-            STARTUP_TIMEOUT,
-            "the lifecycle services",
-        )
-        self.state()  # answered once: the services' answers reach this client (RosClient.answered)
-
-    def state(self) -> int:
-        return int(self.client.answered(lambda: self._get.call_async(GetState.Request()), "get_state").current_state.id)
-
-    def change(self, transition: int) -> bool:
-        future = self._change.call_async(ChangeState.Request(transition=Transition(id=transition)))
-        self.client.wait_for(future.done, REPLY_TIMEOUT, f"change_state {transition}")
-        return bool(future.result().success)  # type: ignore[no-untyped-call]
 
 
 @pytest.fixture

@@ -28,10 +28,9 @@ from geometry_msgs.msg import (
     Vector3,
 )
 from lifecycle_msgs.msg import Transition
-from lifecycle_msgs.srv import ChangeState
 from rclpy.parameter import parameter_value_to_python
 from rclpy.parameter_client import AsyncParameterClient
-from ros_helpers import PHYSICS_MAPPER, NodeProcess, RosClient, node_full_name, object_status, stamp_ns_of, values
+from ros_helpers import PHYSICS_MAPPER, Lifecycle, NodeProcess, RosClient, object_status, stamp_ns_of, values
 from std_msgs.msg import Float64MultiArray, Header
 from tf2_msgs.msg import TFMessage
 from vision_msgs.msg import BoundingBox3D, Detection3D, Detection3DArray, ObjectHypothesis, ObjectHypothesisWithPose
@@ -254,11 +253,7 @@ def test_scene_file_is_refused_before_configure_and_configure_loads_the_given_on
             "scene_file is read-only: read once, when the node is configured (restart the node to change it)",
         )
         assert client.set_parameter("deadline", 0.1)[0]  # others are judged at configure, and kept
-        change = client.node.create_client(ChangeState, f"{node_full_name('/managed')}/change_state")
-        client.wait_for(lambda: change.wait_for_service(timeout_sec=0.1), what="the lifecycle service")
-        future = change.call_async(ChangeState.Request(transition=Transition(id=Transition.TRANSITION_CONFIGURE)))
-        client.wait_for(future.done, what="configure")
-        assert future.result().success  # type: ignore[no-untyped-call]
+        assert Lifecycle(client, "/managed").change(Transition.TRANSITION_CONFIGURE)
         assert client.get_parameters("scene_file", "deadline") == [str(tmp_path / "cell.yaml"), 0.1]
         assert client.set_parameter("input_reliability", "reliable")[0] is False
     finally:
