@@ -12,11 +12,13 @@ So before a new search runs, the tick checks one configuration, the *previous ma
   its hypothesis whose position is nearest where it came to rest in that map's settling, if one lies
   within :data:`NEAR` metres (the rest pose, not the chosen hypothesis: a hypothesis near where the
   object rests is one it rests at); else rank 1;
-- an object the map did not hold takes its *absent* rank where it has one (a tentative instance, a
-  silent object the map left out), else rank 1.
+- an object the map did not hold (a new instance, a silent object the map left out) takes rank 1.
 
 It is checked by Rule 1 (the collision pass of every object) and Rule 2 (a settling of every object,
-ended early at rest as the search's are), within half the deadline. The search's own answer stands
+ended early at rest as the search's are), within half the deadline. A new object that breaks a rule
+(one of the overlapping pair, or moved beyond the jitter threshold) and may be absent is left out, and
+the rest checked again (a new box on the floor stays; a false detection in the air or inside the bin's
+wall goes), with at most :data:`CHECK_SETTLINGS` settlings. The search's own answer stands
 whenever it is valid: it is the paper's. Only when the search ends without a valid configuration is a
 valid previous-map configuration the tick's map, valid, with ``previous_map`` set in the result. Where
 it passed, the search runs without its ``fallback``: a fallback map (the refined root, the settled first
@@ -24,8 +26,8 @@ collision-free configuration) would only stand in for a valid map that exists, a
 search's time (the refined root of 24 cylinders in two layers took most of a 0.2 s tick).
 
 Such a map is no verdict on the objects it leaves out (:func:`~physics_mapper.mapping.existence.left_out_by_physics`):
-a new instance is left out only because the last map did not hold it, so its track goes on and the
-next searches place it. A search resumed with unchanged hypotheses checks nothing new (it reuses the last
+its repairs are greedy (a new object that fell may have fallen for a neighbour's rank), so a track it
+leaves out goes on and the next searches decide. A search resumed with unchanged hypotheses checks nothing new (it reuses the last
 check of the same configuration, if any): it touches no physics unless it still has candidates, and the
 world may hold its interrupted settling.
 """
@@ -50,10 +52,15 @@ from physics_mapper.search.strategy import make_search, searchable
 NEAR = 0.02
 
 
+#: Settlings one check may make: the first, and again after leaving out new objects that fell.
+CHECK_SETTLINGS = 3
+
+
 def previous_map_code(
     names: Sequence[str], hypotheses: Sequence[RankedHypotheses], remembered: Mapping[str, Pose]
 ) -> Code | None:
-    """The previous map's configuration among this tick's ``hypotheses`` (module docstring), or None when
+    """Where the previous map's configuration starts among this tick's ``hypotheses`` (module docstring):
+    each object the map held at its hypothesis nearest where it rested, each other at rank 1; None when
     the last valid map held none of ``names``."""
     if not any(name in remembered for name in names):
         return None
@@ -61,10 +68,9 @@ def previous_map_code(
 
 
 def _rank(ranked: RankedHypotheses, remembered: Pose | None) -> int:
-    present = [rank for rank in range(1, len(ranked) + 1) if not ranked.is_absent(rank)]
     if remembered is None:
-        absent = [rank for rank in range(1, len(ranked) + 1) if ranked.is_absent(rank)]
-        return absent[0] if absent else 1
+        return 1
+    present = [rank for rank in range(1, len(ranked) + 1) if not ranked.is_absent(rank)]
     distances = {rank: math.dist(ranked.pose(rank).position, remembered.position) for rank in present}
     nearest = min(distances, key=distances.__getitem__, default=None)
     return nearest if nearest is not None and distances[nearest] <= NEAR else 1
@@ -72,10 +78,12 @@ def _rank(ranked: RankedHypotheses, remembered: Pose | None) -> int:
 
 @dataclass(frozen=True)
 class PreviousMapCheck:
-    """The previous map's configuration ``code`` for ``hypotheses``, and its settling if it passed both
-    rules (None: it failed one, or the check ran out of time)."""
+    """The previous map's configuration for ``hypotheses``: where it started (``start``), what it became
+    (``code``: new objects that broke a rule left out), and its settling if it passed both rules (None: it
+    failed one, or the check ran out of time)."""
 
     hypotheses: tuple[RankedHypotheses, ...]
+    start: Code
     code: Code
     settling: Settling | None
 
@@ -83,19 +91,55 @@ class PreviousMapCheck:
 def check_previous_map(
     checker: PhysicsChecker,
     hypotheses: tuple[RankedHypotheses, ...],
-    code: Code,
+    start: Code,
+    new: Sequence[int],
     params: SearchParams,
     stop_at: float | None,
 ) -> PreviousMapCheck:
-    """Rule 1 and Rule 2 of configuration ``code`` over every object, the settling stopped at ``stop_at``
-    (a ``time.monotonic()`` instant; an unfinished check counts as failed)."""
-    poses = tuple(ranked.pose(rank) for ranked, rank in zip(hypotheses, code, strict=True))
-    if checker.find_collision(poses, params.penetration_threshold) is not None:
-        return PreviousMapCheck(hypotheses, code, None)
+    """Rule 1 and Rule 2 of configuration ``start`` over every object, settlings stopped at ``stop_at``
+    (a ``time.monotonic()`` instant; an unfinished check counts as failed). An object of ``new`` (scene
+    indices the previous map did not hold) that breaks a rule, one of the overlapping pair or moved beyond
+    the jitter threshold, is left out (its *absent* rank, where it has one) and the rest checked again,
+    with at most :data:`CHECK_SETTLINGS` settlings in all."""
+    code = list(start)
+    names = checker.scene.object_names
+    droppable = {i for i in new if _absent_rank(hypotheses[i]) is not None and not hypotheses[i].is_absent(code[i])}
     early_exit = early_exit_rule(params, complete=False, moving=True)
-    outcome = checker.settle(poses, params.settle_time, params.angular_weight, stop_at, early_exit=early_exit)
-    valid = isinstance(outcome, Settling) and outcome.is_stable(params.jitter_threshold)
-    return PreviousMapCheck(hypotheses, code, outcome if valid and isinstance(outcome, Settling) else None)
+    for _ in range(CHECK_SETTLINGS):
+        poses = tuple(ranked.pose(rank) for ranked, rank in zip(hypotheses, code, strict=True))
+        collision = checker.find_collision(poses, params.penetration_threshold)
+        while collision is not None:
+            culprits = droppable & {names.index(body) for body in collision.pair if body in names}
+            if not culprits:
+                return PreviousMapCheck(hypotheses, start, tuple(code), None)
+            poses = _left_out(hypotheses, code, culprits, droppable)
+            collision = checker.find_collision(poses, params.penetration_threshold)
+        outcome = checker.settle(poses, params.settle_time, params.angular_weight, stop_at, early_exit=early_exit)
+        if not isinstance(outcome, Settling):
+            break
+        if outcome.is_stable(params.jitter_threshold):
+            return PreviousMapCheck(hypotheses, start, tuple(code), outcome)
+        culprits = droppable & {i for i, jitter in enumerate(outcome.jitters) if jitter > params.jitter_threshold}
+        if not culprits:
+            break
+        _left_out(hypotheses, code, culprits, droppable)
+    return PreviousMapCheck(hypotheses, start, tuple(code), None)
+
+
+def _absent_rank(ranked: RankedHypotheses) -> int | None:
+    return next((rank for rank in range(1, len(ranked) + 1) if ranked.is_absent(rank)), None)
+
+
+def _left_out(
+    hypotheses: tuple[RankedHypotheses, ...], code: list[int], culprits: set[int], droppable: set[int]
+) -> tuple[Pose, ...]:
+    """Put ``culprits`` at their *absent* ranks in ``code`` (no longer ``droppable``); the poses then."""
+    for i in culprits:
+        absent = _absent_rank(hypotheses[i])
+        assert absent is not None  # droppable objects have one
+        code[i] = absent
+        droppable.discard(i)
+    return tuple(ranked.pose(rank) for ranked, rank in zip(hypotheses, code, strict=True))
 
 
 def search_with_previous_map(
@@ -115,15 +159,17 @@ def search_with_previous_map(
     result or the previous map's where that is the valid one, and the check."""
     started = time.monotonic()
     hypotheses = searchable(hypotheses)
-    code = previous_map_code(checker.scene.object_names, hypotheses, remembered)
-    check = last if last is not None and (last.hypotheses, last.code) == (hypotheses, code) else None
+    names = checker.scene.object_names
+    code = previous_map_code(names, hypotheses, remembered)
+    check = last if last is not None and (last.hypotheses, last.start) == (hypotheses, code) else None
     # A search resumed had its chance at the last tick (and one that finished touches no physics); a
     # settling the deadline interrupted lives in the world until the search resumes it.
     resumed = previous is not None and resumable(previous, checker, hypotheses, params)
     waiting = previous is not None and previous.settling_in_progress is not None
     if check is None and code is not None and not resumed and not waiting:
         stop_at = None if budget is None else started + budget / 2.0
-        check = check_previous_map(checker, hypotheses, code, params, stop_at)
+        new = [i for i, name in enumerate(names) if name not in remembered]
+        check = check_previous_map(checker, hypotheses, code, new, params, stop_at)
     passed = check is not None and check.settling is not None
     search = make_search(checker, hypotheses, replace(params, fallback="none") if passed else params, previous)
     remaining = None if budget is None else max(0.0, budget - (time.monotonic() - started))

@@ -39,8 +39,8 @@ def test_each_object_takes_its_hypothesis_nearest_where_the_last_map_left_it() -
     far = (0.0, 0.0, 0.05 + NEAR + 0.01)
     with_absent = RankedHypotheses((Hypothesis(Pose(TOP, IDENTITY), 0.6), absent_hypothesis(2, 0.4)))
     hypotheses = (at(far, BOTTOM), at(FLOATING, (0.0, 0.005, 0.15), TOP), with_absent, at(TOP))
-    # a: its rank 2 lies where a rested; b: rank 3 is nearest; c (not in the map): absent; d: rank 1
-    assert previous_map_code("abcd", hypotheses, remembered) == (2, 3, 2, 1)
+    # a: its rank 2 lies where a rested; b: rank 3 is nearest; c and d (not in the map): rank 1
+    assert previous_map_code("abcd", hypotheses, remembered) == (2, 3, 1, 1)
     assert previous_map_code("ab", (at(far), at(FLOATING)), remembered) == (1, 1)  # none near: rank 1
     assert previous_map_code("ab", hypotheses[:2], {}) is None  # no previous map
 
@@ -94,24 +94,34 @@ def box_detection(*positions: Sequence[float]) -> Any:
     return detection(*(result(p, score) for p, score in zip(positions, (0.9, 0.1), strict=False)))
 
 
-def test_a_new_instance_the_previous_map_leaves_out_keeps_its_track() -> None:
+def test_new_instances_stay_in_the_previous_map_where_they_can_and_leave_it_where_they_fall() -> None:
+    """The last map held two boxes; now box_1's best result is 4 cm up (the root is unstable), a third box
+    appears on the floor and a false detection floats above the others. The previous map's configuration
+    keeps box_1 where it rested, places the new box, leaves the floating one out (it fell), and ends no
+    track: the next search decides (and leaves the floating one out for good)."""
     scene = scene_from_dict(
-        {"objects": [{"name": "box", "count": {"max": 3}, **BOX}], "static": [{"name": "floor", "shape": "plane"}]},
+        {"objects": [{"name": "box", "count": {"max": 4}, **BOX}], "static": [{"name": "floor", "shape": "plane"}]},
         "test",
     )
     mapper = Mapper(scene)
-    first, second, new = (0.0, 0.0, 0.05), (0.3, 0.0, 0.05), (0.6, 0.0, 0.05)
+    first, second, new, floating = (0.0, 0.0, 0.05), (0.3, 0.0, 0.05), (0.6, 0.0, 0.05), (0.3, 0.0, 0.4)
     for time in (0.0, 0.3):
         mapper.add_detections(array([box_detection(first), box_detection(second)]), received=time)
     held = mapper.tick(0.4, MapperSettings(GENEROUS, INPUTS, rate_hz=0.1))
-    assert held.result is not None and held.result.valid and held.absent == ("box_3",)
-    lifted = (first[0], first[1], first[2] + 0.04)  # box_1's best result now 4 cm up: the root is unstable
-    arrays = [box_detection(lifted, first), box_detection(second), box_detection(new)]
+    assert held.result is not None and held.result.valid and held.absent == ("box_3", "box_4")
+    lifted = (first[0], first[1], first[2] + 0.04)
+    arrays = [box_detection(lifted, first), box_detection(second), box_detection(new), box_detection(floating)]
     mapper.add_detections(array(arrays), received=0.8)
     report = mapper.tick(0.9, MapperSettings(ROOT_ONLY, INPUTS, rate_hz=0.1))
-    assert report.tracking.births == ("box_3",)
+    assert sorted(report.tracking.births) == ["box_3", "box_4"]
     assert report.result is not None and report.result.valid and report.result.previous_map
-    assert report.absent == ("box_3",)  # the last map did not hold it
+    names, code = report.snapshot.names, report.result.code
+    assert code is not None
+    placed = {name: report.hypotheses[i].pose(code[i]).position for i, name in enumerate(names)}
+    (left_out,) = report.absent  # the floating one, fallen
+    assert report.hypotheses[names.index(left_out)].pose(1).position == floating
+    assert placed["box_1"] == first and placed["box_2"] == second  # box_1 where it rested: its rank 2
+    assert sorted(p for n, p in placed.items() if n not in ("box_1", "box_2", left_out)) == [new]
     after = mapper.tick(1.0, MapperSettings(GENEROUS, INPUTS, rate_hz=0.1))
-    assert after.tracking.ends == ()  # no verdict on box_3: its track goes on
-    assert after.result is not None and after.result.valid and after.absent == ()  # and the search places it
+    assert report.tracking.ends == ()  # the previous map's is no verdict
+    assert after.result is not None and after.result.valid and len(after.absent) == 1
