@@ -25,11 +25,12 @@ it passed, the search runs without its ``fallback``: a fallback map (the refined
 collision-free configuration) would only stand in for a valid map that exists, and making it takes the
 search's time (the refined root of 24 cylinders in two layers took most of a 0.2 s tick).
 
-Such a map is no verdict on the objects it leaves out (:func:`~physics_mapper.mapping.existence.left_out_by_physics`):
-its repairs are greedy (a new object that fell may have fallen for a neighbour's rank), so a track it
-leaves out goes on and the next searches decide. A search resumed with unchanged hypotheses checks nothing new (it reuses the last
-check of the same configuration, if any): it touches no physics unless it still has candidates, and the
-world may hold its interrupted settling.
+Such a map is no verdict on the objects it leaves out
+(:func:`~physics_mapper.mapping.existence.left_out_by_physics`): its repairs are greedy (a new object
+that fell may have fallen for a neighbour's rank), so a track it leaves out goes on and the next
+searches decide. A search resumed with unchanged hypotheses checks nothing new (it reuses the last
+check of the same configuration, if any): it touches no physics unless it still has candidates, and
+the world may hold its interrupted settling.
 """
 
 from __future__ import annotations
