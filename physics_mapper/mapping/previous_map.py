@@ -107,13 +107,14 @@ def check_previous_map(
     droppable = {i for i in new if _absent_rank(hypotheses[i]) is not None and not hypotheses[i].is_absent(code[i])}
     early_exit = early_exit_rule(params, complete=False, moving=True)
     for _ in range(CHECK_SETTLINGS):
-        poses = tuple(ranked.pose(rank) for ranked, rank in zip(hypotheses, code, strict=True))
+        poses = _poses(hypotheses, code)
         collision = checker.find_collision(poses, params.penetration_threshold)
         while collision is not None:
             culprits = droppable & {names.index(body) for body in collision.pair if body in names}
             if not culprits:
                 return PreviousMapCheck(hypotheses, start, tuple(code), None)
-            poses = _left_out(hypotheses, code, culprits, droppable)
+            _left_out(hypotheses, code, culprits, droppable)
+            poses = _poses(hypotheses, code)
             collision = checker.find_collision(poses, params.penetration_threshold)
         outcome = checker.settle(poses, params.settle_time, params.angular_weight, stop_at, early_exit=early_exit)
         if not isinstance(outcome, Settling):
@@ -133,13 +134,17 @@ def _absent_rank(ranked: RankedHypotheses) -> int | None:
 
 def _left_out(
     hypotheses: tuple[RankedHypotheses, ...], code: list[int], culprits: set[int], droppable: set[int]
-) -> tuple[Pose, ...]:
-    """Put ``culprits`` at their *absent* ranks in ``code`` (no longer ``droppable``); the poses then."""
+) -> None:
+    """Put ``culprits`` at their *absent* ranks in ``code`` (no longer ``droppable``)."""
     for i in culprits:
         absent = _absent_rank(hypotheses[i])
         assert absent is not None  # droppable objects have one
         code[i] = absent
         droppable.discard(i)
+
+
+def _poses(hypotheses: Sequence[RankedHypotheses], code: Sequence[int]) -> tuple[Pose, ...]:
+    """The poses of configuration ``code``, in object order."""
     return tuple(ranked.pose(rank) for ranked, rank in zip(hypotheses, code, strict=True))
 
 
@@ -198,7 +203,7 @@ def with_previous_map(result: SearchResult, check: PreviousMapCheck | None) -> S
         code=code,
         probability=math.prod(ranked.weight(rank) for ranked, rank in zip(hypotheses, code, strict=True)),
         jitter=settling.total_jitter,
-        poses=tuple(ranked.pose(rank) for ranked, rank in zip(hypotheses, code, strict=True)),
+        poses=_poses(hypotheses, code),
         settled_poses=settling.settled_poses,
         object_jitters=settling.jitters,
         fallback_used=False,
