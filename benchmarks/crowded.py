@@ -111,6 +111,11 @@ class ProblemRun:
     exhaustive_agrees: bool | None
 
 
+#: The counters of a run that the conflict-directed search's parts keep (``part_counters``; the paper's
+#: searches, which learn, skip and settle locally nothing, have none of them: 0).
+PART_COUNTERS = ("conflicts", "skipped", "local_settlings", "full_settlings")
+
+
 def params_for(strategy: Strategy, base: SearchParams, trace: bool = False) -> SearchParams:
     """The benchmark's parameters: the defaults with ``strategy``, no trace kept unless asked."""
     return replace(base, strategy=strategy, trace_limit=None if trace else 0)
@@ -123,9 +128,8 @@ def time_to_answer(
     params = params_for(strategy, problem.problem.scene.search, trace=strategy == "conflict")
     answer_time, elapsed, result = search_until_answer(problem.problem, params, (problem.answer, True), SLICE, cap)
     s = result.stats
-    run = SearchRun(
-        answer_time, elapsed, s.visited + s.skipped, s.conflicts, s.skipped, s.local_settlings, s.full_settlings
-    )
+    conflicts, skipped, local, full = (s.part_counters.get(name, 0) for name in PART_COUNTERS)
+    run = SearchRun(answer_time, elapsed, s.visited + skipped, conflicts, skipped, local, full)
     return run, result
 
 
@@ -166,8 +170,10 @@ with PhysicsChecker(problem.scene) as checker:
         if found or search.done or elapsed >= cap:
             break
 s = result.stats
-print(json.dumps([elapsed if found else None, elapsed, s.visited + s.skipped, s.conflicts, s.skipped,
-                  s.local_settlings, s.full_settlings]))
+# The parts' counters: in part_counters, or (a package from before they were) fields of the stats.
+c = {**vars(s), **getattr(s, "part_counters", {})}
+print(json.dumps([elapsed if found else None, elapsed, s.visited + c["skipped"], c["conflicts"], c["skipped"],
+                  c["local_settlings"], c["full_settlings"]]))
 """
 
 

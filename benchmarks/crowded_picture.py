@@ -88,11 +88,12 @@ def plot_search(path: Path, case: CrowdedCase = PICTURE_CASE) -> None:
     grid.set_yticks([i + 0.5 for i in range(len(names))], list(names), fontsize=6)
     grid.set_xticks([i + 0.5 for i in range(len(trace))], [str(i + 1) for i in range(len(trace))], fontsize=6)
     grid.set_xlabel("checked candidates, in visiting order (top bar: red collision, orange unstable, green valid)")
-    stats = result.stats
+    counted = result.stats.part_counters
     grid.set_title(
         f"conflict-directed search to its first valid configuration ({len(trace)} checked); to the end:\n"
-        f"{stats.visited} checked, {stats.skipped} skipped by {stats.conflicts} conflicts, {stats.local_settlings} "
-        f"local and {stats.full_settlings} full settlings. Dark cells: the conflict each rejection named",
+        f"{result.stats.visited} checked, {counted['skipped']} skipped by {counted['conflicts']} conflicts, "
+        f"{counted['local_settlings']} local and {counted['full_settlings']} full settlings. "
+        "Dark cells: the conflict each rejection named",
         fontsize=8,
     )
     figure.savefig(path, dpi=130)

@@ -20,7 +20,7 @@ from physics_mapper.mapping.mapper import TickReport
 from physics_mapper.mapping.tick_statistics import TickPeriod
 from physics_mapper.model.limits import MAX_DIAGNOSTIC_TEXT, clipped
 from physics_mapper.msg_adapters.hypotheses import stamp_from_nanoseconds
-from physics_mapper.search.report import code_text, refinement_text
+from physics_mapper.search.report import code_text, counter_values, counters_text, refinement_text
 from physics_mapper.search.results import GroupResult, SearchEnd, SearchResult, SearchStats
 
 LEVELS = {Level.OK: DiagnosticStatus.OK, Level.WARN: DiagnosticStatus.WARN, Level.ERROR: DiagnosticStatus.ERROR}
@@ -76,14 +76,6 @@ def _group_state(group: GroupResult, names: tuple[str, ...]) -> str:
     return f"{objects}: {best}, {progress}, {group.visited} visited, {'kept' if group.kept else 'new'}"
 
 
-def _group_conflicts(group: GroupResult) -> str:
-    """``<kept> kept, <learned> learned, <skipped> skipped, settlings <local> local / <full> full``."""
-    return (
-        f"{group.conflicts_kept} kept, {group.conflicts} learned, {group.skipped} skipped, "
-        f"settlings {group.local_settlings} local / {group.full_settlings} full"
-    )
-
-
 def _search_level_and_message(report: TickReport) -> tuple[Level, str]:
     result = report.result
     if report.engine_fault is not None:
@@ -135,12 +127,7 @@ def search_values(report: TickReport) -> list[tuple[str, str]]:
         ("rejected by collision", str(stats.collisions)),
         ("rejected by stability", str(stats.unstable)),
         ("valid configurations", str(stats.valid)),
-        ("conflicts learned", str(stats.conflicts)),
-        ("conflicts kept", str(stats.conflicts_kept)),
-        ("candidates skipped by conflicts", str(stats.skipped)),
-        ("ranks ruled out before the search", str(stats.ruled_out)),
-        ("local settlings", str(stats.local_settlings)),
-        ("full settlings", str(stats.full_settlings)),
+        *counter_values(stats.part_counters),  # what the search's parts count of their own (none: the paper's)
         ("search time [s]", f"{report.search_time:.6f}"),
         ("total search time [s]", f"{stats.search_time:.6f}"),
         ("deadline [s]", f"{report.settings.search.deadline:g}"),
@@ -158,7 +145,11 @@ def search_values(report: TickReport) -> list[tuple[str, str]]:
         ]
         names = tuple(o.name for o in report.snapshot.objects)
         values += [(_group_key(group), _group_state(group, names)) for group in groups]
-        values += [(f"conflicts of {_group_key(group)}", _group_conflicts(group)) for group in groups]
+        values += [
+            (f"conflicts of {_group_key(group)}", counters_text(group.part_counters))
+            for group in groups
+            if group.part_counters
+        ]
     values += instance_values(report)
     values += [(f"input {o.name}", f"{o.level.name}: {o.message}") for o in report.snapshot.objects]
     return values

@@ -33,8 +33,9 @@ weights taken in another order compare equal.
 :class:`BestFirst` searches the objects it is given: every object of the scene (the paper's
 joint search), or one interaction group (:mod:`physics_mapper.search.grouped`);
 :mod:`physics_mapper.search.strategy` composes each strategy from its parts, and every caller goes
-through it. No part reads another's state; each keeps its own counters, added to the result's
-:class:`~physics_mapper.search.results.SearchStats` (:meth:`count_into`).
+through it. No part reads another's state; each keeps its own counters: those every search has it adds
+to the result's :class:`~physics_mapper.search.results.SearchStats` (:meth:`count_into`), those only it
+has it reports by name (:meth:`counters`), which the core gathers into the stats' ``part_counters``.
 
 Bounded memory: the trace holds at most ``trace_limit`` entries (later visits are counted in
 ``untraced``); the generators bound their queues.
@@ -60,20 +61,20 @@ from physics_mapper.physics.world import TIME_STEP
 from physics_mapper.search.results import (
     Candidate,
     Code,
+    Counters,
     GroupResult,
     RuledOut,
     SearchEnd,
     SearchResult,
     SearchStats,
     TraceEntry,
+    summed,
 )
 
 #: Per object, its normalised weights by rank (index 0 unused): p(C) is looked up for every candidate.
 WeightTable = tuple[tuple[float, ...], ...]
 #: A conflict named for the trace: its assignments as (object name, rank).
 NamedConflict = tuple[tuple[str, int], ...]
-#: The counters of :class:`SearchStats` a group's part of a result (:class:`GroupResult`) carries.
-GROUP_COUNTERS = ("visited", "conflicts", "conflicts_kept", "skipped", "local_settlings", "full_settlings")
 
 
 def tie_key(probability: float) -> float:
@@ -119,7 +120,8 @@ class Rule2Policy(Protocol):
 
     ``complete``: the settling must not stop beyond the jitter threshold (a fallback may report it).
     A settling the deadline ``stop_at`` cut short comes back as a :class:`PartialSettling`, which the
-    core hands to :meth:`resume` when it checks that candidate again.
+    core hands to :meth:`resume` when it checks that candidate again. :meth:`count_into` adds the counters
+    every search has (simulation steps, memo hits), :meth:`counters` are the part's own (empty: none).
     """
 
     def settle(
@@ -132,6 +134,8 @@ class Rule2Policy(Protocol):
 
     def count_into(self, stats: SearchStats) -> None: ...
 
+    def counters(self) -> Counters: ...
+
 
 class CandidateGenerator(Protocol):
     """A candidate generator (:mod:`physics_mapper.search.paper_queue`, :mod:`physics_mapper.search.conflict_directed`).
@@ -140,7 +144,8 @@ class CandidateGenerator(Protocol):
     (:func:`tie_key`). :meth:`ready` finds the next one (False: the deadline came first), :meth:`take`
     hands it out (None: none is left), :meth:`put_back` takes back one whose settling the deadline cut
     short (it is handed out first again), :meth:`observe` learns a checked candidate's verdict and
-    returns the conflict it learned from a rejection (for the trace entry).
+    returns the conflict it learned from a rejection (for the trace entry). :meth:`count_into` adds the
+    counters every search has (nodes dropped), :meth:`counters` are the generator's own (empty: none).
     """
 
     queue_limit: int
@@ -177,6 +182,8 @@ class CandidateGenerator(Protocol):
     def live_root(self) -> Code: ...
 
     def count_into(self, stats: SearchStats) -> None: ...
+
+    def counters(self) -> Counters: ...
 
 
 class TraceLog(Protocol):
@@ -335,7 +342,13 @@ class BestFirst(Generic[G, R]):
     @property
     def stats(self) -> SearchStats:
         """The core's counters with its parts' added, how the search stands and how it ended."""
-        stats = replace(self._counts, queued=self.queued, end=self.candidates.end, untraced=self.trace.untraced)
+        stats = replace(
+            self._counts,
+            queued=self.queued,
+            end=self.candidates.end,
+            untraced=self.trace.untraced,
+            part_counters=summed(self.candidates.counters(), self.rule2.counters()),
+        )
         self.candidates.count_into(stats)
         self.rule2.count_into(stats)
         return stats
@@ -535,10 +548,11 @@ class BestFirst(Generic[G, R]):
             code=None if chosen is None else chosen.code,
             probability=None if chosen is None else chosen.probability,
             jitter=None if chosen is None else chosen.settling.total_jitter,
+            visited=stats.visited,
             end=stats.end,
             kept=kept,
+            part_counters=stats.part_counters,
             ruled_out=self.candidates.ruled_out,
-            **{name: getattr(stats, name) for name in GROUP_COUNTERS},
         )
 
     @property

@@ -51,7 +51,7 @@ from physics_mapper.search.best_first import (
 from physics_mapper.search.conflict_free import ConflictFreeCandidates
 from physics_mapper.search.conflicts import Blame, Conflict, ConflictStore, collision_conflicts
 from physics_mapper.search.groups import Grouping
-from physics_mapper.search.results import Code, RuledOut, SearchEnd, SearchStats
+from physics_mapper.search.results import Code, Counters, RuledOut, SearchEnd, SearchStats
 from physics_mapper.search.rule2 import physics_key
 from physics_mapper.search.ruling_out import FreeFall, Ruling, RulingOut
 from physics_mapper.search.trial_settling import TrialSettling
@@ -266,10 +266,18 @@ class ConflictDirectedCandidates:
             self.conflicts_kept += self.conflicts.learn(conflict.renumbered(moved))
 
     def count_into(self, stats: SearchStats) -> None:
-        stats.conflicts += self.conflicts_learned
-        stats.conflicts_kept += self.conflicts_kept
-        stats.ruled_out += len(self._ruled_out)
         stats.dropped += self.candidates.dropped
+
+    def counters(self) -> Counters:
+        """Its conflicts and rulings (class docstring), and the candidates ``skipped`` for a known conflict."""
+        return {
+            "conflicts": self.conflicts_learned,
+            "conflicts_kept": self.conflicts_kept,
+            # Conflict-free generation makes no candidate that holds a known conflict: the count of those a
+            # queue skipped stays, at 0, where readers of the conflict-directed search's counters look for it.
+            "skipped": 0,
+            "ruled_out": len(self._ruled_out),
+        }
 
 
 #: The conflict-directed search of one group, as the grouped search holds it.

@@ -31,7 +31,7 @@ from physics_mapper.search.best_first import (
     tie_key,
     weight_table,
 )
-from physics_mapper.search.results import Code, RuledOut, SearchEnd, SearchStats
+from physics_mapper.search.results import Code, Counters, RuledOut, SearchEnd, SearchStats
 
 
 class PaperQueue:
@@ -130,3 +130,6 @@ class PaperQueue:
 
     def count_into(self, stats: SearchStats) -> None:
         stats.dropped += self.dropped
+
+    def counters(self) -> Counters:
+        return {}  # the paper's queue counts only what every search counts

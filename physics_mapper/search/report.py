@@ -8,7 +8,18 @@ from typing import Any
 from physics_mapper.model.geometry import Pose
 from physics_mapper.model.scene import Fallback
 from physics_mapper.physics.refine import OVERLAP_TOLERANCE, RefinedMap
-from physics_mapper.search.results import Code, GroupResult, RuledOut, SearchResult, SearchStats, TraceEntry
+from physics_mapper.search.results import Code, Counters, GroupResult, RuledOut, SearchResult, SearchStats, TraceEntry
+
+#: The search parts' own counters (:attr:`SearchStats.part_counters`) in words: the diagnostics' keys and
+#: the summary's (a counter not named here is shown by its own name).
+COUNTER_WORDS = {
+    "conflicts": "conflicts learned",
+    "conflicts_kept": "conflicts kept",
+    "skipped": "candidates skipped by conflicts",
+    "ruled_out": "ranks ruled out before the search",
+    "local_settlings": "local settlings",
+    "full_settlings": "full settlings",
+}
 
 
 def code_text(code: Code | None) -> str:
@@ -18,6 +29,16 @@ def code_text(code: Code | None) -> str:
     if all(rank < 10 for rank in code):
         return "C" + "".join(str(rank) for rank in code)
     return "C(" + ",".join(str(rank) for rank in code) + ")"
+
+
+def counter_values(counters: Counters) -> list[tuple[str, str]]:
+    """The parts' counters as (words, value) in their order, e.g. ``("conflicts learned", "3")``."""
+    return [(COUNTER_WORDS.get(name, name), str(value)) for name, value in counters.items()]
+
+
+def counters_text(counters: Counters) -> str:
+    """The parts' counters on one line, e.g. ``3 conflicts learned, 0 conflicts kept``."""
+    return ", ".join(f"{value} {words}" for words, value in counter_values(counters))
 
 
 def pose_dict(pose: Pose) -> dict[str, list[float]]:
@@ -67,9 +88,10 @@ def refinement_dict(refined: RefinedMap, names: tuple[str, ...]) -> dict[str, An
 
 
 def stats_dict(stats: SearchStats) -> dict[str, Any]:
-    """A search's counters, how it ended (``end``; ``exhausted`` when every configuration was
-    visited) and its speed."""
+    """A search's counters, its parts' beside the others (``conflicts``, ... of the default search), how it
+    ended (``end``; ``exhausted`` when every configuration was visited) and its speed."""
     data = asdict(stats)
+    data.update(data.pop("part_counters"))
     data["exhausted"] = stats.exhausted
     data["configurations_per_second"] = stats.configurations_per_second
     return data
@@ -220,20 +242,15 @@ def result_summary(result: SearchResult, fallback: Fallback) -> str:
         head = f"no valid configuration; fallback settled {code_text(result.code)}  p={result.probability:.4g}"
     solved = sum(group.valid for group in result.groups)
     groups = f"{len(result.groups)} interaction groups, {solved} solved; " if len(result.groups) > 1 else ""
-    conflicts = (
-        f"conflicts: {stats.conflicts} learned, {stats.conflicts_kept} kept; {stats.skipped} candidates skipped; "
-        f"settlings: {stats.local_settlings} local, {stats.full_settlings} full\n"
-        if stats.conflicts or stats.conflicts_kept
-        else ""
-    )
+    counted = f"{counters_text(stats.part_counters)}\n" if any(stats.part_counters.values()) else ""
     if result.ruled_out:
-        conflicts += f"ruled out before the search: {'; '.join(ruled_out_text(r) for r in result.ruled_out[:5])}"
-        conflicts += f" (and {len(result.ruled_out) - 5} more)\n" if len(result.ruled_out) > 5 else "\n"
+        counted += f"ruled out before the search: {'; '.join(ruled_out_text(r) for r in result.ruled_out[:5])}"
+        counted += f" (and {len(result.ruled_out) - 5} more)\n" if len(result.ruled_out) > 5 else "\n"
     return (
         f"{head}\n"
         f"{groups}visited {stats.visited} (expanded {stats.expanded}, bounded {stats.bounded}); "
         f"rejected: {stats.collisions} collision, {stats.unstable} unstable; valid {stats.valid}\n"
-        f"{conflicts}"
+        f"{counted}"
         f"search time {stats.search_time * 1000:.1f} ms "
         f"({stats.configurations_per_second:.0f} configurations/s), {search_ending(stats)}"
     )

@@ -6,7 +6,8 @@ in object order: ``(2, 1, 1)`` is the paper's C211.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, fields
+from collections.abc import Mapping
+from dataclasses import dataclass, field, fields
 from typing import Literal
 
 from physics_mapper.model.geometry import Pose
@@ -19,6 +20,17 @@ Outcome = Literal["collision", "unstable", "valid"]
 #: How a search that emptied its queue ended: ``exhausted`` (every configuration visited), ``bounded``
 #: (configurations below the bound were never queued) or ``truncated`` (the queue limit dropped nodes).
 SearchEnd = Literal["exhausted", "bounded", "truncated"]
+#: A search part's own counters by name (the conflict-directed search's ``conflicts``, ``local_settlings``, ...).
+Counters = Mapping[str, int]
+
+
+def summed(*counters: Counters) -> dict[str, int]:
+    """``counters`` added up name by name, the names in the order they first come."""
+    total: dict[str, int] = {}
+    for each in counters:
+        for name, value in each.items():
+            total[name] = total.get(name, 0) + value
+    return total
 
 
 @dataclass(frozen=True, slots=True)
@@ -77,12 +89,11 @@ class SearchStats:
     ``end`` is None while nodes are queued (``queued`` of them when the result was made);
     ``dropped`` counts queued nodes the queue limit threw away, ``untraced`` visits the trace
     limit left out. ``settle_steps`` are the simulation steps run, ``settle_steps_saved`` those
-    early exits spared, ``memo_hits`` settlings reused, ``merges`` escape-guard merges. A
-    conflict-directed search also counts ``conflicts`` learned (and ``conflicts_kept``, carried over
-    from the previous search for objects whose hypotheses did not change), candidates ``skipped`` because
-    they contain a known conflict (never checked), and its settlings: ``local_settlings`` (only what
-    changed and its neighbours simulated) and ``full_settlings`` (every object of the group), and the
-    ranks ``ruled_out`` before its first candidate (:class:`RuledOut`; learned conflicts among them).
+    early exits spared, ``memo_hits`` settlings reused, ``merges`` escape-guard merges.
+    ``part_counters`` are what the search's parts count of their own, by name (empty where they count
+    nothing, as the paper's parts): a conflict-directed search's ``conflicts`` learned and its trial
+    settlings (:class:`~physics_mapper.search.conflict_directed.ConflictDirectedCandidates`,
+    :class:`~physics_mapper.search.trial_settling.TrialSettling`).
     """
 
     visited: int = 0
@@ -101,12 +112,7 @@ class SearchStats:
     settle_steps_saved: int = 0
     memo_hits: int = 0
     merges: int = 0
-    conflicts: int = 0
-    conflicts_kept: int = 0
-    skipped: int = 0
-    local_settlings: int = 0
-    full_settlings: int = 0
-    ruled_out: int = 0
+    part_counters: Counters = field(default_factory=dict)
 
     @property
     def exhausted(self) -> bool:
@@ -123,12 +129,13 @@ class SearchStats:
         return self.visited / self.search_time if self.search_time > 0.0 else 0.0
 
     def add(self, other: SearchStats) -> None:
-        """Add ``other``'s counters (not its time nor how it ended) to these."""
+        """Add ``other``'s counters, its parts' too (not its time nor how it ended), to these."""
         for name in _COUNTERS:
             setattr(self, name, getattr(self, name) + getattr(other, name))
+        self.part_counters = summed(self.part_counters, other.part_counters)
 
 
-#: The fields of :class:`SearchStats` that count something (added up over groups).
+#: The fields of :class:`SearchStats` that every search counts (added up over groups).
 _COUNTERS = tuple(f.name for f in fields(SearchStats) if f.type == "int")
 
 
@@ -147,10 +154,9 @@ class GroupResult:
 
     ``id`` is the group's id in the trace (None for a search over every object), ``code`` the
     group's ranks (its objects' order), ``valid`` whether that sub-configuration passed both rules.
-    ``kept`` says the group's search was carried over unchanged from the previous search. A
-    conflict-directed group's counters (:class:`SearchStats`) come with it: ``conflicts``,
-    ``conflicts_kept``, ``skipped``, ``local_settlings`` and ``full_settlings``, and why each rank it
-    ruled out before its search was (``ruled_out``).
+    ``kept`` says the group's search was carried over unchanged from the previous search.
+    ``part_counters`` are its parts' own (:attr:`SearchStats.part_counters`), ``ruled_out`` why each rank
+    it ruled out before its search was (a conflict-directed group's).
     """
 
     id: int | None
@@ -162,11 +168,7 @@ class GroupResult:
     visited: int
     end: SearchEnd | None
     kept: bool = False
-    conflicts: int = 0
-    conflicts_kept: int = 0
-    skipped: int = 0
-    local_settlings: int = 0
-    full_settlings: int = 0
+    part_counters: Counters = field(default_factory=dict)
     ruled_out: tuple[RuledOut, ...] = ()
 
 

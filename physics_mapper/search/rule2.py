@@ -25,7 +25,7 @@ from physics_mapper.model.hypotheses import RankedHypotheses
 from physics_mapper.model.scene import SearchParams
 from physics_mapper.physics.checker import PhysicsChecker
 from physics_mapper.physics.settling import PartialSettling, SettleStop, Settling, early_exit_rule
-from physics_mapper.search.results import Code, SearchStats
+from physics_mapper.search.results import Code, Counters, SearchStats
 
 #: Settlings a grouped search remembers (each group an equal share), a few hundred bytes each.
 SETTLE_MEMO_LIMIT = 5_000
@@ -106,6 +106,9 @@ class FullSettling:
 
     def count_into(self, stats: SearchStats) -> None:
         self.steps.count_into(stats)
+
+    def counters(self) -> Counters:
+        return {}  # Rule 2's own settlings only: the steps every search counts tell them
 
 
 class _FlatSettling(NamedTuple):
@@ -202,3 +205,6 @@ class MemoisedSettling:
     def count_into(self, stats: SearchStats) -> None:
         stats.memo_hits += self.memo_hits
         self.settling.count_into(stats)
+
+    def counters(self) -> Counters:
+        return self.settling.counters()

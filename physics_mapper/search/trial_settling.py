@@ -19,7 +19,7 @@ from physics_mapper.model.scene import SearchParams
 from physics_mapper.physics.checker import PhysicsChecker
 from physics_mapper.physics.settling import PartialSettling, Settling, early_exit_rule
 from physics_mapper.search.local_settling import LocalPlan, LocalSettling
-from physics_mapper.search.results import Code, SearchStats
+from physics_mapper.search.results import Code, Counters, SearchStats
 from physics_mapper.search.rule2 import MemoisedSettling, SettlingObserver, StepCounts
 
 #: Bullet solver iterations of a trial settling (Rule 2's are 50, ``world.SOLVER_ITERATIONS``): its
@@ -149,7 +149,9 @@ class TrialSettling:
         self.local.kept_from(old.local, moved, stale)
 
     def count_into(self, stats: SearchStats) -> None:
-        stats.local_settlings += self.local_settlings
-        stats.full_settlings += self.whole_trials + self.confirm.settlings
         self.steps.count_into(stats)
         self.confirm.count_into(stats)
+
+    def counters(self) -> Counters:
+        """Its settlings by kind (class docstring)."""
+        return {"local_settlings": self.local_settlings, "full_settlings": self.whole_trials + self.confirm.settlings}

@@ -97,7 +97,8 @@ def test_a_crowded_bin_gets_a_valid_map_and_keeps_conflicts_when_one_object_chan
         found = search_values(msg)
         kept = int(found["conflicts kept"])
         assert kept > 0
-        # Per group, "<kept> kept, <learned> learned, ...": what the groups kept adds up to the total.
+        # Per group, "<learned> conflicts learned, <kept> conflicts kept, ...": what the groups kept adds up to
+        # the total.
         groups = [value for key, value in found.items() if key.startswith("conflicts of group ")]
         assert len(groups) == int(found["groups"])
-        assert sum(int(value.split(" kept, ")[0]) for value in groups) == kept
+        assert sum(int(value.split(" conflicts kept")[0].rsplit(" ", 1)[-1]) for value in groups) == kept

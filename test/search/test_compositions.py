@@ -142,4 +142,4 @@ def test_conflict_free_generation_with_the_full_collision_pass_gives_the_joint_a
     assert {c for c, o in checked.items() if o == "valid"} == {c for c, o in paper.items() if o == "valid"}
     rejected = [entry for entry in result.trace if entry.outcome != "valid"]
     assert all(entry.conflict for entry in rejected)  # learned from the full pass's collisions too
-    assert result.stats.conflicts >= len(rejected)
+    assert result.stats.part_counters["conflicts"] >= len(rejected)

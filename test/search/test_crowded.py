@@ -180,7 +180,7 @@ def test_local_settlings_decide_as_full_ones() -> None:
     problem = crowded_problem(CrowdedCase("row", 8, 2, 8))
     paper, _ = searched(problem, strategy="grouped")
     conflict, _ = searched(problem)
-    assert conflict.stats.local_settlings > 0
+    assert conflict.stats.part_counters["local_settlings"] > 0
     expected = outcomes(paper)
     assert all(expected[key] == outcome for key, outcome in outcomes(conflict).items())
     assert (conflict.code, conflict.valid) == (paper.code, paper.valid) == (problem.answer, True)
@@ -203,8 +203,8 @@ def test_trials_run_fewer_solver_iterations_and_valid_verdicts_rule_2_s() -> Non
         search = make_search(checker, problem.problem.hypotheses, params)
         result = search.run(None)
     assert (result.code, result.valid) == (problem.answer, True)
-    assert result.stats.local_settlings > 0
-    assert iterations.count(TRIAL_SOLVER_ITERATIONS) >= result.stats.local_settlings
+    assert result.stats.part_counters["local_settlings"] > 0
+    assert iterations.count(TRIAL_SOLVER_ITERATIONS) >= result.stats.part_counters["local_settlings"]
     assert None in iterations  # the confirmations: Rule 2's solver
     best = [group.best_valid for group in conflict_groups(search)]
     assert all(candidate is not None and candidate.settling.solver_iterations is None for candidate in best)
@@ -222,7 +222,7 @@ def test_groups_with_meshes_are_settled_locally_with_the_same_answer(tmp_path: P
     meshes = replace(load_inline(floor_scene_dict(*objects), tmp_path), search=scene.search)
     with_meshes = replace(problem, problem=replace(problem.problem, scene=meshes))
     result, _ = searched(with_meshes)
-    assert result.stats.local_settlings > 0 and result.stats.full_settlings > 0
+    assert result.stats.part_counters["local_settlings"] > 0 and result.stats.part_counters["full_settlings"] > 0
     assert (result.code, result.valid) == (problem.answer, True)
 
 
@@ -290,7 +290,7 @@ def test_new_hypotheses_for_one_object_keep_the_conflicts_of_the_others() -> Non
         after = second.run(None)
         old, new = conflict_groups(first)[0], conflict_groups(second)[0]
         kept = [c for c in old.candidates.conflicts if 9 not in c.positions]
-        assert 0 < new.stats.conflicts_kept <= len(kept) < len(old.candidates.conflicts)
+        assert 0 < new.stats.part_counters["conflicts_kept"] <= len(kept) < len(old.candidates.conflicts)
     assert (after.code, after.valid) == (before.code, before.valid) == (problem.answer, True)
     assert after.stats.visited < before.stats.visited
 

@@ -28,7 +28,7 @@ def test_local_settlings_of_meshes_agree_with_full_settlings(case: CrowdedCase) 
     params = replace(problem.problem.scene.search, trace_limit=None)
     with PhysicsChecker(problem.problem.scene) as checker:
         result = make_search(checker, problem.problem.hypotheses, params).run(None)
-    assert result.stats.local_settlings > 0
+    assert result.stats.part_counters["local_settlings"] > 0
     verdicts = full_verdicts(problem, result)
     assert verdicts["unstable"][0] > 0 and verdicts["unstable"][0] == verdicts["unstable"][1]
     assert verdicts["valid"][0] == verdicts["valid"][1]

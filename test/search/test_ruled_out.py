@@ -84,7 +84,7 @@ def test_a_rank_overlapping_a_neighbour_at_each_of_its_ranks_is_ruled_out_with_t
     )
     assert ruling.depth == pytest.approx(0.02, abs=1e-3)  # the shallower overlap, with cube_1's second
     assert result.valid and result.code is not None and result.code[0] == 1
-    assert result.stats.ruled_out == 1 and isinstance(ruling, RuledOut)
+    assert result.stats.part_counters["ruled_out"] == 1 and isinstance(ruling, RuledOut)
 
 
 def test_a_rank_in_free_fall_is_ruled_out_and_one_in_reach_of_a_neighbour_is_not() -> None:
