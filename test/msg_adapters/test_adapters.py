@@ -30,6 +30,7 @@ from physics_mapper.model.scene import (
     SearchParams,
     Sphere,
     StaticBody,
+    Strategy,
     Workspace,
 )
 from physics_mapper.model.scene_files import load_problem, load_scene
@@ -58,6 +59,7 @@ from physics_mapper.msg_adapters.results import (
     static_markers_msg,
 )
 from physics_mapper.physics.checker import PhysicsChecker
+from physics_mapper.search.report import COUNTER_WORDS, counters_text, stats_dict
 from physics_mapper.search.strategy import paper_search
 
 #: A 20 m box about the origin, as a scene's default workspace may be.
@@ -394,6 +396,38 @@ def test_diagnostics_hold_the_spec_keys_and_one_status_per_object() -> None:
     assert all(s.level == DiagnosticStatus.OK for s in objects)
     assert {s.hardware_id for s in diagnostics.status} == {"/ns/physics_mapper"}
     assert dict((kv.key, kv.value) for kv in objects[0].values)["weights"] == "paired"
+
+
+@pytest.mark.parametrize("strategy", ["joint", "conflict"])
+def test_only_a_search_whose_parts_count_conflicts_reports_them(strategy: Strategy) -> None:
+    """The conflict-directed default's parts count conflicts and settlings by kind: its stats, JSON and
+    diagnostics carry them, under their words; the paper's parts count none, and the joint search's
+    carry none of them."""
+    scene = load_scene(SCENES / "pyramid.yaml")
+    mapper = Mapper(scene)
+    try:
+        for name, x, z in (("cube_left", -0.105, 0.1), ("cube_right", 0.105, 0.1), ("cube_top", 0.0, 0.3)):
+            msg = pose_array_msg([Pose((x, 0.0, z))], frame_id="world", stamp_ns=1_000_000_000)
+            mapper.inputs.add_poses(
+                name, received_poses(msg, expected_frame="world", workspace=WORKSPACE, received=1.0)
+            )
+        report = mapper.tick(1.0, MapperSettings(SearchParams(strategy=strategy), InputSettings()))
+    finally:
+        mapper.close()
+    assert report.result is not None and report.result.valid
+    stats = report.result.stats
+    values = {
+        kv.key: kv.value for kv in diagnostics_msg(report, node_name="n", hardware_id="/n", stamp_ns=0).status[0].values
+    }
+    if strategy == "joint":
+        assert stats.part_counters == {} and all(group.part_counters == {} for group in report.result.groups)
+        assert not set(COUNTER_WORDS) & set(stats_dict(stats))
+        assert not set(COUNTER_WORDS.values()) & set(values) and "conflicts of group" not in values
+    else:
+        assert set(stats.part_counters) == set(COUNTER_WORDS) and stats.part_counters["full_settlings"] > 0
+        assert {name: stats_dict(stats)[name] for name in COUNTER_WORDS} == stats.part_counters
+        assert {name: int(values[words]) for name, words in COUNTER_WORDS.items()} == stats.part_counters
+        assert values["conflicts of group"] == counters_text(stats.part_counters)
 
 
 def test_every_diagnostics_string_is_clipped() -> None:
