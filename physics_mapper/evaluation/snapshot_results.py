@@ -29,12 +29,13 @@ from physics_mapper.evaluation.identity import identity_metrics, identity_text, 
 from physics_mapper.evaluation.scoring import position_errors, rank_one_poses
 from physics_mapper.evaluation.snapshots import BagSnapshot, bag_snapshots
 from physics_mapper.mapping.association import AssociationSettings
-from physics_mapper.mapping.previous_map import search_with_previous_map
+from physics_mapper.mapping.previous_map import PreviousMapCheck, search_with_previous_map
 from physics_mapper.mapping.topics import MAP_TOPIC_QOS, RECORDED_CONFIGURATION_TOPIC, RECORDED_SETTLED_TOPIC
 from physics_mapper.model.geometry import Pose, is_same_pose
 from physics_mapper.model.hypotheses import RankedHypotheses
 from physics_mapper.model.scene import Scene
 from physics_mapper.physics.checker import PhysicsChecker
+from physics_mapper.search.best_first import Search
 from physics_mapper.search.report import code_text
 from physics_mapper.search.results import Code, SearchResult
 
@@ -81,7 +82,8 @@ def search_offline(
 class OfflineSearch:
     """Searches snapshots one by one in one physics world, ``budget`` seconds each (None: to the end), keeping
     each :class:`SnapshotResult`; as a :data:`~physics_mapper.evaluation.snapshots.Decide`, it lets a bag's
-    snapshots follow the maps chosen, as the node's inputs follow its ticks (:func:`replay_offline`)."""
+    snapshots follow the maps chosen, as the node's inputs follow its ticks (:func:`replay_offline`). As the
+    node's ticks, each search follows the last one (what it learned that still holds is kept)."""
 
     def __init__(
         self,
@@ -92,11 +94,13 @@ class OfflineSearch:
     ) -> None:
         self.checker, self.scene, self.budget, self.progress = checker, scene, budget, progress
         self.results: list[SnapshotResult] = []
+        self._search: Search | None = None
+        self._check: PreviousMapCheck | None = None
 
     def __call__(self, snapshot: BagSnapshot) -> SearchResult:
         remembered = dict(snapshot.remembered)
-        _, found, _ = search_with_previous_map(
-            self.checker, snapshot.hypotheses, self.scene.search, remembered, self.budget
+        self._search, found, self._check = search_with_previous_map(
+            self.checker, snapshot.hypotheses, self.scene.search, remembered, self.budget, self._search, self._check
         )
         self.results.append(SnapshotResult(snapshot, found.code, found.poses, found.settled_poses, found))
         if self.progress is not None:

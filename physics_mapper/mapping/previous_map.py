@@ -30,7 +30,10 @@ Such a map is no verdict on the objects it leaves out
 that fell may have fallen for a neighbour's rank), so a track it leaves out goes on and the next
 searches decide. A search resumed with unchanged hypotheses checks nothing new (it reuses the last
 check of the same configuration, if any): it touches no physics unless it still has candidates, and
-the world may hold its interrupted settling.
+the world may hold its interrupted settling. Nor does a search that goes on with the last one's
+interrupted settling (:func:`settling_goes_on`); where that settling's objects have new hypotheses it is
+dropped, and the check runs (in a bin whose estimator updates every object at every frame, skipping it
+there would skip it at nearly every tick the deadline cut a settling short).
 """
 
 from __future__ import annotations
@@ -171,7 +174,7 @@ def search_with_previous_map(
     # A search resumed had its chance at the last tick (and one that finished touches no physics); a
     # settling the deadline interrupted lives in the world until the search resumes it.
     resumed = previous is not None and resumable(previous, checker, hypotheses, params)
-    waiting = previous is not None and previous.settling_in_progress is not None
+    waiting = previous is not None and settling_goes_on(previous, hypotheses)
     if check is None and code is not None and not resumed and not waiting:
         stop_at = None if budget is None else started + budget / 2.0
         new = [i for i, name in enumerate(names) if name not in remembered]
@@ -180,6 +183,14 @@ def search_with_previous_map(
     search = make_search(checker, hypotheses, replace(params, fallback="none") if passed else params, previous)
     remaining = None if budget is None else max(0.0, budget - (time.monotonic() - started))
     return search, with_previous_map(search.run(remaining), check), check
+
+
+def settling_goes_on(previous: Search, hypotheses: Sequence[RankedHypotheses]) -> bool:
+    """Whether a search of ``hypotheses`` following ``previous`` may go on with its interrupted settling (the
+    hypotheses of that settling's objects unchanged): the settling lives in the world, which a check would
+    move. Where they changed, the next search starts that group afresh and the check may use the world."""
+    objects = previous.settling_objects
+    return bool(objects) and all(previous.hypotheses[i] == hypotheses[i] for i in objects)
 
 
 def with_previous_map(result: SearchResult, check: PreviousMapCheck | None) -> SearchResult:

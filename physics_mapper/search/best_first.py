@@ -320,6 +320,11 @@ class BestFirst(Generic[G, R]):
         return None if self._interrupted is None else self.trace_group
 
     @property
+    def settling_objects(self) -> tuple[int, ...]:
+        """The objects (scene indices) of :attr:`settling_in_progress` (none: no settling is)."""
+        return () if self._interrupted is None else self.objects
+
+    @property
     def done(self) -> bool:
         """True once no candidate is left (and a due refined map is made)."""
         return self.candidates.exhausted and not self.refinement_due
@@ -610,6 +615,9 @@ class Search(Protocol):
 
     @property
     def settling_group(self) -> int | None: ...
+
+    @property
+    def settling_objects(self) -> tuple[int, ...]: ...
 
 
 def continuable(running: SearchParams, wanted: SearchParams) -> bool:

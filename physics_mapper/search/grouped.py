@@ -392,6 +392,12 @@ class GroupedSearch(Generic[G, R]):
         group = self._interrupted_group()
         return None if group is None else group.settling_group
 
+    @property
+    def settling_objects(self) -> tuple[int, ...]:
+        """The objects (scene indices) of the group whose settling the deadline interrupted (none: no group's)."""
+        group = self._interrupted_group()
+        return () if group is None else group.objects
+
     def _interrupted_group(self) -> BestFirst[G, R] | None:
         return next((g for g in self._groups.values() if g.settling_in_progress is not None), None)
 

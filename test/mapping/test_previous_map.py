@@ -10,11 +10,13 @@ from detection_builders import array, detection, result
 
 from physics_mapper.mapping.inputs import InputSettings, check_poses, check_weights
 from physics_mapper.mapping.mapper import Mapper, MapperSettings, TickReport
-from physics_mapper.mapping.previous_map import NEAR, previous_map_code
+from physics_mapper.mapping.previous_map import NEAR, previous_map_code, settling_goes_on
 from physics_mapper.model.geometry import IDENTITY, Pose
 from physics_mapper.model.hypotheses import Hypothesis, RankedHypotheses, absent_hypothesis
 from physics_mapper.model.scene import SearchParams
 from physics_mapper.model.scene_files import scene_from_dict
+from physics_mapper.physics.checker import PhysicsChecker
+from physics_mapper.search.strategy import make_search, searchable
 
 BOX = {"shape": "box", "size": [0.1, 0.1, 0.1], "mass": 0.2}
 BOTTOM, TOP = (0.0, 0.0, 0.05), (0.0, 0.0, 0.15)
@@ -125,3 +127,19 @@ def test_new_instances_stay_in_the_previous_map_where_they_can_and_leave_it_wher
     after = mapper.tick(1.0, MapperSettings(GENEROUS, INPUTS, rate_hz=0.1))
     assert report.tracking.ends == ()  # the previous map's is no verdict
     assert after.result is not None and after.result.valid and len(after.absent) == 1
+
+
+def test_the_check_waits_only_for_a_settling_the_next_search_goes_on_with() -> None:
+    """A search cut short in its settling of the stack: the next search with the same hypotheses of those
+    objects goes on with it (the world holds it: no check then); with one of them moved it starts afresh,
+    and the previous map may be checked."""
+    hypotheses = searchable((at(BOTTOM), at(TOP)))
+    moved = searchable((at(BOTTOM), at((0.0, 0.0, 0.151))))
+    with PhysicsChecker(STACK) as checker:
+        search = make_search(checker, hypotheses, GENEROUS)
+        for _ in range(1000):
+            if search.settling_in_progress is not None:
+                break
+            search.run(0.0002)
+        assert search.settling_objects == (0, 1), "a run of 0.2 ms cuts the stack's settling short"
+        assert settling_goes_on(search, hypotheses) and not settling_goes_on(search, moved)
