@@ -274,9 +274,9 @@ def test_a_renamed_node_runs_with_the_shipped_parameters_file(tmp_path: Path) ->
         parameters = AsyncParameterClient(client.node, "/renamed/mapper")
         client.wait_for(lambda: parameters.wait_for_services(timeout_sec=0.1), what="the renamed node's parameters")
         names = ["deadline", "rate_hz", "fallback", "penetration_threshold", "scene_file"]
-        future = parameters.get_parameters(names)
-        client.wait_for(future.done, what="its parameters")
-        got = [parameter_value_to_python(v) for v in future.result().values]  # type: ignore[no-untyped-call]
+        # A request sent before the service's reply writer matched this client is lost: sent again until answered.
+        answer = client.answered(lambda: parameters.get_parameters(names), "its parameters")
+        got = [parameter_value_to_python(v) for v in answer.values]
     finally:
         client.close()
         process.send_signal(2)

@@ -70,9 +70,8 @@ def spelled(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Spelled]:
 def test_a_parameters_file_may_spell_floats_as_people_write_them(spelled: Spelled) -> None:
     client = spelled.client
     client.wait_for(lambda: client.parameters.wait_for_services(timeout_sec=0.1), what="parameter services")
-    future = client.parameters.get_parameters(list(SPELLED_PARAMETERS))
-    client.wait_for(future.done, what="get_parameters")
-    got = [value.double_value for value in future.result().values]  # type: ignore[no-untyped-call]
+    answer = client.answered(lambda: client.parameters.get_parameters(list(SPELLED_PARAMETERS)), "get_parameters")
+    got = [value.double_value for value in answer.values]
     assert got == [number for _, number in SPELLED_PARAMETERS.values()]
 
 
