@@ -390,7 +390,9 @@ def test_the_node_publishes_the_refined_map_and_says_refine(refining_node: RosCl
     assert offline.settled_poses is not None
     settled = next(m for m in client.settled if whole(m))
     got = [(p.position.x, p.position.y, p.position.z) for p in settled.poses]
-    assert got == [pose.position for pose in offline.settled_poses]  # the same map, bit for bit
+    # The same map: within 1 mm, not bit for bit, since the node's world has searched the objects that came
+    # first (they arrive one by one) before it refined all of them, which moves the last digits.
+    assert all(math.dist(a, b.position) < 1e-3 for a, b in zip(got, offline.settled_poses, strict=True))
     client.wait_for(lambda: bool(client.markers) and bool(client.markers[-1].markers), what="markers")
     shapes = [m for m in client.markers[-1].markers if m.ns == SHAPE_NAMESPACE]
     assert [(m.pose.position.x, m.pose.position.y, m.pose.position.z) for m in shapes] == got

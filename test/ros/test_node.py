@@ -422,13 +422,16 @@ def busy_problem() -> Problem:
 
 
 def start_searching(client: RosClient) -> None:
-    """Feed the busy problem until the node has searched on it."""
+    """Feed the busy problem until the node has searched on it with every object's hypotheses (a search on
+    the first object's alone ends at once, and a PoseArray sent before the node's reader matched is lost)."""
     problem = busy_problem()
+
+    def searching_all(msg: DiagnosticArray) -> bool:
+        inputs = all(level_of(msg, name) == DiagnosticStatus.OK for name in problem.scene.object_names)
+        return inputs and values(search_status(msg) or DiagnosticStatus())["nodes visited"] != "0"
+
     publish_until_diagnosed(
-        client,
-        lambda: publish_problem(client, problem, stamp_ns=10**9),
-        lambda d: values(search_status(d) or DiagnosticStatus())["nodes visited"] != "0",
-        "a search on the busy problem",
+        client, lambda: publish_problem(client, problem, stamp_ns=10**9), searching_all, "a search on the busy problem"
     )
 
 
