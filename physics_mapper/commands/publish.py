@@ -66,7 +66,7 @@ def _publish(args: argparse.Namespace, problem: Problem, namespace: str) -> None
     from rclpy.utilities import ok
 
     from physics_mapper.ros.hypothesis_publisher import HypothesisPublisher
-    from physics_mapper.ros.spinning import spin_for
+    from physics_mapper.ros.spinning import spin_for, spin_once
 
     node = rclpy.create_node("physics_mapper_publisher", namespace=namespace)
     publisher = HypothesisPublisher(node, problem)
@@ -89,7 +89,7 @@ def _publish(args: argparse.Namespace, problem: Problem, namespace: str) -> None
     publish_round()
     node.create_timer(1.0 / args.rate, publish_round)
     while ok() and (args.count == 0 or rounds < args.count):
-        rclpy.spin_once(node, timeout_sec=0.1)
+        spin_once(node, 0.1)
     spin_for(node, LINGER)  # reliable delivery of the last round completes in the background
     print(f"published {rounds} round{'s' if rounds != 1 else ''}", flush=True)
     node.destroy_node()  # type: ignore[no-untyped-call]

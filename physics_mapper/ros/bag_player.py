@@ -51,7 +51,7 @@ from physics_mapper.mapping.topics import (
     TopicQos,
 )
 from physics_mapper.ros.qos import PLAYBACK_DEPTH, playback_qos, qos_profile, recorded_qos
-from physics_mapper.ros.spinning import ros_for_command
+from physics_mapper.ros.spinning import ros_for_command, spin_once
 
 #: The node's outputs that are recorded, with their types; a bag's messages on these topics are not
 #: played, nor an old run's markers.
@@ -237,13 +237,13 @@ def _wait_for_graph(
                 f"{'; '.join(missing)} after {timeout:g} s: start it first (physics-mapper node --ros-args -p "
                 "scene_file:=SCENE), pass --start-node, or name it with --namespace and --node-name"
             )
-        executor.spin_once(timeout_sec=0.05)
+        spin_once(executor, 0.05)
     _spin_until(executor, time.monotonic() + SETTLE_AFTER_DISCOVERY)
 
 
 def _spin_until(executor: SingleThreadedExecutor, instant: float) -> None:
     while (remaining := instant - time.monotonic()) > 0.0:
-        executor.spin_once(timeout_sec=min(remaining, 0.05))
+        spin_once(executor, min(remaining, 0.05))
 
 
 def play_and_record(
@@ -335,7 +335,7 @@ class _Player:
                     f"the node reported no finished search on the hypotheses stamped {snapshot.stamp_ns} ns "
                     f"within {self.playback.wait:g} s (its last diagnostics: {self.searches.latest_message})"
                 )
-            self.executor.spin_once(timeout_sec=0.05)
+            spin_once(self.executor, 0.05)
 
     def _report(self, played: int, total: int, start: float) -> None:
         configurations = self.recorder.counts[RECORDED_CONFIGURATION_TOPIC]

@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import time
 
-import rclpy
 from geometry_msgs.msg import PoseArray
 from rclpy.node import Node
 from rclpy.utilities import ok
@@ -19,6 +18,7 @@ from std_msgs.msg import Float64MultiArray
 from physics_mapper.mapping.topics import poses_topic, weights_topic
 from physics_mapper.model.scene import Problem
 from physics_mapper.msg_adapters.hypotheses import hypotheses_msgs
+from physics_mapper.ros.spinning import spin_once
 
 QUEUE_DEPTH = 10
 
@@ -45,7 +45,7 @@ class HypothesisPublisher:
         while any(p.get_subscription_count() == 0 for p in publishers):
             if time.monotonic() >= end or not ok():
                 return False
-            rclpy.spin_once(self.node, timeout_sec=0.05)
+            spin_once(self.node, 0.05)
         return True
 
     def publish(self) -> None:

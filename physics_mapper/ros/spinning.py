@@ -8,6 +8,11 @@ to stop, and the process shuts rclpy down itself, in order. Where stopping at on
 search), :meth:`SignalStop.interruptible` lets the first signal interrupt the work with
 KeyboardInterrupt instead. Later signals are ignored: the stop is already under way.
 
+A command (:func:`ros_for_command`) stops with KeyboardInterrupt instead, except inside rclpy's
+executor (:func:`spin_once`): an interrupt there can land in the middle of building a task, whose
+half-made object then prints a traceback when collected; the signal's interrupt is raised when the
+spin returns.
+
 Before the handlers exist, the entry point holds both signals pending
 (``physics_mapper.commands.node.hold_stop_signals``) rather than let Python raise KeyboardInterrupt
 in the middle of an import: such an interrupt can be lost, or leave CPython exiting by SIGINT after
@@ -25,6 +30,7 @@ from contextlib import contextmanager
 from types import FrameType
 
 import rclpy
+from rclpy.executors import Executor
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 from rclpy.utilities import ok
@@ -41,6 +47,46 @@ def shutdown_ros() -> None:
         rclpy.shutdown()
 
 
+class _CommandStop:
+    """The signal handler of :func:`ros_for_command`: the first signal raises KeyboardInterrupt, at
+    once, or when the current :func:`spin_once` returns; later ones are ignored."""
+
+    def __init__(self) -> None:
+        self.stopping = False
+        self.spinning = 0
+        self.pending = False
+
+    def reset(self) -> None:
+        """No signal seen yet (a command run in a process that ran one before)."""
+        self.stopping = self.pending = False
+
+    def handle(self, number: int, frame: FrameType | None) -> None:
+        for stop_signal in STOP_SIGNALS:
+            signal.signal(stop_signal, signal.SIG_IGN)
+        if self.stopping:
+            return
+        self.stopping = True
+        if self.spinning:
+            self.pending = True
+        else:
+            raise KeyboardInterrupt
+
+    @contextmanager
+    def spin(self) -> Iterator[None]:
+        """A section of rclpy's executor: the signal's KeyboardInterrupt waits for its end."""
+        self.spinning += 1
+        try:
+            yield
+        finally:
+            self.spinning -= 1
+            if self.pending and not self.spinning:
+                self.pending = False
+                raise KeyboardInterrupt
+
+
+_command_stop = _CommandStop()
+
+
 @contextmanager
 def ros_for_command() -> Iterator[None]:
     """rclpy for a command that the first SIGINT or SIGTERM stops with KeyboardInterrupt (``publish``, a
@@ -49,21 +95,13 @@ def ros_for_command() -> Iterator[None]:
     rclpy installs no signal handler: its handler shut the context down from the signal, and one
     arriving between the ``ok()`` check and the shutdown of :func:`shutdown_ros` made the shutdown
     raise (``rcl_shutdown already called``), as did a publish after it. Here the first signal
-    raises KeyboardInterrupt and ignores both from then on (a second one during the interpreter's
-    exit, when Python puts the default action back for the handlers it set, killed the process);
-    ROS is shut down once, when the block ends, with the signals held meanwhile.
+    raises KeyboardInterrupt (inside :func:`spin_once`, when it returns) and ignores both from then on
+    (a second one during the interpreter's exit, when Python puts the default action back for the
+    handlers it set, killed the process); ROS is shut down once, when the block ends, with the
+    signals held meanwhile.
     """
-    stopping = False
-
-    def stop(number: int, frame: FrameType | None) -> None:
-        nonlocal stopping
-        for stop_signal in STOP_SIGNALS:
-            signal.signal(stop_signal, signal.SIG_IGN)
-        if not stopping:
-            stopping = True
-            raise KeyboardInterrupt
-
-    previous = {number: signal.signal(number, stop) for number in STOP_SIGNALS}
+    _command_stop.reset()
+    previous = {number: signal.signal(number, _command_stop.handle) for number in STOP_SIGNALS}
     rclpy.init(args=[], signal_handler_options=SignalHandlerOptions.NO)
     try:
         yield
@@ -72,17 +110,27 @@ def ros_for_command() -> Iterator[None]:
         try:
             shutdown_ros()
         finally:
-            if not stopping:
+            if not _command_stop.stopping:
                 for number, handler in previous.items():
                     signal.signal(number, handler)
             signal.pthread_sigmask(signal.SIG_SETMASK, held)
+
+
+def spin_once(spinner: Node | Executor, timeout_sec: float) -> None:
+    """Handle one of ``spinner``'s events (a node's with rclpy's global executor), waiting up to
+    ``timeout_sec``; a command's stop signal interrupts only when it returns (see the module)."""
+    with _command_stop.spin():
+        if isinstance(spinner, Executor):
+            spinner.spin_once(timeout_sec=timeout_sec)
+        else:
+            rclpy.spin_once(spinner, timeout_sec=timeout_sec)
 
 
 def spin_for(node: Node, seconds: float) -> None:
     """Handle ``node``'s events for ``seconds`` (less if rclpy shuts down)."""
     end = time.monotonic() + seconds
     while ok() and time.monotonic() < end:
-        rclpy.spin_once(node, timeout_sec=0.05)
+        spin_once(node, 0.05)
 
 
 class SignalStop:
