@@ -36,9 +36,12 @@ saw, and keeps no order across frames. The rules that give each detection of a *
   tentative track no valid map held and that this array's miss ends anyway; else it is counted
   as outside every gate and not used (``count: {max: K}`` stops at K). Detections born together
   take their instances in the order of their best results' positions (x, then y, then z), not of
-  the array: even a first frame names the same boxes the same way however it is ordered; those
-  whose best result lies inside a static body (below the floor, in a wall) come last, so that where
-  an array holds more detections than there are instances, they are the ones left outside.
+  the array: even a first frame names the same boxes the same way however it is ordered. Before
+  them come those that *recur*: a result within the gate of a result of the class's last array (a
+  true object comes back to its place, though it was left outside or its track ended; a false
+  detection seldom does); after them those whose best result lies inside a static body (below the
+  floor, in a wall). Where an array holds more detections than there are instances, the last are
+  the ones left outside.
 - **Confirmation.** A track is *tentative* until it was matched ``confirm_hits`` times and some
   *valid* map held its instance (:meth:`InstanceTracks.keep`): a detection physics finds no place for,
   a reflection in the air seen in every frame, is never confirmed by repeating itself, nor by a
@@ -224,6 +227,7 @@ class InstanceTracks:
         self._last_position: dict[str, NDArray[np.float64]] = {}  # where each ended track was
         self._shapes = {model.name: model.shape for model in scene.objects}
         self._default_gates: dict[str, float] = {}
+        self._last_results: dict[str, NDArray[np.float64]] = {}  # class id -> the last array's results (m)
         #: Counts since the start: tracks born and ended, detections matched to nothing.
         self.births = 0
         self.ends = 0
@@ -305,6 +309,7 @@ class InstanceTracks:
                 matched.add(name)
             unmatched = sorted((o for o in of_class if o.index not in frame.assigned), key=self._birth_order)
             frame = self._births(frame, unmatched, names, matched, now)
+            self._last_results[class_id] = np.concatenate([o.positions for o in of_class])
         frame = replace(frame, ended=(*frame.ended, *self._miss([n for n in self.tracks if n not in matched], now)))
         self.births += len(frame.born)
         self.outside += sum(frame.outside.values())
@@ -340,11 +345,19 @@ class InstanceTracks:
             born.append(free)
         return replace(frame, born=tuple(born), ended=tuple(ended), outside=outside, doubles=doubles)
 
-    def _birth_order(self, observation: Observation) -> tuple[bool, tuple[float, ...]]:
+    def _birth_order(self, observation: Observation) -> tuple[bool, bool, tuple[float, ...]]:
         """Where a detection that matched no instance comes among those of its array (module docstring):
-        those whose best result lies inside a static body last, then by place."""
+        those that recur first, those whose best result lies inside a static body last, then by place."""
         place = observation.place()
-        return any(inside_static(body, np.asarray(place)) for body in self.scene.static), place
+        inside = any(inside_static(body, np.asarray(place)) for body in self.scene.static)
+        return inside, not self._recurs(observation), place
+
+    def _recurs(self, observation: Observation) -> bool:
+        """Whether a result of ``observation`` lies within the gate of a result of its class's last array."""
+        last = self._last_results.get(observation.class_id)
+        if last is None:
+            return False
+        return bool(cdist(observation.positions, last).min() <= self.gate(observation.class_id))
 
     def _miss(self, names: Sequence[str], now: float) -> list[str]:
         """Count a miss of each tracked instance of ``names``; end the tentative ones missed
