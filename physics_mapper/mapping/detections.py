@@ -16,7 +16,8 @@ a ``score`` and a pose. The rules that make them hypotheses:
 - **A tracked class** (:meth:`Scene.is_tracked`: several instances, or ``count: {max: K}``):
   each detection goes to one instance by the rules of :mod:`~physics_mapper.mapping.association`
   (ids, gated distance to each instance's filtered position, optimal assignment), never by its
-  place in the array; its results are that instance's hypotheses.
+  place in the array; its results are that instance's hypotheses, each score weighted by the
+  track's prior (where the track predicted the instance).
 - **Frames.** Poses are in the detection's header frame, or the array's if the detection names
   none (:meth:`DetectionArrayData.frames`). A frame other than the scene's is moved into the scene's frame
   by the transform the caller looked up at the array's stamp (``transforms``, see
@@ -244,6 +245,9 @@ def detection_inputs(
         if refused:  # the lookup's reason, rather than the frame's name alone
             poses = replace(poses, refusal=refused[0])
         scores = np.concatenate([d.scores for d in found])
+        prior = association.priors.get(name) if association is not None else None
+        if prior is not None:
+            scores = scores * prior.factors(poses.poses[:, :3])
         objects[name] = poses.with_weights(check_weights(scores, received=received))
     return DetectionInputs(objects, tuple(notes), association)
 

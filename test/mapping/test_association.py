@@ -257,3 +257,26 @@ def test_a_detection_that_recurs_is_born_before_a_new_one() -> None:
     inputs = detection_inputs(array(second), scene, received=0.5, tracks=tracks)
     assert positions_of(inputs) == {"box_1": (0.301, 0.0, 0.05), "box_2": a}
     assert inputs.association is not None and inputs.association.outside == {"box": 1}
+
+
+def test_a_wrong_pose_ranked_first_weighs_less_than_where_the_track_holds_the_instance() -> None:
+    """A new track has no prior: its detection's scores are its weights, a wrong pose 3 cm off ranked
+    first. Seen at its place for three arrays, the same detection's true pose is the heavier: the
+    wrong one lies 2.1 sigma of the prediction away (S = 2e-4 m²: 1 cm measured, half a second's
+    random walk), a factor of 0.11."""
+    scene = bin_scene(2)
+    a, b, wrong = (0.0, 0.0, 0.05), (0.3, 0.0, 0.05), (0.3, 0.03, 0.05)
+    misranked = detection(result(wrong, 0.6), result(b, 0.3))
+
+    def weights_of_b(tracks: InstanceTracks, received: float) -> list[float]:
+        inputs = detection_inputs(array([detection(result(a)), misranked]), scene, received=received, tracks=tracks)
+        received_b = inputs.objects["box_2"]
+        assert received_b.weights is not None and positions_of(inputs)["box_2"] == wrong  # the estimator's order
+        return received_b.weights.values.tolist()
+
+    assert weights_of_b(InstanceTracks(scene), 0.0) == [0.6, 0.3]
+    tracks = InstanceTracks(scene)
+    for received in (0.0, 0.5, 1.0):
+        detection_inputs(array([detection(result(a)), detection(result(b))]), scene, received=received, tracks=tracks)
+    wrong_weight, true_weight = weights_of_b(tracks, 1.5)
+    assert wrong_weight < 0.25 * true_weight
