@@ -15,7 +15,8 @@ saw, and keeps no order across frames. The rules that give each detection of a *
   hypotheses.
 - **The measurement.** Of a detection's results, the one nearest the instance's predicted
   position (an estimator may rank a wrong pose first; the right one is usually among its
-  results); a new track starts at the best-scored result.
+  results); a new track starts at the *central* result, the medoid of its results
+  (where a wrong pose is ranked first, the detection's other results agree with each other, not with it).
 - **The track's prior.** A matched instance's results are weighted by where its track predicted
   it: each result's score times exp(-(d_r - min_j d_j) / 2), d_r = (p_r - x)ᵀ S⁻¹ (p_r - x) the
   squared Mahalanobis distance of its position p_r from the predicted position x, S = P + R the
@@ -43,11 +44,11 @@ saw, and keeps no order across frames. The rules that give each detection of a *
   order, else the one whose track ended longest ago. With no free instance it takes that of a
   tentative track no valid map held and that this array's miss ends anyway; else it is counted
   as outside every gate and not used (``count: {max: K}`` stops at K). Detections born together
-  take their instances in the order of their best results' positions (x, then y, then z), not of
+  take their instances in the order of their central results' positions (x, then y, then z), not of
   the array: even a first frame names the same boxes the same way however it is ordered. Before
   them come those that *recur*: a result within the gate of a result of the class's last array (a
   true object comes back to its place, though it was left outside or its track ended; a false
-  detection seldom does); after them those whose best result lies inside a static body (below the
+  detection seldom does); after them those whose central result lies inside a static body (below the
   floor, in a wall). Where an array holds more detections than there are instances, the last are
   the ones left outside.
 - **Confirmation.** A track is *tentative* until it was matched ``confirm_hits`` times and some
@@ -129,9 +130,18 @@ class Observation:
         """The index of the best-scored result (the first of equal ones)."""
         return int(np.argmax(self.scores))
 
+    @property
+    def central(self) -> int:
+        """The index of its medoid: the result r minimising sum_j |p_r - p_j|, of equal ones the best-scored
+        (then the first). Where an estimator ranks a wrong pose first, the other results agree with each
+        other, not with it; a wrong pose's score would outweigh them."""
+        spread = cdist(self.positions, self.positions).sum(axis=1)
+        return int(np.lexsort((-self.scores, spread))[0])
+
     def place(self) -> tuple[float, ...]:
-        """Where its best-scored result is, (x, y, z) in metres: the order in which new tracks are born."""
-        return tuple(self.positions[self.best].tolist())
+        """Where its central result is, (x, y, z) in metres: where a new track starts, and the order in
+        which new tracks are born."""
+        return tuple(self.positions[self.central].tolist())
 
     def nearest(self, point: NDArray[np.float64]) -> tuple[int, float]:
         """The result nearest ``point`` and its distance (m)."""
@@ -376,7 +386,7 @@ class InstanceTracks:
 
     def _birth_order(self, observation: Observation) -> tuple[bool, bool, tuple[float, ...]]:
         """Where a detection that matched no instance comes among those of its array (module docstring):
-        those that recur first, those whose best result lies inside a static body last, then by place."""
+        those that recur first, those whose central result lies inside a static body last, then by place."""
         place = observation.place()
         inside = any(inside_static(body, np.asarray(place)) for body in self.scene.static)
         return inside, not self._recurs(observation), place
@@ -459,7 +469,7 @@ class InstanceTracks:
 
     def _birth(self, name: str, observation: Observation, now: float) -> None:
         kalman = KalmanFilter(dim_x=3, dim_z=3)
-        kalman.x = observation.positions[observation.best].reshape(3, 1).copy()
+        kalman.x = observation.positions[observation.central].reshape(3, 1).copy()
         kalman.F = np.eye(3)
         kalman.H = np.eye(3)
         kalman.R = np.eye(3) * self.settings.measurement_noise**2

@@ -280,3 +280,18 @@ def test_a_wrong_pose_ranked_first_weighs_less_than_where_the_track_holds_the_in
         detection_inputs(array([detection(result(a)), detection(result(b))]), scene, received=received, tracks=tracks)
     wrong_weight, true_weight = weights_of_b(tracks, 1.5)
     assert wrong_weight < 0.25 * true_weight
+
+
+def test_a_track_born_of_a_detection_with_a_wrong_pose_first_starts_where_its_other_results_agree() -> None:
+    """Lego-sized parts (gate 1.6 cm): a first detection ranks a pose 3 cm off first. Its track starts at
+    the other results' place, so the next detection of the part, right first, matches it."""
+    scene = bin_scene(2)
+    tracks = InstanceTracks(scene, AssociationSettings(gate=0.016))
+    a, b, wrong = (0.0, 0.0, 0.05), (0.3, 0.0, 0.05), (0.3, 0.03, 0.05)
+    near_b = (0.302, 0.001, 0.05)
+    first = [detection(result(a)), detection(result(wrong, 0.6), result(b, 0.3), result(near_b, 0.2))]
+    detection_inputs(array(first), scene, received=0.0, tracks=tracks)
+    assert np.linalg.norm(tracks.tracks["box_2"].position - b) < 0.003  # one of the two that agree
+    second = detection_inputs(array([detection(result(a)), detection(result(b))]), scene, received=0.5, tracks=tracks)
+    assert second.association is not None and second.association.assigned == {0: "box_1", 1: "box_2"}
+    assert second.association.born == () and tracks.births == 2
