@@ -272,7 +272,7 @@ def test_a_wrong_pose_ranked_first_weighs_less_than_where_the_track_holds_the_in
         inputs = detection_inputs(array([detection(result(a)), misranked]), scene, received=received, tracks=tracks)
         received_b = inputs.objects["box_2"]
         assert received_b.weights is not None and positions_of(inputs)["box_2"] == wrong  # the estimator's order
-        return received_b.weights.values.tolist()
+        return [float(w) for w in received_b.weights.values]
 
     assert weights_of_b(InstanceTracks(scene), 0.0) == [0.6, 0.3]
     tracks = InstanceTracks(scene)
