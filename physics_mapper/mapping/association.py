@@ -41,7 +41,9 @@ saw, and keeps no order across frames. The rules that give each detection of a *
 - **Births.** Another detection matched to no instance starts a *tentative* track on a free instance
   (one without a track): the one whose ended track was last within the gate of the detection (an
   instance seen again after a long miss keeps its name), else a never-tracked one, in scene
-  order, else the one whose track ended longest ago. With no free instance it takes that of a
+  order, else the one whose track ended longest ago, of those whose ended track was not last
+  within the gate of another detection of the array that matched no instance (that one comes back
+  to it, whichever of them is born first). With no free instance it takes that of a
   tentative track no valid map held and that this array's miss ends anyway; else it is counted
   as outside every gate and not used (``count: {max: K}`` stops at K). Detections born together
   take their instances in the order of their central results' positions (x, then y, then z), not of
@@ -372,7 +374,7 @@ class InstanceTracks:
             if any(observation.nearest(self.tracks[n].position)[1] <= gate for n in matched if n in names):
                 doubles[observation.class_id] = doubles.get(observation.class_id, 0) + 1
                 continue
-            free = self._free(names, observation, gate)
+            free = self._free(names, observation, gate, unmatched)
             if free is None and (free := self._yielded(names, matched, now)) is not None:
                 ended.append(free)  # the track whose instance it takes
             if free is None:
@@ -437,10 +439,13 @@ class InstanceTracks:
                 pairs.append((rest[column], free[row], int(nearest[row, column])))
         return pairs
 
-    def _free(self, names: Sequence[str], observation: Observation, gate: float) -> str | None:
+    def _free(
+        self, names: Sequence[str], observation: Observation, gate: float, unmatched: Sequence[Observation]
+    ) -> str | None:
         """The instance a new track starts on (module docstring): of those without a track, the one whose
         ended track was last within the gate of ``observation``, else a never-tracked one, else the one
-        whose track ended longest ago."""
+        whose track ended longest ago and was not last within the gate of another of ``unmatched`` (the
+        array's detections that matched no instance: that one comes back to it)."""
         free = [n for n in names if n not in self.tracks]
         back = [(observation.nearest(self._last_position[n])[1], n) for n in free if n in self._last_position]
         near = min((pair for pair in back if pair[0] <= gate), default=None)
@@ -449,7 +454,13 @@ class InstanceTracks:
         never = [n for n in free if n not in self._ended_at]
         if never:
             return never[0]
-        return min(free, key=lambda n: self._ended_at[n], default=None)
+        others = [o for o in unmatched if o is not observation]
+        unclaimed = [
+            n
+            for n in free
+            if n not in self._last_position or all(o.nearest(self._last_position[n])[1] > gate for o in others)
+        ]
+        return min(unclaimed, key=lambda n: self._ended_at[n], default=None)
 
     def _yielded(self, names: Sequence[str], matched: set[str], now: float) -> str | None:
         """With no instance free: the instance of a tentative track that no valid map held yet and this

@@ -295,3 +295,17 @@ def test_a_track_born_of_a_detection_with_a_wrong_pose_first_starts_where_its_ot
     second = detection_inputs(array([detection(result(a)), detection(result(b))]), scene, received=0.5, tracks=tracks)
     assert second.association is not None and second.association.assigned == {0: "box_1", 1: "box_2"}
     assert second.association.born == () and tracks.births == 2
+
+
+def test_an_instance_whose_track_ended_waits_for_the_detection_that_comes_back_to_it() -> None:
+    """Two boxes whose tentative tracks physics ended come back in one array, and a third box, first by
+    place, is new: each returning box takes its own name back, the new one the other free instance."""
+    scene = bin_scene(3)
+    tracks = InstanceTracks(scene)
+    new, a, b = (-0.3, 0.0, 0.05), (0.0, 0.0, 0.05), (0.3, 0.0, 0.05)
+    inputs = detection_inputs(array([detection(result(p)) for p in (a, b)]), scene, received=0.0, tracks=tracks)
+    assert positions_of(inputs) == {"box_1": a, "box_2": b}
+    detection_inputs(array([detection(result((0.6, 0.0, 0.05)))]), scene, received=0.5, tracks=tracks)
+    tracks.reject(["box_1", "box_2", "box_3"], 0.5)  # all three never confirmed: every instance ended
+    inputs = detection_inputs(array([detection(result(p)) for p in (b, new, a)]), scene, received=1.0, tracks=tracks)
+    assert positions_of(inputs) == {"box_1": a, "box_2": b, "box_3": new}
