@@ -31,13 +31,14 @@ saw, and keeps no order across frames. The rules that give each detection of a *
 - **Then distance.** The other detections and instances are matched by
   ``scipy.optimize.linear_sum_assignment`` on the distances (m) between predicted positions and
   measurements; pairs farther apart than the class's *gate* are never matched. The gate is
-  ``gate`` metres, or by default half the smallest extent of the class's shape: two identical
-  bodies that do not overlap are at least that far from each other's gate, so a detection of
-  one never matches the other.
-- **Second detections.** A detection matched to no instance whose results come within the gate of
-  an instance another detection of the same array matched is a second detection of that instance
-  (an estimator that reports one object twice): counted as a *double*, not used. Two identical
-  bodies that do not overlap are never that close (see the gate).
+  ``gate`` metres, or by default half the largest extent of the class's shape: wide enough for a
+  first estimate that is still a centimetre off on a 3 cm part, and the assignment, not the gate,
+  tells neighbours apart (gates of neighbours overlap).
+- **Second detections.** A detection matched to no instance whose results come within the *same-body
+  distance* of an instance another detection of the same array matched is a second detection of
+  that instance (an estimator that reports one object twice): counted as a *double*, not used. The
+  distance is half the smallest extent of the class's shape (or the gate, if less): two identical
+  bodies that do not overlap are never that close (a part lying on another is a part, not a double).
 - **Births.** Another detection matched to no instance starts a *tentative* track on a free instance
   (one without a track): the one whose ended track was last within the gate of the detection (an
   instance seen again after a long miss keeps its name), else a never-tracked one, in scene
@@ -101,7 +102,7 @@ _FORBIDDEN = 1e12
 class AssociationSettings:
     """How detections are matched to instances (module docstring).
 
-    gate: metres beyond which a detection never matches an instance (0: half the smallest extent
+    gate: metres beyond which a detection never matches an instance (0: half the largest extent
     of the class's shape). confirm_hits: matches after which a track is confirmed.
     tentative_misses: arrays in a row without a detection matched to a tentative track, after which it ends.
     process_noise: m²/s of random walk per second. measurement_noise: m, standard deviation of a
@@ -228,7 +229,14 @@ class Tracking:
 
 
 def default_gate(shape: ObjectShape) -> float:
-    """Half the smallest extent (m) of ``shape``'s axis-aligned box, unrotated."""
+    """Half the largest extent (m) of ``shape``'s axis-aligned box, unrotated."""
+    low, high = body_box(shape, ORIGIN)
+    return 0.5 * float(np.max(high - low))
+
+
+def same_body_distance(shape: ObjectShape) -> float:
+    """Half the smallest extent (m) of ``shape``'s axis-aligned box, unrotated: two identical bodies that do
+    not overlap have their centres farther apart."""
     low, high = body_box(shape, ORIGIN)
     return 0.5 * float(np.min(high - low))
 
@@ -268,6 +276,7 @@ class InstanceTracks:
         self._last_position: dict[str, NDArray[np.float64]] = {}  # where each ended track was
         self._shapes = {model.name: model.shape for model in scene.objects}
         self._default_gates: dict[str, float] = {}
+        self._same_body: dict[str, float] = {}
         self._last_results: dict[str, NDArray[np.float64]] = {}  # class id -> the last array's results (m)
         #: Counts since the start: tracks born and ended, detections matched to nothing.
         self.births = 0
@@ -280,8 +289,17 @@ class InstanceTracks:
         if self.settings.gate > 0.0:
             return self.settings.gate
         if class_id not in self._default_gates:
-            self._default_gates[class_id] = default_gate(self._shapes[self.scene.objects_of_class(class_id)[0]])
+            self._default_gates[class_id] = default_gate(self._shape(class_id))
         return self._default_gates[class_id]
+
+    def same_body(self, class_id: str) -> float:
+        """The class's same-body distance (module docstring, second detections), metres."""
+        if class_id not in self._same_body:
+            self._same_body[class_id] = same_body_distance(self._shape(class_id))
+        return min(self._same_body[class_id], self.gate(class_id))
+
+    def _shape(self, class_id: str) -> ObjectShape:
+        return self._shapes[self.scene.objects_of_class(class_id)[0]]
 
     def tentative(self, name: str) -> bool:
         """Whether ``name`` has a track not confirmed yet: matched fewer than ``confirm_hits`` times, or never
@@ -370,8 +388,8 @@ class InstanceTracks:
         born, ended = list(frame.born), list(frame.ended)
         outside, doubles = dict(frame.outside), dict(frame.doubles)
         for observation in unmatched:
-            gate = self.gate(observation.class_id)
-            if any(observation.nearest(self.tracks[n].position)[1] <= gate for n in matched if n in names):
+            gate, same_body = self.gate(observation.class_id), self.same_body(observation.class_id)
+            if any(observation.nearest(self.tracks[n].position)[1] <= same_body for n in matched if n in names):
                 doubles[observation.class_id] = doubles.get(observation.class_id, 0) + 1
                 continue
             free = self._free(names, observation, gate, unmatched)

@@ -70,7 +70,7 @@ PARAMETERS = (
     ParameterSpec("require_weights", "refuse PoseArrays without a weights message instead of uniform weights", False),
     ParameterSpec(
         "association_gate",
-        "metres beyond which a detection never matches an instance (0: half the smallest extent of its shape)",
+        "metres beyond which a detection never matches an instance (0: half the largest extent of its shape)",
         0.0,
         (0.0, 10.0),
     ),

@@ -136,7 +136,7 @@ def test_sweep_grids_over_the_association_settings(tmp_path: Path) -> None:
 def test_the_association_settings_reach_the_bag_s_snapshots() -> None:
     """A 2 mm gate is narrower than the estimator's noise: detections miss their tracks and start new ones
     on the instances of tracks they take over, so from the second frame on the instances' detections
-    differ from those of the default gate (half the smallest extent of a cube, 5 cm)."""
+    differ from those of the default gate (half the extent of a cube, 5 cm)."""
     scene = load_scene(SCENES / "box_bin.yaml")
     bag = read_bag(REPO / "test" / "data" / "box_bin")
     default = bag_snapshots(bag, scene)

@@ -309,3 +309,25 @@ def test_an_instance_whose_track_ended_waits_for_the_detection_that_comes_back_t
     tracks.reject(["box_1", "box_2", "box_3"], 0.5)  # all three never confirmed: every instance ended
     inputs = detection_inputs(array([detection(result(p)) for p in (b, new, a)]), scene, received=1.0, tracks=tracks)
     assert positions_of(inputs) == {"box_1": a, "box_2": b, "box_3": new}
+
+
+def test_the_gate_is_half_the_largest_extent_and_a_part_on_another_is_no_second_detection() -> None:
+    """Flat 3 x 3 x 2 cm parts: a detection 1.2 cm from where a track is (a first estimate still off)
+    matches it (gate 1.5 cm); a part lying on another, 2 cm above it, is a part of its own (two bodies
+    that do not overlap are more than 1 cm apart), not a second detection of the one below."""
+    part = {"name": "part", "shape": "box", "size": [0.03, 0.03, 0.02], "mass": 0.01, "count": 2}
+    scene = scene_from_dict({"objects": [part], "static": [{"name": "floor", "shape": "plane"}]}, "parts")
+    below, above = (0.0, 0.0, 0.01), (0.0, 0.0, 0.03)
+    tracks = InstanceTracks(scene)
+    first = detection_inputs(array([detection(result(below, class_id="part"))]), scene, received=0.0, tracks=tracks)
+    assert first.association is not None and first.association.born == ("part_1",)
+    off = detection_inputs(
+        array([detection(result((0.012, 0.0, 0.01), class_id="part"))]), scene, received=0.5, tracks=tracks
+    )
+    assert off.association is not None and off.association.assigned == {0: "part_1"} and off.association.born == ()
+    stacked = InstanceTracks(scene)
+    inputs = detection_inputs(
+        array([detection(result(p, class_id="part")) for p in (below, above)]), scene, received=0.0, tracks=stacked
+    )
+    assert inputs.association is not None and inputs.association.doubles == {}
+    assert positions_of(inputs) == {"part_1": below, "part_2": above}
