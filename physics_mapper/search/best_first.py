@@ -22,9 +22,10 @@ candidates the least total jitter J wins; where objects may be absent (an *absen
 (:meth:`BestFirst.existence`), then the least J: an object is left out where no valid configuration
 holds it, or where being absent is the likelier.
 
-With ``fallback: refine``, once the root has failed a rule and while no candidate is valid, the
-search makes the refined map of the root (:mod:`physics_mapper.physics.refine`) before it visits
-further candidates, so that a map exists from the first tick; a valid candidate found later replaces it.
+With ``fallback: refine``, the search first makes the refined map of the root
+(:mod:`physics_mapper.physics.refine`), before it visits any candidate, so that every tick has a map:
+checking the root first, a collision-free root's settling could take the whole tick on a slow
+machine and leave no time for the refined map. A valid candidate found later replaces it.
 
 Ties in p(C) are broken by the smaller code in lexicographic order (C112 before
 C121), after rounding p(C) to 12 significant digits (:func:`tie_key`) so that products of the same
@@ -171,9 +172,6 @@ class CandidateGenerator(Protocol):
 
     @property
     def next_probability(self) -> float | None: ...
-
-    @property
-    def root_ruled_out(self) -> bool: ...
 
     @property
     def ruled_out(self) -> tuple[RuledOut, ...]: ...
@@ -400,13 +398,12 @@ class BestFirst(Generic[G, R]):
 
     @property
     def refinement_due(self) -> bool:
-        """Whether the root's refined map is to be made now: fallback refine, the root visited (or
-        known to hold a conflict) and not valid, no valid candidate yet, no settling waiting to be continued."""
+        """Whether the root's refined map is to be made now: fallback refine, none made yet, no valid candidate
+        yet, no settling waiting to be continued (module docstring: before the first candidate)."""
         return (
             self.params.fallback == "refine"
             and self._refined is None
             and self._best is None
-            and (self._counts.visited > 0 or self.candidates.root_ruled_out)
             and self._interrupted is None
         )
 

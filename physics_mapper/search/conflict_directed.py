@@ -237,11 +237,6 @@ class ConflictDirectedCandidates:
         return self.candidates.next_probability
 
     @property
-    def root_ruled_out(self) -> bool:
-        """Whether the root holds a known conflict (the generator never makes it)."""
-        return self.conflicts.contained(self._root) is not None
-
-    @property
     def ruled_out(self) -> tuple[RuledOut, ...]:
         return self._ruled_out
 

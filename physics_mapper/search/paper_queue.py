@@ -117,10 +117,6 @@ class PaperQueue:
         return self._queue[0].probability if self._queue else None
 
     @property
-    def root_ruled_out(self) -> bool:
-        return False  # the paper rules nothing out unchecked
-
-    @property
     def ruled_out(self) -> tuple[RuledOut, ...]:
         return ()
 

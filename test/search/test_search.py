@@ -224,3 +224,20 @@ def test_least_jitter_valid_configuration_wins_over_more_likely_ones() -> None:
     assert jitters[0] > jitters[1] > jitters[2]
     assert result.valid and result.code == (3,) and result.jitter == jitters[2]
     assert not result.fallback_used
+
+
+def test_fallback_refine_makes_the_refined_map_before_it_visits_the_root() -> None:
+    """The root floats 5 cm, collision-free: its settling would be the first visit, and on a slow machine
+    could take the whole tick. The first step of a ``refine`` search makes the refined map instead, so
+    that the tick has a map; the search then goes on and the valid rank replaces it."""
+    hypotheses = [ranked([unrotated(0.0, 0.0, ON_FLOOR + 0.05), unrotated(0.0, 0.0, ON_FLOOR)], [2.0, 1.0])]
+    with PhysicsChecker(floor_scene(cube("box"))) as checker:
+        search = paper_search(checker, hypotheses, SearchParams(fallback="refine"))
+        assert search.step(None)
+        first = search.result()
+        assert first.stats.visited == 0 and first.fallback == "refine" and first.refinement is not None
+        assert first.settled_poses is not None and math.isclose(
+            first.settled_poses[0].position[2], ON_FLOOR, abs_tol=0.002
+        )
+        final = search.run(None)
+    assert final.valid and final.code == (2,) and [entry.outcome for entry in final.trace] == ["unstable", "valid"]
