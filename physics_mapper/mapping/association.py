@@ -81,6 +81,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
+from functools import cached_property
 
 import numpy as np
 from filterpy.kalman import KalmanFilter
@@ -135,7 +136,7 @@ class Observation:
         """The index of the best-scored result (the first of equal ones)."""
         return int(np.argmax(self.scores))
 
-    @property
+    @cached_property
     def central(self) -> int:
         """The index of the result nearest the median of its results' positions (per axis), of equally near
         ones the best-scored (then the first). Where an estimator ranks a wrong pose first, the other
@@ -231,17 +232,12 @@ class Tracking:
     doubles: int = 0
 
 
-def default_gate(shape: ObjectShape) -> float:
-    """Half the largest extent (m) of ``shape``'s axis-aligned box, unrotated."""
+def extents(shape: ObjectShape) -> NDArray[np.float64]:
+    """The extents (m) of ``shape``'s axis-aligned box, unrotated: its largest half is the default gate, its
+    smallest half the same-body distance (two identical bodies that do not overlap have their centres farther
+    apart)."""
     low, high = body_box(shape, ORIGIN)
-    return 0.5 * float(np.max(high - low))
-
-
-def same_body_distance(shape: ObjectShape) -> float:
-    """Half the smallest extent (m) of ``shape``'s axis-aligned box, unrotated: two identical bodies that do
-    not overlap have their centres farther apart."""
-    low, high = body_box(shape, ORIGIN)
-    return 0.5 * float(np.min(high - low))
+    return np.asarray(high - low, dtype=np.float64)
 
 
 def _nearest_distances(
@@ -278,8 +274,7 @@ class InstanceTracks:
         self._ended_at: dict[str, float] = {}
         self._last_position: dict[str, NDArray[np.float64]] = {}  # where each ended track was
         self._shapes = {model.name: model.shape for model in scene.objects}
-        self._default_gates: dict[str, float] = {}
-        self._same_body: dict[str, float] = {}
+        self._extents: dict[str, NDArray[np.float64]] = {}  # class id -> its shape's extents (m)
         self._last_places: dict[str, NDArray[np.float64]] = {}  # class id -> the last array's central results (m)
         #: Counts since the start: tracks born and ended, detections matched to nothing.
         self.births = 0
@@ -291,18 +286,16 @@ class InstanceTracks:
         """The class's gate, metres."""
         if self.settings.gate > 0.0:
             return self.settings.gate
-        if class_id not in self._default_gates:
-            self._default_gates[class_id] = default_gate(self._shape(class_id))
-        return self._default_gates[class_id]
+        return 0.5 * float(np.max(self._class_extents(class_id)))
 
     def same_body(self, class_id: str) -> float:
         """The class's same-body distance (module docstring, second detections), metres."""
-        if class_id not in self._same_body:
-            self._same_body[class_id] = same_body_distance(self._shape(class_id))
-        return min(self._same_body[class_id], self.gate(class_id))
+        return min(0.5 * float(np.min(self._class_extents(class_id))), self.gate(class_id))
 
-    def _shape(self, class_id: str) -> ObjectShape:
-        return self._shapes[self.scene.objects_of_class(class_id)[0]]
+    def _class_extents(self, class_id: str) -> NDArray[np.float64]:
+        if class_id not in self._extents:
+            self._extents[class_id] = extents(self._shapes[self.scene.objects_of_class(class_id)[0]])
+        return self._extents[class_id]
 
     def tentative(self, name: str) -> bool:
         """Whether ``name`` has a track not confirmed yet: matched fewer than ``confirm_hits`` times, or never
@@ -412,16 +405,15 @@ class InstanceTracks:
         those that recur first, those whose central result lies inside a static body last, then by place."""
         place = observation.place()
         inside = any(inside_static(body, np.asarray(place)) for body in self.scene.static)
-        return inside, not self._recurs(observation), place
+        return inside, not self._recurs(observation.class_id, place), place
 
-    def _recurs(self, observation: Observation) -> bool:
-        """Whether ``observation``'s central result lies within the gate of that of a detection of its class's
-        last array."""
-        last = self._last_places.get(observation.class_id)
+    def _recurs(self, class_id: str, place: tuple[float, ...]) -> bool:
+        """Whether ``place`` (a detection's central result, m) lies within the gate of the central result of
+        a detection of ``class_id``'s last array."""
+        last = self._last_places.get(class_id)
         if last is None:
             return False
-        offsets = np.linalg.norm(last - np.asarray(observation.place()), axis=1)
-        return bool(offsets.min() <= self.gate(observation.class_id))
+        return bool(np.linalg.norm(last - np.asarray(place), axis=1).min() <= self.gate(class_id))
 
     def _miss(self, names: Sequence[str], now: float) -> list[str]:
         """Count a miss of each tracked instance of ``names``; end the tentative ones missed
