@@ -17,7 +17,17 @@ Rule 2 of a candidate is first *tried*, locally where the stable contexts allow
 (:mod:`~physics_mapper.search.trial_settling`); a trial's instability is believed, and a candidate is
 valid only once Rule 2's own settling of its whole group (50 iterations) confirms it.
 
-Why the answer is the paper's. No valid configuration holds a conflict (conflicts are sound), so a
+Searched again. The blame rule's one assumption fails where a push passes through an object that
+barely moves (:mod:`physics_mapper.search.conflicts`): a conflict may then rule out a valid
+configuration. So a group whose candidates run out with none valid, after the blame rule taught
+conflicts of several objects, forgets those (it keeps the collisions' and the ones of one object),
+learns again from the same settlings by the chain rule (no candidate visited is made again: each
+contains the conflict its own settling teaches), and generates the candidates again from the first,
+learning from instabilities by the chain rule (``searched_again`` counts it). Its end is then the
+second search's.
+
+Why the answer is the paper's. No valid configuration holds a conflict (conflicts are sound, the chain
+rule's where the contact rule's misled), so a
 valid configuration is generated, in the paper's order, exactly when it has a parent above the bound
 or none: exactly when the paper's search checks it (the bound's reference, the first valid p(C), is
 then the same too). Both searches so check the same valid configurations in the same order; the least
@@ -29,6 +39,7 @@ else ``bounded``.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Mapping, Sequence
 
 import numpy as np
@@ -120,9 +131,11 @@ class ConflictDirectedCandidates:
         self._ruled_out = tuple(self._named_ruling(r) for r in rulings)
         self.conflicts_learned += len(rulings)
         self._root: Code = tuple(1 for _ in self.objects)
-        self.candidates = ConflictFreeCandidates(
-            [weights[1:] for weights in weight_table(group_hypotheses)], self.conflicts, bound, params.queue_limit
-        )
+        self._weights = [weights[1:] for weights in weight_table(group_hypotheses)]
+        self.candidates = ConflictFreeCandidates(self._weights, self.conflicts, bound, params.queue_limit)
+        self._valid_found = False
+        self._unstable: list[tuple[Code, Settling]] = []  # the instabilities the blame rule learned from
+        self.searched_again = 0  # times the group was searched again under the chain rule
         self._waiting: QueueItem | None = None  # the candidate whose settling the deadline interrupted
         self._expanded: set[Code] = set()  # visited candidates above the bound (parents in the trace)
 
@@ -145,7 +158,45 @@ class ConflictDirectedCandidates:
     def ready(self, stop_at: float | None) -> bool:
         """Whether the next candidate is found (the one the deadline interrupted first); False if the
         deadline ``stop_at`` came first."""
-        return self._waiting is not None or self.candidates.find(stop_at)
+        if self._waiting is not None:
+            return True
+        found = self.candidates.find(stop_at)
+        if found and self._searches_again:
+            self._search_again()
+            return self.candidates.find(stop_at)
+        return found
+
+    @property
+    def _searches_again(self) -> bool:
+        """Whether the candidates ran out, none valid, after the blame rule taught conflicts of several
+        objects: the rule's assumption may have failed (a push passed on by an object that barely moved),
+        so the group is searched again under the chain rule (module docstring)."""
+        return (
+            self._waiting is None
+            and self.candidates.exhausted
+            and not self._valid_found
+            and not self.blame.chains
+            and any(_blamed_several(conflict) for conflict in self.conflicts)
+        )
+
+    def _search_again(self) -> None:
+        """Forget the conflicts the blame rule taught about several objects, learn again from the same
+        settlings by the chain rule (so no candidate visited is made again), and generate the candidates
+        from the first, learning from instabilities by the chain rule."""
+        self.blame = self.blame.chained()
+        kept = ConflictStore([len(weights) for weights in self._weights])
+        for conflict in self.conflicts:
+            if not _blamed_several(conflict):
+                kept.learn(conflict)
+        for code, settling in self._unstable:
+            for conflict in self.blame.conflicts(code, settling):
+                kept.learn(conflict)
+        self._unstable.clear()
+        self.conflicts = kept
+        self.candidates = ConflictFreeCandidates(
+            self._weights, kept, self.candidates.is_bounded, self.candidates.queue_limit
+        )
+        self.searched_again += 1
 
     def take(self) -> QueueItem | None:
         """The next candidate, with the first of its parents visited above the bound."""
@@ -177,7 +228,10 @@ class ConflictDirectedCandidates:
             depths = verdict.depths if verdict.depths is not None else self.table().depths(self.objects, code)
             conflict = self._learn_collisions(code, depths)
         else:
+            self._valid_found |= valid
             conflict = None if valid else self._learn(self.blame.conflicts(code, verdict))
+            if not valid and not self.blame.chains:
+                self._unstable.append((code, verdict))
         if not bounded:
             limit = self.params.trace_limit
             if limit is None or len(self._expanded) < limit:
@@ -210,9 +264,9 @@ class ConflictDirectedCandidates:
 
     @property
     def exhausted(self) -> bool:
-        """True once no candidate is left (a group whose every configuration holds a conflict from the
-        start is so before any step)."""
-        return self._waiting is None and self.candidates.exhausted
+        """True once no candidate is left, nor a search again under the chain rule (a group whose every
+        configuration holds a conflict from the start is so before any step)."""
+        return self._waiting is None and self.candidates.exhausted and not self._searches_again
 
     @property
     def end(self) -> SearchEnd | None:
@@ -234,6 +288,8 @@ class ConflictDirectedCandidates:
         """p(C) of the candidate checked next, or an upper bound while it is not found (None: none is left)."""
         if self._waiting is not None:
             return self._waiting.probability
+        if self._searches_again:  # the search again starts at the root: every object at its best rank, at most
+            return math.prod(weights[0] for weights in self._weights)
         return self.candidates.next_probability
 
     @property
@@ -272,6 +328,7 @@ class ConflictDirectedCandidates:
             # queue skipped stays, at 0, where readers of the conflict-directed search's counters look for it.
             "skipped": 0,
             "ruled_out": len(self._ruled_out),
+            "searched_again": self.searched_again,
         }
 
 
@@ -305,6 +362,12 @@ class ConflictCarryOver:
         newcomers = [positions[i] for i in new.objects if i in changed or i not in old.objects]
         new.candidates.keep_from(old.candidates, moved, stale, newcomers)
         new.rule2.keep_from(old.rule2, moved, stale)
+
+
+def _blamed_several(conflict: Conflict) -> bool:
+    """Whether the blame rule taught ``conflict`` about several objects (one alone touched nothing that moved
+    it: the chain rule teaches it too)."""
+    return conflict.kind == "unstable" and len(conflict.assignments) > 1
 
 
 def _ruled_out_alone(conflict: Conflict) -> bool:

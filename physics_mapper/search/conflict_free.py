@@ -81,6 +81,11 @@ class _Prefix(NamedTuple):
     gain: float
 
 
+#: A conflict open at a variable index k (two or more of its objects at k or after): its bit, the least any of
+#: those objects pays to resolve it, and those objects.
+_OpenConflict = tuple[int, float, frozenset[int]]
+
+
 class _Node(NamedTuple):
     """A queued prefix (every object ranked when complete), compared as a tuple by (-key, ranks): unique.
     ``exact``: its key is its bound; else a higher one, its parent's (the bound is made when it is taken)."""
@@ -145,6 +150,11 @@ class ConflictFreeCandidates:
         self._within = [0] * count  # per k, the conflicts whose objects are all among the first k + 1
         self._but = [[0] * count for _ in range(count + 1)]  # per k, j >= k: all but j among the first k
         self._indexed = -1
+        # Per k, the conflicts the object at variable index k resolves at each rank (the store's, kept up to date).
+        self._resolved = [self.store.excluded_by_rank(p) for p in order]
+        self._live: list[tuple[int, ...]] = []
+        # Per k, the conflicts with two or more objects at variable index k or after (_OpenConflict).
+        self._open: list[list[_OpenConflict]] = [[] for _ in range(count + 1)]
         self._ordered_at = len(self.store)
         self._queue: list[_Node] = []
         self._push_children(_Prefix((), 1.0, 0, 0, 0.0), -math.inf)
@@ -230,13 +240,17 @@ class ConflictFreeCandidates:
                 for k in range(before + 1, j + 1):
                     self._but[k][j] |= flag
         count = len(self._w)
-        self._live = [tuple(self.store.live_ranks(p)) for p in self._order]
-        self._first = [w[live[0] - 1] if live else 0.0 for w, live in zip(self._w, self._live, strict=True)]
+        live = [tuple(self.store.live_ranks(p)) for p in self._order]
+        if live != self._live:  # every penalty may have changed: index every conflict's anew
+            start = 0
+            self._open = [[] for _ in range(count + 1)]
+        self._live = live
+        self._first = [w[ranks[0] - 1] if ranks else 0.0 for w, ranks in zip(self._w, live, strict=True)]
         self._suffix = [math.prod(self._first[k:]) for k in range(count + 1)]
         self._open_from = [all(self._live[k:]) for k in range(count + 1)]
         self._held_at = [[j for j in range(k, count) if self._but[k][j]] for k in range(count + 1)]
-        self._penalties = [self._penalty(conflict) for conflict in self.store]
-        self._open: dict[int, list[tuple[int, float, frozenset[int]]]] = {}
+        for bit, conflict in enumerate(self.store.since(start), start=start):
+            self._index_open(1 << bit, self._penalty(conflict))
         self._indexed = len(self.store)
 
     def _penalty(self, conflict: Conflict) -> dict[int, float]:
@@ -250,20 +264,16 @@ class ConflictFreeCandidates:
             penalties[j] = self._first[j] / best if best > 0.0 else math.inf
         return penalties
 
-    def _open_at(self, k: int) -> list[tuple[int, float, frozenset[int]]]:
-        """The conflicts with two or more objects at variable index k or after: (bit, the least any of those
-        objects pays to resolve it, those objects)."""
-        if k not in self._open:
-            found = []
-            for bit, penalties in enumerate(self._penalties):
-                after = {j: penalty for j, penalty in penalties.items() if j >= k}
-                if len(after) > 1:
-                    found.append((1 << bit, min(after.values()), frozenset(after)))
-            self._open[k] = found
-        return self._open[k]
-
-    def _excluded(self, k: int, rank: int) -> int:
-        return self.store.excluded(self._order[k], rank)
+    def _index_open(self, flag: int, penalties: dict[int, float]) -> None:
+        """Enter a conflict (bit ``flag``, :meth:`_penalty`'s ``penalties``) at every variable index k with two
+        or more of its objects at k or after. The objects after k change only where k passes one of them,
+        so one entry serves each run of k between two of its objects."""
+        variables = sorted(penalties)
+        for i in range(len(variables) - 2, -1, -1):
+            after = variables[i:]
+            entry = (flag, min(penalties[j] for j in after), frozenset(after))
+            for k in range(variables[i - 1] + 1 if i else 0, variables[i] + 1):
+                self._open[k].append(entry)
 
     @staticmethod
     def _neg_key(prefix: _Prefix, best: float) -> float:
@@ -289,10 +299,9 @@ class ConflictFreeCandidates:
                 continue
             forced.add(j)
             live = self._live[j]
-            excluded = self.store.excluded
-            position = self._order[j]
+            resolved = self._resolved[j]
             for rank in live:
-                if not held & ~excluded(position, rank):
+                if held & resolved[rank] == held:
                     break
             else:
                 return None
@@ -306,7 +315,7 @@ class ConflictFreeCandidates:
         needs one of its objects after k at a rank outside its ranks, for at least that object's penalty
         (:meth:`_penalty`); conflicts without a common object, and none of the ``forced`` objects (forward
         checking priced them), need that many: their least penalties multiply."""
-        held = sorted(((penalty, objects) for bit, penalty, objects in self._open_at(k) if bit & inside), reverse=True)
+        held = sorted(((penalty, objects) for bit, penalty, objects in self._open[k] if bit & inside), reverse=True)
         used = forced
         for penalty, objects in held:
             if math.isinf(penalty):
@@ -317,8 +326,8 @@ class ConflictFreeCandidates:
         return best
 
     def _take_up(self, node: _Node) -> _Candidate | None:
-        """A node off the queue: checked against conflicts learned since it was queued, its next sibling
-        queued, and then the node returned as a candidate if it is one, else its first child queued."""
+        """A node off the queue: checked against conflicts learned since it was queued (or its own bound made),
+        then returned as a candidate if it is one, else its children queued."""
         if node.prefix.known != len(self.store) or not node.exact:
             checked = self._checked(node)
             if checked is None or checked.neg_key > node.neg_key:
@@ -371,7 +380,7 @@ class ConflictFreeCandidates:
             return prefix
         outside = 0
         for k, rank in enumerate(prefix.ranks):
-            outside |= self._excluded(k, rank)
+            outside |= self._resolved[k][rank]
         return prefix._replace(outside=outside, known=len(self.store))
 
     def _push_children(self, parent: _Prefix, parent_key: float) -> None:
@@ -387,8 +396,9 @@ class ConflictFreeCandidates:
         self._index()
         weights = self._w[k]
         decided = self._within[k]
+        resolved = self._resolved[k]
         for live in self._live[k]:
-            outside = parent.outside | self._excluded(k, live)
+            outside = parent.outside | resolved[live]
             if decided & ~outside:
                 continue
             ranks = (*parent.ranks, live)

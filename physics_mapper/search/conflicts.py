@@ -45,6 +45,14 @@ on u as they did in C; that is the rule's one assumption, checked on the crowded
 configuration a conflict skipped is checked in full by the tests, and none is valid); so does
 sampling the motion every 8 steps. A settling without swept boxes (reused from a memo) blames every
 object of the configuration at its rank, which is trivially sound.
+
+The assumption fails where a push passes through an object that barely moves: an object far from S_u
+then moved u through one held at its rank, and the conflict, leaving it out, may rule out a valid
+configuration. The *chain rule* (``Blame(..., chains=True)``) holds at their rank every object
+connected to u by swept boxes that meet, and lets through, for every other object, the ranks whose
+envelopes miss all of their swept boxes. It learns less from each rejection, so the conflict-directed
+search uses it only to search again a group whose candidates ran out with none valid
+(:mod:`physics_mapper.search.conflict_directed`).
 """
 
 from __future__ import annotations
@@ -161,9 +169,11 @@ class ConflictStore:
             self._ruled_out[conflict.positions[0]].update(conflict.ranks[0])
         return True
 
-    def excluded(self, position: int, rank: int) -> int:
-        """The conflicts (bit k: the k-th learned) that the object at ``position`` at ``rank`` resolves."""
-        return self._excluded[position][rank]
+    def excluded_by_rank(self, position: int) -> Sequence[int]:
+        """Per rank of the object at ``position`` (index 0 unused), the conflicts (bit k: the k-th learned) it
+        resolves there; kept up to date as conflicts are learned (one lookup per rank on the generator's
+        hot path)."""
+        return self._excluded[position]
 
     def since(self, count: int) -> list[Conflict]:
         """The conflicts learned after the first ``count`` (conflict k is bit k of the bit sets)."""
@@ -242,12 +252,20 @@ def collision_conflicts(
 class Blame:
     """The blame rule (module docstring) for one group: its objects' stable envelopes.
 
-    The envelopes, every hypothesis's body box grown by g_p (metres), are made on first use.
+    The envelopes, every hypothesis's body box grown by g_p (metres), are made on first use. With
+    ``chains``, the *chain rule*: the objects held at their rank are every object connected to the one
+    that moved by swept boxes that meet, not only those whose swept box meets its own (module docstring).
     """
 
     def __init__(
-        self, shapes: Sequence[ObjectShape], hypotheses: Sequence[RankedHypotheses], params: SearchParams
+        self,
+        shapes: Sequence[ObjectShape],
+        hypotheses: Sequence[RankedHypotheses],
+        params: SearchParams,
+        chains: bool = False,
     ) -> None:
+        self.params = params
+        self.chains = chains
         self.shapes = tuple(shapes)
         self.hypotheses = tuple(hypotheses)
         self.threshold = params.jitter_threshold
@@ -257,6 +275,12 @@ class Blame:
         self._envelopes: tuple[tuple[FloatArray, FloatArray], ...] | None = None
         # Every object's envelopes stacked (sum of M x 3 corners) and the position each belongs to.
         self._stacked: tuple[FloatArray, FloatArray, NDArray[np.intp]] | None = None
+
+    def chained(self) -> Blame:
+        """The same group's chain rule (its envelopes made once for both)."""
+        blame = Blame(self.shapes, self.hypotheses, self.params, chains=True)
+        blame._boxes, blame._envelopes, blame._stacked = self._boxes, self._envelopes, self._stacked
+        return blame
 
     @property
     def boxes(self) -> tuple[tuple[FloatArray, FloatArray], ...]:
@@ -304,13 +328,16 @@ class Blame:
 
     def _blamed(self, moved: int, code: Sequence[int], low: FloatArray, high: FloatArray) -> dict[int, frozenset[int]]:
         """The rank sets of the blamed objects, in position order (``low``, ``high``: the swept boxes, N x 3):
-        the object that moved and every object whose swept box meets its swept box at their own rank;
-        every other object with a stable envelope that meets it at its own rank or any rank whose
-        envelope does not."""
-        touches = np.all((low <= high[moved]) & (high >= low[moved]), axis=1)
+        the object that moved and every object whose swept box meets its swept box (with chains: every
+        object connected to it by swept boxes that meet) at their own rank; every other object with a
+        stable envelope that meets one of those swept boxes at its own rank or any rank whose envelope
+        meets none."""
+        touches = self._chain(moved, low, high) if self.chains else _meets(low, high, low[moved], high[moved])
         touches[moved] = True
         env_low, env_high, owners = self._stacked_envelopes()
-        reaching = np.all((env_low <= high[moved]) & (env_high >= low[moved]), axis=1)
+        reaching = np.zeros(len(owners), dtype=bool)
+        for p in np.nonzero(touches)[0] if self.chains else (moved,):
+            reaching |= _meets(env_low, env_high, low[p], high[p])
         blamed: dict[int, frozenset[int]] = {}
         for p in sorted({*np.nonzero(touches)[0].tolist(), *owners[reaching].tolist()}):
             if touches[p]:
@@ -320,11 +347,30 @@ class Blame:
                 blamed[p] = frozenset(rank for rank in range(1, len(in_way) + 1) if not in_way[rank - 1]) | {code[p]}
         return blamed
 
+    @staticmethod
+    def _chain(moved: int, low: FloatArray, high: FloatArray) -> NDArray[np.bool_]:
+        """The objects connected to ``moved`` by swept boxes (``low``, ``high``: N x 3) that meet."""
+        reached = np.zeros(len(low), dtype=bool)
+        reached[moved] = True
+        frontier = [moved]
+        while frontier:
+            p = frontier.pop()
+            found = _meets(low, high, low[p], high[p]) & ~reached
+            reached |= found
+            frontier.extend(np.nonzero(found)[0].tolist())
+        return reached
+
     def reaches(self, position: int, region: Region) -> bool:
         """Whether some stable envelope of the object at ``position`` meets ``region``."""
         env_low, env_high = self.envelopes[position]
         low, high = np.asarray(region[0]), np.asarray(region[1])
         return bool(np.any(np.all((env_low <= high) & (env_high >= low), axis=1)))
+
+
+def _meets(lows: FloatArray, highs: FloatArray, low: FloatArray, high: FloatArray) -> NDArray[np.bool_]:
+    """Which of the boxes (``lows``, ``highs``: K x 3) meet the box (``low``, ``high``)."""
+    meets: NDArray[np.bool_] = np.all((lows <= high) & (highs >= low), axis=1)
+    return meets
 
 
 def body_boxes(shape: ObjectShape, ranked: RankedHypotheses) -> tuple[FloatArray, FloatArray]:

@@ -17,6 +17,7 @@ COUNTER_WORDS = {
     "conflicts_kept": "conflicts kept",
     "skipped": "candidates skipped by conflicts",
     "ruled_out": "ranks ruled out before the search",
+    "searched_again": "groups searched again under the chain rule",
     "local_settlings": "local settlings",
     "full_settlings": "full settlings",
 }

@@ -44,7 +44,7 @@ from physics_mapper.scenarios.crowded_suite import (
 )
 from physics_mapper.search.best_first import Search
 from physics_mapper.search.conflict_directed import ConflictDirectedCandidates, ConflictGroup
-from physics_mapper.search.conflicts import Conflict, ConflictStore
+from physics_mapper.search.conflicts import Blame, Conflict, ConflictStore
 from physics_mapper.search.grouped import GroupedSearch
 from physics_mapper.search.results import Code, SearchResult
 from physics_mapper.search.strategy import make_search
@@ -480,3 +480,48 @@ def test_waiting_children_count_against_the_queue_limit() -> None:
         result = search.result()
     assert max(queued) <= 4
     assert result.stats.dropped > 0 and result.stats.end == "truncated"
+
+
+def test_the_chain_rule_holds_every_object_a_push_passed_through() -> None:
+    """Cube a moved; its swept box meets b's, b's meets c's, and b barely moved: the contact rule holds a and b
+    at their ranks, the chain rule c too (a push from c through b moved a as well)."""
+    cubes = [cube(name) for name in "abc"]
+    poses = [unrotated(0.05 + 0.1 * i, 0.0, 0.05) for i in range(3)]
+    hypotheses = [ranked_poses([pose], [1.0]) for pose in poses]
+    swept = tuple(((0.1 * i, -0.05, 0.0), (0.1 * i + 0.1, 0.05, 0.1)) for i in range(3))
+    settling = Settling(tuple(poses), (0.05, 0.0004, 0.0), extent=swept)
+    params = SearchParams()
+    contact = Blame([c.shape for c in cubes], hypotheses, params)
+    [by_contact] = contact.conflicts((1, 1, 1), settling)
+    [by_chain] = contact.chained().conflicts((1, 1, 1), settling)
+    assert by_contact.assignments == ((0, 1), (1, 1))
+    assert by_chain.assignments == ((0, 1), (1, 1), (2, 1))
+
+
+def test_a_group_out_of_candidates_with_none_valid_is_searched_again_under_the_chain_rule() -> None:
+    """Two cubes side by side, each on the floor (rank 1) or sunk into it (rank 2): (1, 1) is valid. A
+    conflict of both at rank 1, as an unsound blame would teach, leaves no valid candidate; the group is
+    searched again without it under the chain rule, and finds (1, 1)."""
+    scene = floor_scene(cube("left"), cube("right"))
+    hypotheses = tuple(
+        ranked_poses([unrotated(x, 0.0, 0.05), unrotated(x, 0.0, 0.02)], [0.6, 0.4]) for x in (0.0, 0.101)
+    )
+    params = replace(scene.search, trace_limit=None)
+    with PhysicsChecker(scene) as checker:
+        search = make_search(checker, hypotheses, params)
+        [group] = conflict_groups(search)
+        group.candidates.conflicts.learn(Conflict(((0, 1), (1, 1)), "unstable"))
+        result = search.run(None)
+    assert (result.code, result.valid) == ((1, 1), True)
+    assert result.stats.part_counters["searched_again"] == 1
+    assert group.candidates.blame.chains
+    assert [entry.code for entry in result.trace][-1] == (1, 1)
+
+
+def test_a_bin_of_meshes_whose_contact_blame_misled_it_finds_its_valid_configuration() -> None:
+    """In this bin a wrong pose of one mesh pushed a second through a third that barely moved; the contact
+    rule held the first out of the conflict and so ruled out the answer with it. The search is
+    answered all the same (searched again under the chain rule where the contact rule misled it)."""
+    problem = crowded_problem(CrowdedCase("mesh_bin", 10, 5, 140))
+    result, _ = searched(problem)
+    assert (result.code, result.valid) == (problem.answer, True)
