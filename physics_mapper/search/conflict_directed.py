@@ -21,10 +21,10 @@ Searched again. The blame rule's one assumption fails where a push passes throug
 barely moves (:mod:`physics_mapper.search.conflicts`): a conflict may then rule out a valid
 configuration. So a group whose candidates run out with none valid, after the blame rule taught
 conflicts of several objects, forgets those (it keeps the collisions' and the ones of one object),
-learns again from the same settlings by the chain rule (no candidate visited is made again: each
-contains the conflict its own settling teaches), and generates the candidates again from the first,
-learning from instabilities by the chain rule (``searched_again`` counts it). Its end is then the
-second search's.
+learns again from the same settlings by the chain rule (each candidate visited contains the conflict its
+own settling teaches, so none is made again; the first :data:`KEPT_INSTABILITIES` are kept), and
+generates the candidates again from the first, learning from instabilities by the chain rule
+(``searched_again`` counts it). Its end is then the second search's.
 
 Why the answer is the paper's. No valid configuration holds a conflict (conflicts are sound, the chain
 rule's where the contact rule's misled), so a
@@ -66,6 +66,10 @@ from physics_mapper.search.results import Code, Counters, RuledOut, SearchEnd, S
 from physics_mapper.search.rule2 import physics_key
 from physics_mapper.search.ruling_out import FreeFall, Ruling, RulingOut
 from physics_mapper.search.trial_settling import TrialSettling
+
+#: Instabilities a group keeps, until it finds a valid configuration, to teach again by the chain rule if it
+#: is searched again (the candidates of any beyond are visited again then): a bound on a long search's memory.
+KEPT_INSTABILITIES = 500
 
 
 class ConflictDirectedCandidates:
@@ -230,13 +234,20 @@ class ConflictDirectedCandidates:
         else:
             self._valid_found |= valid
             conflict = None if valid else self._learn(self.blame.conflicts(code, verdict))
-            if not valid and not self.blame.chains:
-                self._unstable.append((code, verdict))
+            self._keep_instability(code, verdict, valid)
         if not bounded:
             limit = self.params.trace_limit
             if limit is None or len(self._expanded) < limit:
                 self._expanded.add(code)
         return None if conflict is None else self.named(conflict)
+
+    def _keep_instability(self, code: Code, settling: Settling, valid: bool) -> None:
+        """Keep an instability the contact rule learned from, for a search again (none once a configuration
+        was valid: the group is then never searched again)."""
+        if self._valid_found:
+            self._unstable.clear()
+        elif not valid and not self.blame.chains and len(self._unstable) < KEPT_INSTABILITIES:
+            self._unstable.append((code, settling))
 
     def _learn_collisions(self, code: Code, depths: Mapping[tuple[int, int], float]) -> Conflict:
         """Learn a conflict from every overlap beyond the threshold of the candidate Rule 1 just rejected;
