@@ -135,8 +135,9 @@ class ConflictDirectedCandidates:
         self._ruled_out = tuple(self._named_ruling(r) for r in rulings)
         self.conflicts_learned += len(rulings)
         self._root: Code = tuple(1 for _ in self.objects)
-        self._weights = [weights[1:] for weights in weight_table(group_hypotheses)]
-        self.candidates = ConflictFreeCandidates(self._weights, self.conflicts, bound, params.queue_limit)
+        self.candidates = ConflictFreeCandidates(
+            [weights[1:] for weights in weight_table(group_hypotheses)], self.conflicts, bound, params.queue_limit
+        )
         self._valid_found = False
         self._unstable: list[tuple[Code, Settling]] = []  # the instabilities the blame rule learned from
         self.searched_again = 0  # times the group was searched again under the chain rule
@@ -188,7 +189,8 @@ class ConflictDirectedCandidates:
         settlings by the chain rule (so no candidate visited is made again), and generate the candidates
         from the first, learning from instabilities by the chain rule."""
         self.blame = self.blame.chained()
-        kept = ConflictStore([len(weights) for weights in self._weights])
+        weights = self.candidates.weights
+        kept = ConflictStore([len(ranked) for ranked in weights])
         for conflict in self.conflicts:
             if not _blamed_several(conflict):
                 kept.learn(conflict)
@@ -197,9 +199,7 @@ class ConflictDirectedCandidates:
                 kept.learn(conflict)
         self._unstable.clear()
         self.conflicts = kept
-        self.candidates = ConflictFreeCandidates(
-            self._weights, kept, self.candidates.is_bounded, self.candidates.queue_limit
-        )
+        self.candidates = ConflictFreeCandidates(weights, kept, self.candidates.is_bounded, self.candidates.queue_limit)
         self.searched_again += 1
 
     def take(self) -> QueueItem | None:
@@ -300,7 +300,7 @@ class ConflictDirectedCandidates:
         if self._waiting is not None:
             return self._waiting.probability
         if self._searches_again:  # the search again starts at the root: every object at its best rank, at most
-            return math.prod(weights[0] for weights in self._weights)
+            return math.prod(weights[0] for weights in self.candidates.weights)
         return self.candidates.next_probability
 
     @property

@@ -364,7 +364,7 @@ class Blame:
         """Whether some stable envelope of the object at ``position`` meets ``region``."""
         env_low, env_high = self.envelopes[position]
         low, high = np.asarray(region[0]), np.asarray(region[1])
-        return bool(np.any(np.all((env_low <= high) & (env_high >= low), axis=1)))
+        return bool(np.any(_meets(env_low, env_high, low, high)))
 
 
 def _meets(lows: FloatArray, highs: FloatArray, low: FloatArray, high: FloatArray) -> NDArray[np.bool_]:
