@@ -161,8 +161,11 @@ def _generate(scene_file: Path, bag: Path, extra: list[str], frames: int, partic
         "generate", str(scene_file), "-o", str(bag), "--iterations", str(frames), "--particles", str(particles),
         "--sigma", "0.005", "--period", "0.5", "--seed", str(seed), *extra,
     ]  # fmt: skip
-    with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
-        assert cli_main(arguments) == 0
+    errors = io.StringIO()
+    with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(errors):
+        code = cli_main(arguments)
+    if code != 0:  # e.g. the bag is already there (a second run with the same -o)
+        raise SystemExit(f"physics-mapper {' '.join(arguments)} failed:\n{errors.getvalue().strip()}")
 
 
 def replay(scene: Scene, bag: Path, deadline: float) -> dict[str, Any]:
