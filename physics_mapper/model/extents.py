@@ -54,6 +54,18 @@ def body_box(shape: ObjectShape, pose: Pose) -> tuple[FloatArray, FloatArray]:
     return position + points.min(axis=0), position + points.max(axis=0)
 
 
+def meets_box(lows: FloatArray, highs: FloatArray, low: FloatArray, high: FloatArray) -> NDArray[np.bool_]:
+    """Which of the boxes (corners ``lows``, ``highs``: K x 3) meet the box (``low``, ``high``); closed boxes:
+    touching meets."""
+    meets: NDArray[np.bool_] = np.all((lows <= high) & (highs >= low), axis=-1)
+    return meets
+
+
+def meets_boxes(lows_a: FloatArray, highs_a: FloatArray, lows_b: FloatArray, highs_b: FloatArray) -> NDArray[np.bool_]:
+    """K x L: whether box k of a (corners K x 3) meets box l of b (L x 3); closed boxes."""
+    return meets_box(lows_a[:, None, :], highs_a[:, None, :], lows_b[None, :, :], highs_b[None, :, :])
+
+
 def stable_growth(radius: float, jitter_threshold: float, angular_weight: float) -> float:
     """Metres any point of a body of bounding radius ``radius`` can move while its jitter stays within
     ``jitter_threshold``.

@@ -66,7 +66,7 @@ from typing import Literal
 import numpy as np
 from numpy.typing import NDArray
 
-from physics_mapper.model.extents import body_box, stable_growth
+from physics_mapper.model.extents import body_box, meets_box, stable_growth
 from physics_mapper.model.hypotheses import RankedHypotheses
 from physics_mapper.model.scene import ObjectShape, SearchParams, object_radius
 from physics_mapper.physics.collision_table import CollisionTable
@@ -332,12 +332,12 @@ class Blame:
         object connected to it by swept boxes that meet) at their own rank; every other object with a
         stable envelope that meets one of those swept boxes at its own rank or any rank whose envelope
         meets none."""
-        touches = self._chain(moved, low, high) if self.chains else _meets(low, high, low[moved], high[moved])
+        touches = self._chain(moved, low, high) if self.chains else meets_box(low, high, low[moved], high[moved])
         touches[moved] = True
         env_low, env_high, owners = self._stacked_envelopes()
         reaching = np.zeros(len(owners), dtype=bool)
         for p in np.nonzero(touches)[0] if self.chains else (moved,):
-            reaching |= _meets(env_low, env_high, low[p], high[p])
+            reaching |= meets_box(env_low, env_high, low[p], high[p])
         blamed: dict[int, frozenset[int]] = {}
         for p in sorted({*np.nonzero(touches)[0].tolist(), *owners[reaching].tolist()}):
             if touches[p]:
@@ -355,7 +355,7 @@ class Blame:
         frontier = [moved]
         while frontier:
             p = frontier.pop()
-            found = _meets(low, high, low[p], high[p]) & ~reached
+            found = meets_box(low, high, low[p], high[p]) & ~reached
             reached |= found
             frontier.extend(np.nonzero(found)[0].tolist())
         return reached
@@ -364,13 +364,7 @@ class Blame:
         """Whether some stable envelope of the object at ``position`` meets ``region``."""
         env_low, env_high = self.envelopes[position]
         low, high = np.asarray(region[0]), np.asarray(region[1])
-        return bool(np.any(_meets(env_low, env_high, low, high)))
-
-
-def _meets(lows: FloatArray, highs: FloatArray, low: FloatArray, high: FloatArray) -> NDArray[np.bool_]:
-    """Which of the boxes (``lows``, ``highs``: K x 3) meet the box (``low``, ``high``)."""
-    meets: NDArray[np.bool_] = np.all((lows <= high) & (highs >= low), axis=1)
-    return meets
+        return bool(np.any(meets_box(env_low, env_high, low, high)))
 
 
 def body_boxes(shape: ObjectShape, ranked: RankedHypotheses) -> tuple[FloatArray, FloatArray]:

@@ -26,7 +26,7 @@ from collections.abc import Iterable, Sequence
 import numpy as np
 from numpy.typing import NDArray
 
-from physics_mapper.model.extents import body_box
+from physics_mapper.model.extents import body_box, meets_box, meets_boxes
 from physics_mapper.model.geometry import Vector3
 from physics_mapper.model.hypotheses import RankedHypotheses
 from physics_mapper.model.scene import Scene
@@ -68,7 +68,7 @@ class Grouping:
     def intruded(self, index: int, low: Vector3, high: Vector3) -> tuple[int, ...]:
         """Groups other than object ``index``'s whose volume the box [``low``, ``high``] (metres) meets."""
         reach_low, reach_high = np.asarray(low), np.asarray(high)
-        met = np.all((self._all_lows <= reach_high) & (self._all_highs >= reach_low), axis=1)
+        met = meets_box(self._all_lows, self._all_highs, reach_low, reach_high)
         groups = {int(g) for g in self._all_groups[met]} - {self.group_of(index)}
         return tuple(sorted(groups))
 
@@ -86,14 +86,13 @@ def _boxes_meet(
     chunks of :data:`PAIRS_PER_CHUNK` pairs. A search's sets are capped before this
     (:data:`~physics_mapper.model.limits.MAX_SEARCHED_HYPOTHESES`), which bounds the time.
     """
-    near = np.all((lows_b <= highs_a.max(axis=0)) & (highs_b >= lows_a.min(axis=0)), axis=1)
+    near = meets_box(lows_b, highs_b, lows_a.min(axis=0), highs_a.max(axis=0))
     lows_b, highs_b = lows_b[near], highs_b[near]
     if len(lows_b) == 0:
         return False
     rows = max(1, PAIRS_PER_CHUNK // len(lows_b))
     for start in range(0, len(lows_a), rows):
-        low_a, high_a = lows_a[start : start + rows, None, :], highs_a[start : start + rows, None, :]
-        if np.any(np.all((low_a <= highs_b[None, :, :]) & (high_a >= lows_b[None, :, :]), axis=2)):
+        if np.any(meets_boxes(lows_a[start : start + rows], highs_a[start : start + rows], lows_b, highs_b)):
             return True
     return False
 
@@ -136,7 +135,7 @@ def interaction_groups(
     # Each object's whole volume in one box first: only objects whose boxes overlap can interact.
     low = np.array([box.min(axis=0) for box in lows])
     high = np.array([box.max(axis=0) for box in highs])
-    near = np.all((low[:, None, :] <= high[None, :, :]) & (high[:, None, :] >= low[None, :, :]), axis=2)
+    near = meets_boxes(low, high, low, high)
     for i, j in zip(*np.nonzero(np.triu(near, k=1)), strict=True):
         if root(i) != root(j) and _boxes_meet(lows[i], highs[i], lows[j], highs[j]):
             join(int(i), int(j))

@@ -37,7 +37,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from physics_mapper.model.extents import FloatArray
+from physics_mapper.model.extents import FloatArray, meets_boxes
 from physics_mapper.model.scene import Mesh
 from physics_mapper.physics.settling import PositionRange, Settling
 from physics_mapper.search.conflicts import Blame
@@ -157,12 +157,11 @@ def neighbours(blame: Blame) -> tuple[tuple[int, ...], ...]:
     envelopes = blame.envelopes
     low = np.array([env_low.min(axis=0) for env_low, _ in envelopes])
     high = np.array([env_high.max(axis=0) for _, env_high in envelopes])
-    near = np.all((low[:, None, :] <= high[None, :, :]) & (high[:, None, :] >= low[None, :, :]), axis=2)
+    near = meets_boxes(low, high, low, high)
     found: list[set[int]] = [set() for _ in envelopes]
     for p, q in zip(*np.nonzero(np.triu(near, k=1)), strict=True):
         (low_p, high_p), (low_q, high_q) = envelopes[p], envelopes[q]
-        meets = (low_p[:, None, :] <= high_q[None, :, :]) & (high_p[:, None, :] >= low_q[None, :, :])
-        if np.any(np.all(meets, axis=2)):
+        if np.any(meets_boxes(low_p, high_p, low_q, high_q)):
             found[int(p)].add(int(q))
             found[int(q)].add(int(p))
     return tuple(tuple(sorted(members)) for members in found)
