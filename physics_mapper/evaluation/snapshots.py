@@ -128,8 +128,8 @@ def bag_snapshots(
     tracks unmatched for ``max_age`` end), an instance that may not be there gets its *absent*
     hypothesis, a silent object its last map pose beside *absent*, one never seen *absent* alone; and
     after each new snapshot ``decide(snapshot)`` gives the configuration chosen for it, whose map
-    is remembered, whose instances may be confirmed and whose left-out tentative instances end (when
-    the search finished), as after the node's tick.
+    is remembered, whose instances may be confirmed and whose left-out tentative instances end
+    (:func:`~physics_mapper.mapping.existence.learn_from_result`), as after the node's tick.
     """
     settings = settings or InputSettings()
     tracker = InputTracker(scene.object_names)

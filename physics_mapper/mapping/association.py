@@ -63,10 +63,12 @@ saw, and keeps no order across frames. The rules that give each detection of a *
 - **Misses and ends.** An instance no detection matched keeps its own state and hypotheses; it
   never takes another's. A tentative track ends once ``tentative_misses`` arrays in a row (2)
   matched it no detection (an estimator misses a true object now and then, a false detection seldom
-  comes back to the same place), and when a finished search
-  leaves its instance out (:meth:`InstanceTracks.reject`; a search the deadline stopped is no
-  verdict); a confirmed one ends when unmatched for more than ``max_age`` seconds. An ended track
-  frees its instance, and the instance's hypotheses are forgotten.
+  comes back to the same place), and when physics leaves its instance out
+  (:meth:`InstanceTracks.reject`): a finished search's map does, or every pose of it is ruled out before
+  the search, or :data:`CUT_SHORT_LEAVINGS` (2) valid maps in a row of searches the deadline stopped
+  do (an invalid map of a stopped search is no verdict); a confirmed one ends when unmatched for more
+  than ``max_age`` seconds. An ended track frees its instance, and the instance's hypotheses are
+  forgotten.
 - **Existence.** An instance that may not be there, a tentative track or an instance of a
   ``count: {max: K}`` entry, has a weight for *absent*:
   w_absent = prod_k (1 - c_k) over its track's (newest 20) matched detections, c_k the detection's best
@@ -89,14 +91,18 @@ from numpy.typing import NDArray
 from scipy.optimize import linear_sum_assignment
 from scipy.spatial.distance import cdist
 
-from physics_mapper.model.extents import body_box, inside_static
-from physics_mapper.model.geometry import ORIGIN
-from physics_mapper.model.scene import ObjectShape, Scene
+from physics_mapper.model.extents import inside_static, shape_extents
+from physics_mapper.model.scene import Scene
 
 #: A detection's best score counts as at most this confidence that its instance exists.
 MAX_CONFIDENCE = 0.95
 #: Matched detections whose confidence counts for existence (the newest): w_absent stays above 0.05^20.
 CONFIDENCES_KEPT = 20
+#: Valid maps of searches the deadline stopped that must leave a tentative instance out in a row before its
+#: track ends: one such map may have left out a true object a longer search would have kept, and ended, its
+#: track would start again with one detection's evidence, its *absent* then likelier than any one pose, so
+#: that the next maps leave it out too.
+CUT_SHORT_LEAVINGS = 2
 #: Cost of a pair outside the gate: never chosen over a gated pair (distances are metres, ≤ 1e7).
 _FORBIDDEN = 1e12
 
@@ -166,6 +172,7 @@ class Track:
     key: str = ""
     hits: int = 0
     misses: int = 0  # arrays in a row that matched it no detection
+    cut_short_leavings: int = 0  # valid maps cut short by the deadline in a row that left its instance out
     confidences: list[float] = field(default_factory=list)
     kept: bool = False  # some valid map held its instance
 
@@ -232,14 +239,6 @@ class Tracking:
     doubles: int = 0
 
 
-def extents(shape: ObjectShape) -> NDArray[np.float64]:
-    """The extents (m) of ``shape``'s axis-aligned box, unrotated: its largest half is the default gate, its
-    smallest half the same-body distance (two identical bodies that do not overlap have their centres farther
-    apart)."""
-    low, high = body_box(shape, ORIGIN)
-    return np.asarray(high - low, dtype=np.float64)
-
-
 def _nearest_distances(
     points: NDArray[np.float64], observations: Sequence[Observation], gate: float
 ) -> tuple[NDArray[np.float64], NDArray[np.intp]]:
@@ -293,8 +292,10 @@ class InstanceTracks:
         return min(0.5 * float(np.min(self._class_extents(class_id))), self.gate(class_id))
 
     def _class_extents(self, class_id: str) -> NDArray[np.float64]:
+        """The class's shape's extents (m): their largest half is the default gate, their smallest half the
+        same-body distance (two identical bodies that do not overlap have their centres farther apart)."""
         if class_id not in self._extents:
-            self._extents[class_id] = extents(self._shapes[self.scene.objects_of_class(class_id)[0]])
+            self._extents[class_id] = shape_extents(self._shapes[self.scene.objects_of_class(class_id)[0]])
         return self._extents[class_id]
 
     def tentative(self, name: str) -> bool:
@@ -318,6 +319,7 @@ class InstanceTracks:
             track = self.tracks.get(name)
             if track is not None:
                 track.kept = True
+                track.cut_short_leavings = 0
 
     def instances_per_class(self) -> dict[str, int]:
         """Tracked classes -> their instances with a track."""
@@ -334,11 +336,16 @@ class InstanceTracks:
             self._end(name, now)
         return ended
 
-    def reject(self, names: Sequence[str], now: float) -> tuple[str, ...]:
+    def reject(self, names: Sequence[str], cut_short: Sequence[str], now: float) -> tuple[str, ...]:
         """End the tentative tracks of ``names``, instances physics left out at ``now``
-        (:func:`~physics_mapper.mapping.existence.left_out_by_physics`): it found no place for them.
-        Returns the names whose tracks ended."""
-        ended = tuple(name for name in names if self.tentative(name))
+        (:func:`~physics_mapper.mapping.existence.left_out_by_physics`): it found no place for them; and
+        of ``cut_short``, instances a valid map of a search the deadline stopped left out, once
+        :data:`CUT_SHORT_LEAVINGS` such maps in a row did. Returns the names whose tracks ended."""
+        for name in cut_short:
+            if name in self.tracks:
+                self.tracks[name].cut_short_leavings += 1
+        leaving = [n for n in cut_short if n in self.tracks and self.tracks[n].cut_short_leavings >= CUT_SHORT_LEAVINGS]
+        ended = tuple(name for name in dict.fromkeys([*names, *leaving]) if self.tentative(name))
         for name in ended:
             self._end(name, now)
         return ended

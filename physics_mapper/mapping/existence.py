@@ -26,6 +26,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 from physics_mapper.mapping.association import InstanceTracks
 from physics_mapper.mapping.inputs import InputSnapshot
@@ -102,24 +103,35 @@ def searched_hypotheses(
     return tuple(searched)
 
 
+class LeftOut(NamedTuple):
+    """What physics left out of a map: ``placeless``, the objects it finds no place for, and ``cut_short``,
+    those a valid map of a search the deadline stopped left out (a longer search might have kept them)."""
+
+    placeless: tuple[str, ...]
+    cut_short: tuple[str, ...]
+
+
 def left_out_by_physics(
     names: tuple[str, ...], hypotheses: tuple[RankedHypotheses, ...], result: SearchResult | None
-) -> tuple[str, ...]:
-    """The objects physics finds no place for: those a *finished* search's map leaves out, or a *valid*
-    one's (a search the deadline stopped without a valid map gives its best so far, no verdict), and,
-    in any map, those that may be absent and whose every other rank overlaps a static body or falls
-    freely (ruled out before the search began: no configuration holds them).
+) -> LeftOut:
+    """The objects physics finds no place for (``placeless``): those a *finished* search's map leaves out,
+    and, in any map, those that may be absent and whose every other rank overlaps a static body or falls
+    freely (ruled out before the search began: no configuration holds them); and those a *valid* map of a
+    search the deadline stopped leaves out (``cut_short``: a verdict only once repeated,
+    :data:`~physics_mapper.mapping.association.CUT_SHORT_LEAVINGS`). A search the deadline stopped without
+    a valid map gives its best so far: no verdict.
 
     The previous map's configuration (:mod:`~physics_mapper.mapping.previous_map`) is no verdict either:
-    it leaves out what the last map did not hold. A valid map the deadline cut short may leave out an
-    instance a longer search would have kept: its tentative track ends, and its next detection starts it
-    again under the same name (the association's births)."""
+    it leaves out what the last map did not hold."""
     if result is None:
-        return ()
+        return LeftOut((), ())
     placeless = _ruled_out_alone(names, hypotheses, result)
     if result.code is None or result.previous_map or not (result.stats.finished or result.valid):
-        return placeless
-    return tuple(dict.fromkeys([*absent_objects(names, hypotheses, result), *placeless]))
+        return LeftOut(placeless, ())
+    absent = absent_objects(names, hypotheses, result)
+    if result.stats.finished:
+        return LeftOut(tuple(dict.fromkeys([*absent, *placeless])), ())
+    return LeftOut(placeless, tuple(name for name in absent if name not in placeless))
 
 
 def _ruled_out_alone(
@@ -174,9 +186,11 @@ def learn_from_result(
 ) -> tuple[str, ...]:
     """What a tick's search teaches the next ticks: its map remembered if valid, the instances a valid map
     holds confirmed, and the tentative ones physics leaves out (:func:`left_out_by_physics`) ended at
-    ``now`` (s). Returns the names whose tracks ended (their inputs are to be forgotten)."""
+    ``now`` (s), those valid maps cut short leave out once repeated. Returns the names whose tracks ended
+    (their inputs are to be forgotten)."""
     if result is None:
         return ()
     memory.remember(names, hypotheses, result)
     tracks.keep(held_by_valid_map(names, hypotheses, result))
-    return tracks.reject(left_out_by_physics(names, hypotheses, result), now)
+    left_out = left_out_by_physics(names, hypotheses, result)
+    return tracks.reject(left_out.placeless, left_out.cut_short, now)

@@ -22,7 +22,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from physics_mapper.model.geometry import Pose, Quaternion, rotate_vector
+from physics_mapper.model.geometry import ORIGIN, Pose, Quaternion, rotate_vector
 from physics_mapper.model.scene import Box, Cylinder, Mesh, ObjectShape, Plane, Sphere, StaticBody
 
 FloatArray = NDArray[np.float64]
@@ -52,6 +52,12 @@ def body_box(shape: ObjectShape, pose: Pose) -> tuple[FloatArray, FloatArray]:
     geometry = shape.geometry
     points = np.vstack([geometry.vertices, *(part.vertices for part in geometry.parts)]) @ rotation.T
     return position + points.min(axis=0), position + points.max(axis=0)
+
+
+def shape_extents(shape: ObjectShape) -> FloatArray:
+    """The extents (3, m) of ``shape``'s axis-aligned box, unrotated."""
+    low, high = body_box(shape, ORIGIN)
+    return np.asarray(high - low, dtype=np.float64)
 
 
 def meets_box(lows: FloatArray, highs: FloatArray, low: FloatArray, high: FloatArray) -> NDArray[np.bool_]:

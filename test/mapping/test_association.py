@@ -252,11 +252,30 @@ def test_a_detection_that_recurs_is_born_before_a_new_one() -> None:
     first = [detection(result(p)) for p in ((-0.3, 0.0, 0.4), a, b)]
     inputs = detection_inputs(array(first), scene, received=0.0, tracks=tracks)
     assert positions_of(inputs) == {"box_1": (-0.3, 0.0, 0.4), "box_2": a}
-    tracks.reject(["box_1"], 0.0)  # a finished search found no place for it
+    tracks.reject(["box_1"], (), 0.0)  # a finished search found no place for it
     second = [detection(result(p)) for p in ((-0.2, 0.1, 0.4), a, (0.301, 0.0, 0.05))]
     inputs = detection_inputs(array(second), scene, received=0.5, tracks=tracks)
     assert positions_of(inputs) == {"box_1": (0.301, 0.0, 0.05), "box_2": a}
     assert inputs.association is not None and inputs.association.outside == {"box": 1}
+
+
+def test_a_tentative_track_ends_once_two_valid_maps_cut_short_leave_it_out_in_a_row() -> None:
+    """One valid map of a search the deadline stopped may leave out a true box a longer search would have
+    kept: the track keeps its history (its *absent* stays as unlikely). A map that holds it resets the
+    count; two in a row that leave it out end it."""
+    scene = bin_scene(2)
+    tracks = InstanceTracks(scene)
+    places = [(0.0, 0.0, 0.05), (0.3, 0.0, 0.05)]
+    for received in (0.0, 0.5):
+        detection_inputs(array([detection(result(p)) for p in places]), scene, received=received, tracks=tracks)
+    absent = tracks.absent_weight("box_1")
+    assert tracks.tentative("box_1") and absent is not None
+    assert tracks.reject((), ["box_1"], 0.5) == ()
+    assert tracks.absent_weight("box_1") == absent
+    tracks.keep(["box_1"])  # a valid map held it: not yet confirmed (two hits of three), the count starts over
+    assert tracks.tentative("box_1") and tracks.reject((), ["box_1"], 1.0) == ()
+    assert tracks.reject((), ["box_1"], 1.5) == ("box_1",)
+    assert "box_1" not in tracks.tracks and "box_2" in tracks.tracks
 
 
 def test_a_wrong_pose_ranked_first_weighs_less_than_where_the_track_holds_the_instance() -> None:
@@ -306,7 +325,7 @@ def test_an_instance_whose_track_ended_waits_for_the_detection_that_comes_back_t
     inputs = detection_inputs(array([detection(result(p)) for p in (a, b)]), scene, received=0.0, tracks=tracks)
     assert positions_of(inputs) == {"box_1": a, "box_2": b}
     detection_inputs(array([detection(result((0.6, 0.0, 0.05)))]), scene, received=0.5, tracks=tracks)
-    tracks.reject(["box_1", "box_2", "box_3"], 0.5)  # all three never confirmed: every instance ended
+    tracks.reject(["box_1", "box_2", "box_3"], (), 0.5)  # all three never confirmed: every instance ended
     inputs = detection_inputs(array([detection(result(p)) for p in (b, new, a)]), scene, received=1.0, tracks=tracks)
     assert positions_of(inputs) == {"box_1": a, "box_2": b, "box_3": new}
 
