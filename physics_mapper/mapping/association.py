@@ -341,11 +341,14 @@ class InstanceTracks:
         (:func:`~physics_mapper.mapping.existence.left_out_by_physics`): it found no place for them; and
         of ``cut_short``, instances a valid map of a search the deadline stopped left out, once
         :data:`CUT_SHORT_LEAVINGS` such maps in a row did. Returns the names whose tracks ended."""
+        repeated = []
         for name in cut_short:
-            if name in self.tracks:
-                self.tracks[name].cut_short_leavings += 1
-        leaving = [n for n in cut_short if n in self.tracks and self.tracks[n].cut_short_leavings >= CUT_SHORT_LEAVINGS]
-        ended = tuple(name for name in dict.fromkeys([*names, *leaving]) if self.tentative(name))
+            track = self.tracks.get(name)
+            if track is not None:
+                track.cut_short_leavings += 1
+                if track.cut_short_leavings >= CUT_SHORT_LEAVINGS:
+                    repeated.append(name)
+        ended = tuple(name for name in dict.fromkeys([*names, *repeated]) if self.tentative(name))
         for name in ended:
             self._end(name, now)
         return ended
