@@ -33,11 +33,7 @@ without it writes no file. Progress goes to stderr.
 from __future__ import annotations
 
 import argparse
-import json
-import os
-import pickle
 import statistics
-import subprocess
 import sys
 import time
 from collections.abc import Callable, Iterable, Sequence
@@ -46,6 +42,7 @@ from pathlib import Path
 from typing import Literal
 
 import numpy as np
+from with_package import run_with_package
 
 from physics_mapper.model.errors import InputError
 from physics_mapper.model.scene import SearchParams
@@ -179,12 +176,9 @@ print(json.dumps([elapsed if found else None, elapsed, s.visited + c["skipped"],
 
 def previous_time_to_answer(problem: CrowdedProblem, previous: Path, cap: float = ANSWER_CAP) -> SearchRun:
     """:func:`time_to_answer` of last round's default search (the package in ``previous``), in a subprocess."""
-    data = pickle.dumps((problem.problem, (problem.answer, True), SLICE, cap))
-    environment = {**os.environ, "PYTHONPATH": str(previous)}
-    completed = subprocess.run([sys.executable, "-c", PREVIOUS_RUN], input=data, capture_output=True, env=environment)
-    if completed.returncode != 0:
-        raise RuntimeError(f"last round's search failed on {problem.case.label}:\n{completed.stderr.decode()}")
-    return SearchRun(*json.loads(completed.stdout.decode().splitlines()[-1]))
+    data = (problem.problem, (problem.answer, True), SLICE, cap)
+    failure = f"last round's search failed on {problem.case.label}"
+    return SearchRun(*run_with_package(PREVIOUS_RUN, previous, data, failure))
 
 
 def run_problem(case: CrowdedCase, exhaustive_cap: float = EXHAUSTIVE_CAP, previous: Path | None = None) -> ProblemRun:

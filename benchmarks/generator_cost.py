@@ -20,15 +20,13 @@ Run: ``physics-mapper bench generator_cost [--visits N] [--seed N] --previous DI
 from __future__ import annotations
 
 import argparse
-import json
-import os
-import pickle
-import subprocess
 import sys
 from collections import defaultdict
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+
+from with_package import run_with_package
 
 import physics_mapper
 from physics_mapper.model.scene import Problem
@@ -92,14 +90,8 @@ class GeneratorWork:
 def generator_work(problem: Problem, visits: int, package: Path) -> GeneratorWork:
     """The default search of ``problem`` with the ``physics_mapper`` package in folder ``package``, to
     ``visits`` candidates or its end, in a subprocess."""
-    environment = {**os.environ, "PYTHONPATH": str(package)}
     script = SEARCH.replace("SLICE", repr(SLICE))
-    completed = subprocess.run(
-        [sys.executable, "-c", script], input=pickle.dumps((problem, visits)), capture_output=True, env=environment
-    )
-    if completed.returncode != 0:
-        raise RuntimeError(f"the search with {package} failed:\n{completed.stderr.decode()}")
-    checked, seconds, trace = json.loads(completed.stdout.decode().splitlines()[-1])
+    checked, seconds, trace = run_with_package(script, package, (problem, visits), f"the search with {package} failed")
     return GeneratorWork([(group, tuple(code), outcome) for group, code, outcome in trace], checked, seconds)
 
 
