@@ -70,8 +70,9 @@ class RuledOut:
     its body there overlaps ``other`` (a static body, or with ``every_rank`` an object at each of its
     ranks still possible) ``depth`` metres deep, beyond the penetration threshold (with ``every_rank``
     the shallowest of those overlaps): ``reason`` Rule 1's, ``collision``. Or Rule 2's, ``floating``:
-    there it is in free fall, nothing (static, or any object at any rank) within reach to rest on
-    (``other`` empty, ``depth`` 0). ``group`` is the interaction group's id, as in the trace."""
+    there it is in free fall, nothing within reach to rest on (no static body, nor any object at a rank
+    that rests on something: :class:`~physics_mapper.search.ruling_out.FreeFall`; ``other`` empty,
+    ``depth`` 0). ``group`` is the interaction group's id, as in the trace."""
 
     object: str
     rank: int

@@ -10,9 +10,10 @@ ways:
 
 The second rule feeds on the first, so it is applied until nothing changes (arc consistency on the
 pairwise Rule 1 table). Rule 2 rules out one more kind alone (:class:`FreeFall`): p at a *in free
-fall*, its stable envelope E_p(a) (:mod:`physics_mapper.search.conflicts`) meeting no static body and
-no other object's envelope at any rank, when the settling lasts long enough for a fall to leave it:
-a detection in the air, with nothing below it for any object's hypothesis to stand on.
+fall*, its stable envelope E_p(a) (:mod:`physics_mapper.search.conflicts`) linked to no static body
+through other objects' envelopes (a chain of them meeting, from a static body to p's), when the settling
+lasts long enough for a fall to leave it: a detection in the air, or two side by side, with nothing below
+them that rests on anything.
 
 A search learns the same conflicts from rejected candidates, but only once a
 candidate holding p at a is checked: meanwhile every queued candidate holding it is skipped one by
@@ -34,7 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from physics_mapper.model.extents import may_overlap_static
+from physics_mapper.model.extents import may_overlap_static, meets_boxes
 from physics_mapper.model.scene import StaticBody
 from physics_mapper.physics.collision_table import CollisionTable
 from physics_mapper.search.conflicts import Conflict, ConflictStore, Region
@@ -47,6 +48,8 @@ PAIRS_FROM_OBJECTS = 7
 #: Pairs of hypothesis boxes the pass compares at most; beyond, it is not made (the search is the
 #: same without it, only slower to skip what it would have ruled out).
 BOX_PAIR_LIMIT = 1 << 20
+#: Pairs of envelopes the free-fall pass compares in one array (a few megabytes).
+PAIRS_AT_ONCE = 1 << 20
 #: m/s², along -z (REP-103): how far a body in free fall drops in a settling.
 GRAVITY = 9.81
 
@@ -146,13 +149,19 @@ class FreeFall:
     lows and highs, m), their growth g_i (m) and which ranks are bodies (False: *absent*); the
     settling's simulated seconds and the store that learns the conflicts.
 
-    Sound as the blame rule is: were a configuration holding p at a stable, every object would stay
-    in its envelope, so nothing would meet p's while p, in free fall, drops 1/2 g T² > g_p in the
-    settling's T seconds: out of its envelope, beyond the jitter threshold. Every object of the scene
-    is looked at, not only the group's: an envelope reaches further than the grouping's margin.
-    An object every rank of which falls, and that cannot be absent, keeps them all: no configuration
-    would be left to check, and the ``settled`` fallback reports the first one settled (it drops the
-    object onto what is below: a map where no combination is valid).
+    A rank is *grounded* when its envelope meets a static body or a grounded rank's envelope of another
+    object (the least such set, grown from the static bodies outwards). Every rank of a valid
+    configuration is grounded: were some of its objects at ranks that are not, those would meet nothing
+    grounded while they stayed in their envelopes, nor any static body, so only they could push one
+    another and their centre of mass would drop 1/2 g T² in the settling's T seconds, more than any of
+    their g_p: one of them out of its envelope, beyond the jitter threshold (sound as the blame rule is).
+    So a rank that is not grounded is ruled out in free fall: a detection in the air, or two beside each
+    other, with nothing below them that rests on anything. Every object of the scene is looked at, not
+    only the group's: an envelope reaches further than the grouping's margin. No verdict (every rank
+    grounded) for an object whose g_p the fall does not exceed. An object no rank of which is grounded,
+    and that cannot be absent, keeps them all (and they may hold others up): no configuration would be
+    left to check, and the ``settled`` fallback reports the first one settled (it drops the object onto
+    what is below: a map where no combination is valid).
     """
 
     objects: Sequence[int]
@@ -164,24 +173,11 @@ class FreeFall:
 
     def run(self, statics: Sequence[StaticBody]) -> list[Ruling]:
         """Learn every rank in free fall; why each, in position order."""
-        every_low = np.concatenate([low for low, _ in self.envelopes])
-        every_high = np.concatenate([high for _, high in self.envelopes])
-        owners = np.repeat(np.arange(len(self.envelopes)), [len(low) for low, _ in self.envelopes])
-        fall = 0.5 * GRAVITY * self.settle_time**2
+        grounded = self._grounded(statics)
         rulings = []
         for position, index in enumerate(self.objects):
-            if fall <= self.growths[index]:
-                continue  # the settling is too short for a fall to leave the envelope: no verdict
             low, high = self.envelopes[index]
-            others = owners != index
-            met = (low[:, None, :] <= every_high[None, others]) & (high[:, None, :] >= every_low[None, others])
-            supported = np.all(met, axis=2).any(axis=1)
-            for body in statics:
-                supported |= may_overlap_static(body, low, high, 0.0)
-            falling = self.bodies[index] & ~supported
-            if np.all(falling):
-                continue  # every rank falls and it cannot be absent: left to the search and its fallback
-            for rank in (int(k) + 1 for k in np.nonzero(falling)[0]):
+            for rank in (int(k) + 1 for k in np.nonzero(self.bodies[index] & ~grounded[index])[0]):
                 corner_low, corner_high = low[rank - 1], high[rank - 1]
                 region: Region = (
                     (float(corner_low[0]), float(corner_low[1]), float(corner_low[2])),
@@ -190,6 +186,55 @@ class FreeFall:
                 if self.store.learn(Conflict(((position, rank),), "unstable", region)):
                     rulings.append(Ruling(position, rank, -1, 0.0, floating=True))
         return rulings
+
+    def _grounded(self, statics: Sequence[StaticBody]) -> list[NDArray[np.bool_]]:
+        """Per object of the scene, which of its ranks are grounded (class docstring; absent ranks never)."""
+        sizes = [len(low) for low, _ in self.envelopes]
+        lows = np.concatenate([low for low, _ in self.envelopes])
+        highs = np.concatenate([high for _, high in self.envelopes])
+        owners = np.repeat(np.arange(len(sizes)), sizes)
+        bodies = np.concatenate(self.bodies)
+        fall = 0.5 * GRAVITY * self.settle_time**2
+        # The settling is too short for a fall to leave such an object's envelope: no verdict.
+        grounded = bodies & np.repeat([fall <= growth for growth in self.growths], sizes)
+        for body in statics:
+            grounded |= bodies & may_overlap_static(body, lows, highs, 0.0)
+        frontier = grounded.copy()
+        while True:
+            while frontier.any():
+                waiting = np.flatnonzero(bodies & ~grounded)
+                met = _meets_another(waiting, np.flatnonzero(frontier), lows, highs, owners)
+                frontier = np.zeros_like(grounded)
+                frontier[waiting[met]] = True
+                grounded |= frontier
+            # Objects that cannot be absent and have no rank grounded keep them all.
+            starts = np.cumsum([0, *sizes])
+            stuck = [
+                index
+                for index, present in enumerate(self.bodies)
+                if len(present) and present.all() and not grounded[starts[index] : starts[index + 1]].any()
+            ]
+            if not stuck:
+                return np.split(grounded, starts[1:-1])
+            for index in stuck:
+                frontier[starts[index] : starts[index + 1]] = True
+            grounded |= frontier
+
+
+def _meets_another(
+    boxes: NDArray[np.intp], others: NDArray[np.intp], lows: FloatArray, highs: FloatArray, owners: NDArray[np.intp]
+) -> NDArray[np.bool_]:
+    """Per box of ``boxes`` (indices into the corners ``lows``, ``highs``: K x 3, m), whether it meets a box of
+    ``others`` that another object ``owners`` (one per box) owns. In slices of at most
+    :data:`PAIRS_AT_ONCE` pairs: a few hundred thousand ranks (detections of 1,000 results) stay in memory."""
+    rows = max(1, PAIRS_AT_ONCE // max(1, len(others)))
+    met = np.zeros(len(boxes), dtype=bool)
+    for start in range(0, len(boxes), rows):
+        some = boxes[start : start + rows]
+        pairs = meets_boxes(lows[some], highs[some], lows[others], highs[others])
+        pairs &= owners[some][:, None] != owners[others][None, :]
+        met[start : start + rows] = pairs.any(axis=1)
+    return met
 
 
 def _box_overlaps(

@@ -114,6 +114,29 @@ def test_a_rank_in_free_fall_is_ruled_out_and_one_in_reach_of_a_neighbour_is_not
             )
 
 
+def test_detections_in_the_air_side_by_side_are_ruled_out_and_a_column_standing_on_the_floor_is_not() -> None:
+    """Two cubes that may be absent, each seen only 30 cm up, 1 cm apart: each envelope meets the other's,
+    but neither meets anything that rests on something, so both are ruled out as floating and the map
+    leaves them out. A column of three cubes, each seen 3 mm above the one below, is grounded through the
+    floor, the top one through the two below it: nothing of it is ruled out."""
+    pitch = CUBE_SIZE + 0.01
+    lift = CUBE_SIZE + 0.003
+    scene = floor_scene(cube("x"), cube("y"), cube("z"), cube("a"), cube("b"))
+    hypotheses = [ranked([unrotated(0.0, 0.0, ON_FLOOR + k * lift)], [1]) for k in range(3)] + [
+        RankedHypotheses.from_weighted(
+            [Hypothesis(unrotated(0.6 + k * pitch, 0.0, 0.3), 0.6), absent_hypothesis(3 + k, 0.4)]
+        )
+        for k in range(2)
+    ]
+    with PhysicsChecker(scene) as checker:
+        result = make_search(checker, hypotheses, SearchParams()).run(None)
+    assert {(r.object, r.rank, r.reason) for r in result.ruled_out} == {("a", 1, "floating"), ("b", 1, "floating")}
+    assert result.valid and result.code == (1, 1, 1, 2, 2)
+    with PhysicsChecker(scene) as checker:  # sound: the two in the air fall together
+        poses = [h.pose(1) for h in hypotheses]
+        assert not checker.settle(poses, 0.5, SearchParams().angular_weight).is_stable(SearchParams().jitter_threshold)
+
+
 def test_a_floating_ruling_reads_as_one_line() -> None:
     ruling = RuledOut("c", 1, "", 0.0, reason="floating")
     assert ruled_out_text(ruling) == "c #1: floating, nothing within reach to rest on"
