@@ -48,8 +48,11 @@ saw, and keeps no order across frames. The rules that give each detection of a *
   to it, whichever of them is born first). With no free instance it takes that of a
   tentative track no valid map held and that this array's miss ends anyway; else it is counted
   as outside every gate and not used (``count: {max: K}`` stops at K). Detections born together
-  take their instances in the order of their central results' positions (x, then y, then z), not of
-  the array: even a first frame names the same boxes the same way however it is ordered. Before
+  take their instances in the order of their central results' heights (z, along gravity in REP-103's
+  frames; ties by x, then y), from the lowest, not of the array: even a first frame names the same
+  boxes the same way however it is ordered, and where more are born than instances are free, those
+  left outside are the highest, a detection in the air (with nothing to stand on, the likeliest false
+  one) before one low in the pile. Before
   them come those that *recur*: the central result within the gate of that of a detection of the
   class's last array (a
   true object comes back to its place, though it was left outside or its track ended; a false
@@ -410,12 +413,13 @@ class InstanceTracks:
             born.append(free)
         return replace(frame, born=tuple(born), ended=tuple(ended), outside=outside, doubles=doubles)
 
-    def _birth_order(self, observation: Observation) -> tuple[bool, bool, tuple[float, ...]]:
+    def _birth_order(self, observation: Observation) -> tuple[bool, bool, float, tuple[float, ...]]:
         """Where a detection that matched no instance comes among those of its array (module docstring):
-        those that recur first, those whose central result lies inside a static body last, then by place."""
+        those that recur first, those whose central result lies inside a static body last, then from the
+        lowest up, then by place."""
         place = observation.place()
         inside = any(inside_static(body, np.asarray(place)) for body in self.scene.static)
-        return inside, not self._recurs(observation.class_id, place), place
+        return inside, not self._recurs(observation.class_id, place), place[2], place
 
     def _recurs(self, class_id: str, place: tuple[float, ...]) -> bool:
         """Whether ``place`` (a detection's central result, m) lies within the gate of the central result of

@@ -242,18 +242,28 @@ def test_a_detection_inside_a_static_body_is_born_last_and_left_outside_when_ins
     assert inputs.association is not None and inputs.association.outside == {"box": 1}
 
 
+def test_a_detection_in_the_air_is_born_after_those_below_it_and_left_outside_when_instances_run_out() -> None:
+    """Three detections for two instances, the one 35 cm above the floor first in the array and first by
+    x: the two on the floor, lower, take the instances."""
+    scene = bin_scene(2)
+    air, a, b = (-0.3, 0.0, 0.4), (0.0, 0.0, 0.05), (0.3, 0.0, 0.05)
+    inputs = detection_inputs(array([detection(result(p)) for p in (air, a, b)]), scene, received=0.0)
+    assert positions_of(inputs) == {"box_1": a, "box_2": b}
+    assert inputs.association is not None and inputs.association.outside == {"box": 1}
+
+
 def test_a_detection_that_recurs_is_born_before_a_new_one() -> None:
-    """Two instances, three detections: a false one in the air, first by place, takes an instance and
+    """Two instances, three detections on the floor: a false one, first by place, takes an instance and
     the true box ``b`` is left outside. Physics leaves the false one out; in the next array a new false
     one, again first by place, does not take that instance: ``b`` comes back to its place and does."""
     scene = bin_scene(2)
     tracks = InstanceTracks(scene)
     a, b = (0.0, 0.0, 0.05), (0.3, 0.0, 0.05)
-    first = [detection(result(p)) for p in ((-0.3, 0.0, 0.4), a, b)]
+    first = [detection(result(p)) for p in ((-0.3, 0.0, 0.05), a, b)]
     inputs = detection_inputs(array(first), scene, received=0.0, tracks=tracks)
-    assert positions_of(inputs) == {"box_1": (-0.3, 0.0, 0.4), "box_2": a}
+    assert positions_of(inputs) == {"box_1": (-0.3, 0.0, 0.05), "box_2": a}
     tracks.reject(["box_1"], (), 0.0)  # a finished search found no place for it
-    second = [detection(result(p)) for p in ((-0.2, 0.1, 0.4), a, (0.301, 0.0, 0.05))]
+    second = [detection(result(p)) for p in ((-0.2, 0.1, 0.05), a, (0.301, 0.0, 0.05))]
     inputs = detection_inputs(array(second), scene, received=0.5, tracks=tracks)
     assert positions_of(inputs) == {"box_1": (0.301, 0.0, 0.05), "box_2": a}
     assert inputs.association is not None and inputs.association.outside == {"box": 1}

@@ -160,8 +160,8 @@ def test_a_persistent_impossible_detection_is_never_confirmed() -> None:
         feed(mapper, [*FLOOR_BOXES, (0.3, 0.3, 0.4)], 0.5 * step)
         report = mapper.tick(0.5 * step + 0.1, SETTINGS)
         assert report.result is not None and report.result.valid
-        assert report.absent == ("box_3",)  # the one at (0.3, 0.3): born third, by position
-    assert "box_3" not in mapper.tracks.tracks  # ended by the map at every tick: never confirmed
+        assert report.absent == ("box_4",)  # the one at (0.3, 0.3): the highest, born last
+    assert "box_4" not in mapper.tracks.tracks  # ended by the map at every tick: never confirmed
 
 
 def test_a_silent_object_s_absent_weight_starts_at_one_half_and_grows() -> None:
