@@ -1,8 +1,11 @@
 """Bins of identical objects as an estimator reports them: identities, maps and time per tick, in one run.
 
 Run: ``.venv/bin/python benchmarks/instances.py [--frames 30] [--particles 300] [--sizes 6 12 24] [--shapes box
-cylinder mesh] [--layers 1 2] [--seed 0] [--scaled | --deadline S] [-o DIR]``, or ``physics-mapper bench
-instances`` with the same options.
+cylinder mesh] [--object YAML] [--layers 1 2] [--seed 0] [--scaled | --deadline S] [-o DIR]``, or
+``physics-mapper bench instances`` with the same options. ``--object`` bins a part of your own: a scene file's
+object entry, e.g. ``'{name: mug, shape: mesh, file: "package://pybullet_data/objects/mug.obj", collision:
+decomposition, parts: "package://pybullet_data/objects/mug_col.obj", mass: 0.3}'`` (the mesh's frame need
+not be at its centre).
 
 For each bin (N identical objects of one shape, in one or two layers, in a bin of four walls on a
 floor; ``count: N`` in the scene file), ``physics-mapper generate`` writes three bags from the same seed,
@@ -42,6 +45,7 @@ import argparse
 import contextlib
 import io
 import statistics
+import sys
 import tempfile
 import time
 from pathlib import Path
@@ -80,19 +84,21 @@ DEADLINE = 0.2  # s, the node's default
 NOMINAL_REFERENCE = 0.0063  # s, the reference settling on the machine the default deadline was set on
 
 
-def _extent(entry: dict[str, Any]) -> tuple[float, float, float]:
-    """The object's axis-aligned size (m), read through a one-object scene."""
+def _box(entry: dict[str, Any]) -> tuple[np.ndarray, np.ndarray]:
+    """The object's axis-aligned box at the origin (corners, m), read through a one-object scene."""
     with tempfile.TemporaryDirectory() as folder:
         path = Path(folder) / "one.yaml"
         path.write_text(yaml.safe_dump({"frame_id": "world", "objects": [{"name": "o", **entry}]}))
         low, high = body_box(load_scene(path).objects[0].shape, ORIGIN)
-    return (float(high[0] - low[0]), float(high[1] - low[1]), float(high[2] - low[2]))
+    return np.asarray(low, dtype=float), np.asarray(high, dtype=float)
 
 
-def bin_scene(shape: str, count: int, layers: int) -> dict[str, Any]:
-    """A scene document: ``count`` instances of ``shape`` in columns of ``layers`` in a bin, their truth."""
-    entry = SHAPES[shape]
-    size = _extent(entry)
+def bin_scene(shape: str, entry: dict[str, Any], count: int, layers: int) -> dict[str, Any]:
+    """A scene document: ``count`` instances of ``entry`` (a scene file's object keys but ``name``), named
+    ``shape``, in columns of ``layers`` in a bin, their truth: each body's box in its cell, resting 1 mm above
+    the one below (a mesh's frame need not be at its centre)."""
+    low, high = _box(entry)
+    size = tuple(float(v) for v in high - low)
     nx, ny = GRIDS[(count, layers)]
     pitch = (size[0] + GAP, size[1] + GAP)
     truth: dict[str, Any] = {}
@@ -101,10 +107,10 @@ def bin_scene(shape: str, count: int, layers: int) -> dict[str, Any]:
         for j in range(ny):
             for i in range(nx):
                 index += 1
-                x = (i - (nx - 1) / 2) * pitch[0]
-                y = (j - (ny - 1) / 2) * pitch[1]
-                z = size[2] * (layer + 0.5) + 0.001
-                truth[f"{shape}_{index}"] = {"position": [x, y, z], "orientation": [0, 0, 0, 1]}
+                x = (i - (nx - 1) / 2) * pitch[0] - (low[0] + high[0]) / 2
+                y = (j - (ny - 1) / 2) * pitch[1] - (low[1] + high[1]) / 2
+                z = size[2] * layer - low[2] + 0.001
+                truth[f"{shape}_{index}"] = {"position": [float(x), float(y), float(z)], "orientation": [0, 0, 0, 1]}
     half = (nx * pitch[0] / 2 + 0.02, ny * pitch[1] / 2 + 0.02)
     height = size[2] * 0.6
     walls = [
@@ -191,7 +197,7 @@ def main() -> None:
     parser.add_argument("--frames", type=int, default=30)
     parser.add_argument("--particles", type=int, default=300)
     parser.add_argument("--sizes", type=int, nargs="+", default=[6, 12, 24])
-    parser.add_argument("--shapes", nargs="+", default=list(SHAPES))
+    parser.add_argument("--shapes", nargs="+", default=list(SHAPES), help=f"of {', '.join(SHAPES)} (default: all)")
     parser.add_argument("--layers", type=int, nargs="+", default=[1, 2])
     parser.add_argument("--seed", type=int, default=0)
     searched = parser.add_mutually_exclusive_group()
@@ -203,8 +209,24 @@ def main() -> None:
         type=float,
         help="search each snapshot this many seconds (a long one: which snapshots hold a valid map)",
     )
+    parser.add_argument(
+        "--object",
+        metavar="YAML",
+        help="one more shape: a scene file's object entry, e.g. '{name: mug, shape: mesh, file: "
+        "package://pybullet_data/objects/mug.obj, collision: decomposition, parts: "
+        "package://pybullet_data/objects/mug_col.obj, mass: 0.3}' (without --shapes, the only one)",
+    )
     parser.add_argument("-o", "--output", type=Path, help="keep the scenes and bags here (default: a temporary folder)")
     args = parser.parse_args()
+    shapes = dict(SHAPES)
+    if args.object is not None:
+        name, entry = _object_entry(args.object)
+        shapes[name] = entry
+        if "--shapes" not in sys.argv:
+            args.shapes = [name]
+    unknown = [shape for shape in args.shapes if shape not in shapes]
+    if unknown:
+        parser.error(f"unknown shapes {unknown}: {sorted(shapes)} (or one more with --object)")
     reference = reference_settling()
     scaled = DEADLINE * reference / NOMINAL_REFERENCE
     deadline = scaled if args.scaled else args.deadline or DEADLINE
@@ -225,7 +247,8 @@ def main() -> None:
                 for layers in args.layers:
                     name = f"{shape}_{count}x{layers}"
                     scene_file = folder / f"{name}.yaml"
-                    scene_file.write_text(yaml.safe_dump(bin_scene(shape, count, layers), sort_keys=False))
+                    document = bin_scene(shape, shapes[shape], count, layers)
+                    scene_file.write_text(yaml.safe_dump(document, sort_keys=False))
                     scene = load_scene(scene_file)
                     for bag, extra in BAGS.items():
                         _generate(scene_file, folder / f"{name}_{bag}", extra, args.frames, args.particles, args.seed)
@@ -240,6 +263,18 @@ def main() -> None:
                         f"{faulty['refined']} | {errors} | {faulty['finished']}/{n} |",
                         flush=True,
                     )
+
+
+def _object_entry(text: str) -> tuple[str, dict[str, Any]]:
+    """``--object``'s YAML: the shape's name (its ``name``, else ``object``) and its other keys."""
+    try:
+        entry = yaml.safe_load(text)
+    except yaml.YAMLError as error:
+        raise SystemExit(f"--object: not YAML: {error}") from None
+    if not isinstance(entry, dict) or "shape" not in entry:
+        raise SystemExit(f"--object: a scene file's object entry (a mapping with 'shape') is needed, not {text!r}")
+    name = str(entry.pop("name", "object"))
+    return name, entry
 
 
 def _cm(metres: float | None) -> str:
