@@ -48,17 +48,18 @@ saw, and keeps no order across frames. The rules that give each detection of a *
   to it, whichever of them is born first). With no free instance it takes that of a
   tentative track no valid map held and that this array's miss ends anyway; else it is counted
   as outside every gate and not used (``count: {max: K}`` stops at K). Detections born together
-  take their instances in the order of their central results' heights (z, along gravity in REP-103's
-  frames; ties by x, then y), from the lowest, not of the array: even a first frame names the same
+  take their instances in the order of the heights of their bodies' centres at their central results'
+  poses (z, along gravity in REP-103's frames: a mesh's frame may lie at its bottom; ties by the
+  central results' x, then y), from the lowest, not of the array: even a first frame names the same
   boxes the same way however it is ordered, and where more are born than instances are free, those
   left outside are the highest, a detection in the air (with nothing to stand on, the likeliest false
   one) before one low in the pile. Before
   them come those that *recur*: the central result within the gate of that of a detection of the
   class's last array (a
   true object comes back to its place, though it was left outside or its track ended; a false
-  detection seldom does); after them those whose central result lies inside a static body (below the
-  floor, in a wall). Where an array holds more detections than there are instances, the last are
-  the ones left outside.
+  detection seldom does); after them those whose body, at the central result's pose, overlaps a static
+  body (the floor, a wall) deeper than the penetration threshold by its box. Where an array holds
+  more detections than there are instances, the last are the ones left outside.
 - **Confirmation.** A track is *tentative* until it was matched ``confirm_hits`` times and some
   *valid* map held its instance (:meth:`InstanceTracks.keep`): a detection physics finds no place for,
   a reflection in the air seen in every frame, is never confirmed by repeating itself, nor by a
@@ -94,7 +95,8 @@ from numpy.typing import NDArray
 from scipy.optimize import linear_sum_assignment
 from scipy.spatial.distance import cdist
 
-from physics_mapper.model.extents import inside_static, shape_extents
+from physics_mapper.model.extents import body_box, may_overlap_static, shape_extents
+from physics_mapper.model.geometry import Pose
 from physics_mapper.model.scene import Scene
 
 #: A detection's best score counts as at most this confidence that its instance exists.
@@ -131,11 +133,13 @@ class AssociationSettings:
 
 @dataclass(frozen=True)
 class Observation:
-    """One detection of a tracked class: ``positions`` (M x 3, m) and ``scores`` (M) of its usable
-    results, its ``key`` (``Detection3D.id``, '' if none) and its ``index`` in the array."""
+    """One detection of a tracked class: ``positions`` (M x 3, m), ``orientations`` (M x 4, quaternions x, y,
+    z, w) and ``scores`` (M) of its usable results, its ``key`` (``Detection3D.id``, '' if none) and its
+    ``index`` in the array."""
 
     class_id: str
     positions: NDArray[np.float64]
+    orientations: NDArray[np.float64]
     scores: NDArray[np.float64]
     key: str = ""
     index: int = 0
@@ -158,6 +162,12 @@ class Observation:
         """Where its central result is, (x, y, z) in metres: where a new track starts, and the order in
         which new tracks are born."""
         return tuple(self.positions[self.central].tolist())
+
+    def central_pose(self) -> Pose:
+        """Its central result's pose."""
+        x, y, z = self.positions[self.central].tolist()
+        qx, qy, qz, qw = self.orientations[self.central].tolist()
+        return Pose((x, y, z), (qx, qy, qz, qw))
 
     def nearest(self, point: NDArray[np.float64]) -> tuple[int, float]:
         """The result nearest ``point`` and its distance (m)."""
@@ -415,11 +425,15 @@ class InstanceTracks:
 
     def _birth_order(self, observation: Observation) -> tuple[bool, bool, float, tuple[float, ...]]:
         """Where a detection that matched no instance comes among those of its array (module docstring):
-        those that recur first, those whose central result lies inside a static body last, then from the
-        lowest up, then by place."""
+        those that recur first, those whose body at the central result's pose overlaps a static body deeper
+        than the penetration threshold (by its box) last, then from the lowest body's centre up, then by
+        place."""
+        shape = self._shapes[self.scene.objects_of_class(observation.class_id)[0]]
+        low, high = body_box(shape, observation.central_pose())
+        depth = self.scene.search.penetration_threshold
+        inside = any(may_overlap_static(body, low[None], high[None], depth)[0] for body in self.scene.static)
         place = observation.place()
-        inside = any(inside_static(body, np.asarray(place)) for body in self.scene.static)
-        return inside, not self._recurs(observation.class_id, place), place[2], place
+        return inside, not self._recurs(observation.class_id, place), float(low[2] + high[2]) / 2.0, place
 
     def _recurs(self, class_id: str, place: tuple[float, ...]) -> bool:
         """Whether ``place`` (a detection's central result, m) lies within the gate of the central result of

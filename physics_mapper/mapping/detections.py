@@ -173,7 +173,12 @@ def _observation(detection: _Detection, notes: list[str], refusal: str | None) -
         return None
     rows = slice(None) if finite.all() else finite
     return Observation(
-        detection.class_id, detection.poses[rows, :3], detection.scores[rows], detection.key, detection.index
+        detection.class_id,
+        detection.poses[rows, :3],
+        detection.poses[rows, 3:],
+        detection.scores[rows],
+        detection.key,
+        detection.index,
     )
 
 
