@@ -16,11 +16,17 @@ from physics_mapper.mapping.detections import DETECTION_ARRAY
 TYPES = TYPESTORE.types
 
 
-def result(position: Sequence[float], score: float = 0.9, class_id: str = "box") -> Any:
-    """One scored result at ``position`` (m), unrotated."""
+def result(
+    position: Sequence[float],
+    score: float = 0.9,
+    class_id: str = "box",
+    orientation: Sequence[float] = (0.0, 0.0, 0.0, 1.0),
+) -> Any:
+    """One scored result at ``position`` (m), turned by the quaternion ``orientation`` (x, y, z, w)."""
+    qx, qy, qz, qw = (float(q) for q in orientation)
     pose = TYPES["geometry_msgs/msg/Pose"](
         position=TYPES["geometry_msgs/msg/Point"](x=float(position[0]), y=float(position[1]), z=float(position[2])),
-        orientation=TYPES["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0, w=1.0),
+        orientation=TYPES["geometry_msgs/msg/Quaternion"](x=qx, y=qy, z=qz, w=qw),
     )
     return TYPES["vision_msgs/msg/ObjectHypothesisWithPose"](
         hypothesis=TYPES["vision_msgs/msg/ObjectHypothesis"](class_id=class_id, score=score),

@@ -57,9 +57,10 @@ saw, and keeps no order across frames. The rules that give each detection of a *
   them come those that *recur*: the central result within the gate of that of a detection of the
   class's last array (a
   true object comes back to its place, though it was left outside or its track ended; a false
-  detection seldom does); after them those whose body, at the central result's pose, overlaps a static
-  body (the floor, a wall) deeper than the penetration threshold by its box. Where an array holds
-  more detections than there are instances, the last are the ones left outside.
+  detection seldom does); after them those whose body, at the central result's pose, lies in a static
+  body: below a plane (the floor) deeper than the penetration threshold, or its box's centre inside
+  another (a wall). Where an array holds more detections than there are instances, the last are the
+  ones left outside.
 - **Confirmation.** A track is *tentative* until it was matched ``confirm_hits`` times and some
   *valid* map held its instance (:meth:`InstanceTracks.keep`): a detection physics finds no place for,
   a reflection in the air seen in every frame, is never confirmed by repeating itself, nor by a
@@ -95,9 +96,9 @@ from numpy.typing import NDArray
 from scipy.optimize import linear_sum_assignment
 from scipy.spatial.distance import cdist
 
-from physics_mapper.model.extents import body_box, may_overlap_static, shape_extents
+from physics_mapper.model.extents import body_box, inside_static, may_overlap_static, shape_extents
 from physics_mapper.model.geometry import Pose
-from physics_mapper.model.scene import Scene
+from physics_mapper.model.scene import Plane, Scene
 
 #: A detection's best score counts as at most this confidence that its instance exists.
 MAX_CONFIDENCE = 0.95
@@ -425,15 +426,30 @@ class InstanceTracks:
 
     def _birth_order(self, observation: Observation) -> tuple[bool, bool, float, tuple[float, ...]]:
         """Where a detection that matched no instance comes among those of its array (module docstring):
-        those that recur first, those whose body at the central result's pose overlaps a static body deeper
-        than the penetration threshold (by its box) last, then from the lowest body's centre up, then by
-        place."""
+        those that recur first, those whose body at the central result's pose lies in a static body
+        (:meth:`_inside`) last, then from the lowest body's centre up, then by place."""
         shape = self._shapes[self.scene.objects_of_class(observation.class_id)[0]]
         low, high = body_box(shape, observation.central_pose())
-        depth = self.scene.search.penetration_threshold
-        inside = any(may_overlap_static(body, low[None], high[None], depth)[0] for body in self.scene.static)
         place = observation.place()
-        return inside, not self._recurs(observation.class_id, place), float(low[2] + high[2]) / 2.0, place
+        return (
+            self._inside(low, high),
+            not self._recurs(observation.class_id, place),
+            float(low[2] + high[2]) / 2.0,
+            place,
+        )
+
+    def _inside(self, low: NDArray[np.float64], high: NDArray[np.float64]) -> bool:
+        """Whether a body whose box is (``low``, ``high``) lies in a static body: below a plane deeper than the
+        penetration threshold (on a floor the box's lowest point is the body's), or its box's centre inside
+        another (a turned mesh's box reaches into a wall its body does not touch)."""
+        depth = self.scene.search.penetration_threshold
+        centre = (low + high) / 2.0
+        return any(
+            bool(may_overlap_static(body, low[None], high[None], depth)[0])
+            if isinstance(body.shape, Plane)
+            else inside_static(body, centre)
+            for body in self.scene.static
+        )
 
     def _recurs(self, class_id: str, place: tuple[float, ...]) -> bool:
         """Whether ``place`` (a detection's central result, m) lies within the gate of the central result of

@@ -100,3 +100,15 @@ def may_overlap_static(body: StaticBody, lows: FloatArray, highs: FloatArray, de
         return np.asarray(lowest < -depth)
     low, high = body_box(body.shape, body.pose)
     return np.asarray(np.all(np.minimum(highs, high) - np.maximum(lows, low) > depth, axis=1))
+
+
+def inside_static(body: StaticBody, point: FloatArray) -> bool:
+    """Whether ``point`` (metres) lies inside the static ``body``: below a plane (against its normal), or
+    within a box; False for the other shapes (their insides are not told apart from their boxes' here)."""
+    offset = np.asarray(point, dtype=float) - np.asarray(body.pose.position, dtype=float)
+    rotation = rotation_matrix(body.pose.orientation)
+    if isinstance(body.shape, Plane):
+        return bool(offset @ rotation[:, 2] < 0.0)
+    if isinstance(body.shape, Box):
+        return bool(np.all(np.abs(rotation.T @ offset) < np.asarray(body.shape.size, dtype=float) / 2.0))
+    return False

@@ -5,6 +5,7 @@ Arrays are built as rosbags decodes them (``detection_builders``, a helper modul
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import numpy as np
@@ -270,6 +271,28 @@ def test_a_mesh_whose_frame_is_at_its_bottom_is_on_the_floor_not_inside_it() -> 
     )
     assert positions_of(inputs) == {"mug_1": a, "mug_2": b}
     assert inputs.association is not None and inputs.association.outside == {"mug": 2}
+
+
+def test_a_turned_body_whose_box_reaches_into_a_wall_it_does_not_touch_is_not_inside_it() -> None:
+    """Two 20 cm planks, one lying on the floor, one leaning at 45 degrees with its upper end over a 5 cm wall:
+    the leaning plank's box reaches 2 cm into the wall, its body stays 8 cm clear of it. Both are born
+    before a detection in the air, which is left outside."""
+    plank = {"name": "plank", "shape": "box", "size": [0.02, 0.2, 0.02], "mass": 0.1, "count": 2}
+    wall = {"name": "wall", "shape": "box", "size": [1.0, 0.1, 0.05], "pose": {"position": [0.0, 0.35, 0.025]}}
+    static = [{"name": "floor", "shape": "plane"}, wall]
+    scene = scene_from_dict({"objects": [plank], "static": static}, "planks")
+    half = 0.1 * math.sqrt(0.5)  # half the plank's length along y and along z, leaning at 45 degrees
+    leaning = (0.0, 0.3 + 0.02 - half, 0.15 - half)
+    turned = (math.sin(math.pi / 8), 0.0, 0.0, math.cos(math.pi / 8))
+    lying, air = (0.0, -0.3, 0.01), (0.3, -0.3, 0.4)
+    made = [
+        detection(result(air, class_id="plank")),
+        detection(result(leaning, class_id="plank", orientation=turned)),
+        detection(result(lying, class_id="plank")),
+    ]
+    inputs = detection_inputs(array(made), scene, received=0.0)
+    assert positions_of(inputs) == {"plank_1": lying, "plank_2": tuple(round(c, 3) for c in leaning)}
+    assert inputs.association is not None and inputs.association.outside == {"plank": 1}
 
 
 def test_a_detection_that_recurs_is_born_before_a_new_one() -> None:
