@@ -45,7 +45,6 @@ import argparse
 import contextlib
 import io
 import statistics
-import sys
 import tempfile
 import time
 from pathlib import Path
@@ -197,7 +196,7 @@ def main() -> None:
     parser.add_argument("--frames", type=int, default=30)
     parser.add_argument("--particles", type=int, default=300)
     parser.add_argument("--sizes", type=int, nargs="+", default=[6, 12, 24])
-    parser.add_argument("--shapes", nargs="+", default=list(SHAPES), help=f"of {', '.join(SHAPES)} (default: all)")
+    parser.add_argument("--shapes", nargs="+", help=f"of {', '.join(SHAPES)} (default: all, or --object's alone)")
     parser.add_argument("--layers", type=int, nargs="+", default=[1, 2])
     parser.add_argument("--seed", type=int, default=0)
     searched = parser.add_mutually_exclusive_group()
@@ -222,8 +221,8 @@ def main() -> None:
     if args.object is not None:
         name, entry = _object_entry(args.object)
         shapes[name] = entry
-        if "--shapes" not in sys.argv:
-            args.shapes = [name]
+        args.shapes = args.shapes or [name]
+    args.shapes = args.shapes or list(SHAPES)
     unknown = [shape for shape in args.shapes if shape not in shapes]
     if unknown:
         parser.error(f"unknown shapes {unknown}: {sorted(shapes)} (or one more with --object)")

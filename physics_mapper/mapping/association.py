@@ -98,7 +98,7 @@ from scipy.spatial.distance import cdist
 
 from physics_mapper.model.extents import body_box, inside_static, may_overlap_static, shape_extents
 from physics_mapper.model.geometry import Pose
-from physics_mapper.model.scene import Plane, Scene
+from physics_mapper.model.scene import ObjectShape, Plane, Scene
 
 #: A detection's best score counts as at most this confidence that its instance exists.
 MAX_CONFIDENCE = 0.95
@@ -309,8 +309,12 @@ class InstanceTracks:
         """The class's shape's extents (m): their largest half is the default gate, their smallest half the
         same-body distance (two identical bodies that do not overlap have their centres farther apart)."""
         if class_id not in self._extents:
-            self._extents[class_id] = shape_extents(self._shapes[self.scene.objects_of_class(class_id)[0]])
+            self._extents[class_id] = shape_extents(self._class_shape(class_id))
         return self._extents[class_id]
+
+    def _class_shape(self, class_id: str) -> ObjectShape:
+        """The shape every instance of ``class_id`` shares."""
+        return self._shapes[self.scene.objects_of_class(class_id)[0]]
 
     def tentative(self, name: str) -> bool:
         """Whether ``name`` has a track not confirmed yet: matched fewer than ``confirm_hits`` times, or never
@@ -428,8 +432,7 @@ class InstanceTracks:
         """Where a detection that matched no instance comes among those of its array (module docstring):
         those that recur first, those whose body at the central result's pose lies in a static body
         (:meth:`_inside`) last, then from the lowest body's centre up, then by place."""
-        shape = self._shapes[self.scene.objects_of_class(observation.class_id)[0]]
-        low, high = body_box(shape, observation.central_pose())
+        low, high = body_box(self._class_shape(observation.class_id), observation.central_pose())
         place = observation.place()
         return (
             self._inside(low, high),

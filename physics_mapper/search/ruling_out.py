@@ -199,6 +199,8 @@ class FreeFall:
         grounded = bodies & np.repeat([fall <= growth for growth in self.growths], sizes)
         for body in statics:
             grounded |= bodies & may_overlap_static(body, lows, highs, 0.0)
+        starts = np.cumsum([0, *sizes])
+        always_there = [index for index, present in enumerate(self.bodies) if len(present) and present.all()]
         frontier = grounded.copy()
         while True:
             while frontier.any():
@@ -208,12 +210,7 @@ class FreeFall:
                 frontier[waiting[met]] = True
                 grounded |= frontier
             # Objects that cannot be absent and have no rank grounded keep them all.
-            starts = np.cumsum([0, *sizes])
-            stuck = [
-                index
-                for index, present in enumerate(self.bodies)
-                if len(present) and present.all() and not grounded[starts[index] : starts[index + 1]].any()
-            ]
+            stuck = [index for index in always_there if not grounded[starts[index] : starts[index + 1]].any()]
             if not stuck:
                 return np.split(grounded, starts[1:-1])
             for index in stuck:
