@@ -89,9 +89,10 @@ def main() -> None:
     trough = trimesh.creation.annulus(0.03, 0.05, 0.04)
     vertices, faces = np.asarray(trough.vertices), np.asarray(trough.faces)
     settings = DecompositionSettings("vhacd")
-    start = time.monotonic()
-    run_method(vertices, faces, settings)
-    inside = time.monotonic() - start
+    with tempfile.TemporaryDirectory() as scratch:
+        start = time.monotonic()
+        run_method(vertices, faces, settings, Path(scratch))
+        inside = time.monotonic() - start
     from physics_mapper.model.decomposition import _in_child_process
 
     start = time.monotonic()

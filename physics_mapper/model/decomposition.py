@@ -233,9 +233,12 @@ def _read_bytes(path: Path) -> bytes:
         raise DecompositionError(f"cannot read {path}: {error.strerror or error}") from None
 
 
-def run_method(vertices: FloatArray, faces: IntArray, settings: DecompositionSettings) -> tuple[ConvexPart, ...]:
-    """Run ``settings.method`` in this process (what the child process of :func:`decompose` does)."""
-    return _coacd(vertices, faces, settings) if settings.method == "coacd" else _vhacd(vertices, faces)
+def run_method(
+    vertices: FloatArray, faces: IntArray, settings: DecompositionSettings, folder: Path
+) -> tuple[ConvexPart, ...]:
+    """Run ``settings.method`` in this process (what the child process of :func:`decompose` does); V-HACD's
+    files go in ``folder``, which the caller removes (a child killed past its limit removes nothing)."""
+    return _coacd(vertices, faces, settings) if settings.method == "coacd" else _vhacd(vertices, faces, folder)
 
 
 #: The child's CPU-time backstop: this many times the wall-clock limit, plus a margin (seconds).
@@ -363,15 +366,14 @@ def _coacd(vertices: FloatArray, faces: IntArray, settings: DecompositionSetting
     return tuple(ConvexPart(np.asarray(v, dtype=np.float64), np.asarray(f, dtype=np.int64)) for v, f in parts)
 
 
-def _vhacd(vertices: FloatArray, faces: IntArray) -> tuple[ConvexPart, ...]:
+def _vhacd(vertices: FloatArray, faces: IntArray, folder: Path) -> tuple[ConvexPart, ...]:
     from physics_mapper.model.bullet import pybullet, silenced_descriptor  # pybullet loads on first use
 
-    with tempfile.TemporaryDirectory(prefix="physics_mapper_vhacd_") as folder:
-        source, output, log = (Path(folder) / name for name in ("mesh.obj", "parts.obj", "log.txt"))
-        write_parts(source, (ConvexPart(vertices, faces),), "input of V-HACD")
-        with silenced_descriptor(1):  # V-HACD prints its parameters and progress on stdout
-            pybullet.vhacd(str(source), str(output), str(log), resolution=VHACD_RESOLUTION)
-        return read_parts(output)
+    source, output, log = (folder / f"vhacd_{name}" for name in ("mesh.obj", "parts.obj", "log.txt"))
+    write_parts(source, (ConvexPart(vertices, faces),), "input of V-HACD")
+    with silenced_descriptor(1):  # V-HACD prints its parameters and progress on stdout
+        pybullet.vhacd(str(source), str(output), str(log), resolution=VHACD_RESOLUTION)
+    return read_parts(output)
 
 
 _HEADER = "# physics_mapper: "

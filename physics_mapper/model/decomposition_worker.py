@@ -9,7 +9,8 @@ or past its limit.
 
 ``FOLDER`` holds ``request.json`` (method, threshold, limits) and ``mesh.npz`` (``vertices``,
 ``faces``); the child writes ``parts.npz`` (``v0``, ``f0``, ``v1``, ...) there, or
-``error.txt`` with one line, and exits 0, or non-zero on a failure it could not report.
+``error.txt`` with one line, and exits 0, or non-zero on a failure it could not report. V-HACD's own files
+go there too: the parent removes the folder, also after killing the child.
 """
 
 from __future__ import annotations
@@ -41,7 +42,7 @@ def main(folder: Path) -> int:
         with np.load(folder / "mesh.npz") as mesh:
             vertices, faces = mesh["vertices"], mesh["faces"]
         settings = DecompositionSettings(request["method"], float(request["threshold"]))
-        parts = run_method(vertices, faces, settings)
+        parts = run_method(vertices, faces, settings, folder)
     except (DecompositionError, MemoryError) as error:
         reason = "out of memory" if isinstance(error, MemoryError) else str(error)
         (folder / "error.txt").write_text(" ".join(reason.split()) + "\n", encoding="utf-8")

@@ -2,7 +2,8 @@
 
 The thin plate (10 x 10 x 0.1 cm) is V-HACD's worst case: in this process it ran for minutes, past
 gigabytes, deaf to SIGINT and SIGTERM. Each test starts a real command or node on it, waits until the
-decomposition is under way (its progress line), and checks what the program decided.
+decomposition is under way (its progress line), and checks what the program decided, and that it left no
+temporary file behind (each runs with a ``TMPDIR`` of its own).
 """
 
 from __future__ import annotations
@@ -32,7 +33,8 @@ PLATE = {"name": "plate", "shape": "mesh", "file": "plate.obj", "collision": "de
 
 @pytest.fixture
 def plate(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Iterator[Path]:
-    """A folder with the plate mesh, a scene and a problem using it with V-HACD, and a cache of its own."""
+    """A folder with the plate mesh, a scene and a problem using it with V-HACD, a cache and a ``TMPDIR``
+    (``tmp``) of its own."""
     trimesh.creation.box((0.1, 0.1, 0.001)).export(tmp_path / "plate.obj")
     body = {**PLATE, "decomposition": {"method": "vhacd"}}
     scene = {"static": [{"name": "floor", "shape": "plane"}], "objects": [body]}
@@ -40,7 +42,15 @@ def plate(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Iterator[Path]:
     problem = {**scene, "hypotheses": {"plate": [{"position": [0.0, 0.0, 0.001], "weight": 1.0}]}}
     (tmp_path / "problem.yaml").write_text(yaml.safe_dump(problem), encoding="utf-8")
     monkeypatch.setenv("PHYSICS_MAPPER_CACHE_DIR", str(tmp_path / "cache"))
+    (tmp_path / "tmp").mkdir()
+    monkeypatch.setenv("TMPDIR", str(tmp_path / "tmp"))
     yield tmp_path
+
+
+def left_behind(folder: Path) -> list[str]:
+    """What the commands left in the ``TMPDIR`` ``folder`` of :func:`plate` (the decomposition's child is killed:
+    its scratch files must lie where the parent removes them)."""
+    return sorted(str(path.relative_to(folder)) for path in (folder / "tmp").rglob("*"))
 
 
 #: KiB a decomposition child's resident memory passes once V-HACD runs (its interpreter and numpy take
@@ -93,6 +103,7 @@ def test_a_signal_stops_solve_during_a_runaway_vhacd(plate: Path, stop_signal: s
     process.send_signal(stop_signal)
     assert process.wait(timeout=STOP_GUARD) == EXIT_INTERRUPTED
     assert workers_end(before)  # the child was killed, not left running
+    assert left_behind(plate) == []
 
 
 def test_a_node_decomposing_at_start_up_reports_it_and_stops_on_sigint(plate: Path) -> None:
@@ -112,6 +123,7 @@ def test_a_node_decomposing_at_start_up_reports_it_and_stops_on_sigint(plate: Pa
     process.send_signal(signal.SIGINT)
     assert process.wait(timeout=STOP_GUARD) == 0  # the node's signal: a clean stop
     assert workers_end(before)
+    assert left_behind(plate) == []
 
 
 def test_a_node_searches_once_its_geometry_is_ready(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
@@ -162,3 +174,4 @@ def test_a_decomposition_past_its_limit_is_one_error_line_naming_the_mesh_and_th
     assert error.startswith("physics-mapper solve: error: problem.yaml: objects[0].file: ")
     assert f"vhacd of {plate / 'plate.obj'} {fragment}" in error and "Traceback" not in completed.stderr
     assert not (plate / "cache" / "decompositions").exists() or not list((plate / "cache" / "decompositions").iterdir())
+    assert left_behind(plate) == []
