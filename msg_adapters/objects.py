@@ -6,8 +6,11 @@ Imported only where vision_msgs is installed (the node checks first). Each Detec
 * one result: ``class_id`` the object's class (:meth:`~physics_mapper.model.scene.Scene.class_of`:
   the ``count:`` entry's name, the ``class_map`` id, or the object's name), ``score`` the chosen
   hypothesis's normalised weight (its share of p(C), the *absent* hypothesis included in the
-  normalisation), and the chosen pose with a zero covariance;
-* ``bbox``: the box of the shape in its own frame at the chosen pose (a box's size, a sphere's or a
+  normalisation), and the object's map pose with a zero covariance: its settled pose, or with
+  ``settled=False`` its chosen hypothesis (the node's ``tf_pose``: ``~/objects`` and ``/tf`` agree). The
+  two differ by less than ``jitter_threshold`` in a valid map; in a fallback's map the settled pose is the
+  corrected estimate (``fallback: refine``'s refined map) and the chosen one the hypothesis it started from;
+* ``bbox``: the box of the shape in its own frame at that pose (a box's size, a sphere's or a
   cylinder's extents, a mesh's bounds, centred where they are in the mesh's frame).
 
 Objects the map leaves out (*absent*) are not listed. The header carries the map's frame and stamp.
@@ -43,15 +46,17 @@ def shape_box(shape: ObjectShape) -> tuple[Point3, Point3]:
     return (centre[0], centre[1], centre[2]), (size[0], size[1], size[2])
 
 
-def objects_msg(report: TickReport, scene: Scene, *, stamp_ns: int) -> Detection3DArray | None:
-    """The map of ``report`` as a Detection3DArray (module docstring); None if nothing was chosen."""
+def objects_msg(report: TickReport, scene: Scene, *, stamp_ns: int, settled: bool = True) -> Detection3DArray | None:
+    """The map of ``report`` as a Detection3DArray at the settled poses, or the chosen ones (``settled=False``)
+    (module docstring); None if nothing was chosen."""
     result = report.result
-    if result is None or result.code is None or result.poses is None:
+    poses = None if result is None else result.settled_poses if settled else result.poses
+    if result is None or result.code is None or poses is None:
         return None
     header = Header(frame_id=scene.frame_id, stamp=stamp_from_nanoseconds(stamp_ns))
     detections = []
     for index in report.present:
-        model, pose = scene.objects[index], result.poses[index]
+        model, pose = scene.objects[index], poses[index]
         score = report.hypotheses[index].weight(result.code[index])
         centre, size = shape_box(model.shape)
         box = BoundingBox3D(

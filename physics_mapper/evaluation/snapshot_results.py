@@ -300,12 +300,14 @@ def result_identity(results: Sequence[SnapshotResult], object_names: Sequence[st
 
 
 def map_positions(result: SnapshotResult, names: Sequence[str]) -> dict[str, list[float]] | None:
-    """The chosen configuration's centre positions (m) by object name, objects left out (*absent*) not
-    listed (None without a configuration): what identity metrics match to the ground truth
-    (:mod:`~physics_mapper.evaluation.identity`)."""
-    if result.chosen is None or result.code is None:
+    """The map's centre positions (m) by object name, objects left out (*absent*) not listed (None without a
+    configuration): what identity metrics match to the ground truth (:mod:`~physics_mapper.evaluation.identity`).
+    The map is the settled poses, as ``/tf`` and ``~/objects`` carry them by default: a valid configuration's
+    within ``jitter_threshold`` of its hypotheses, a fallback's the corrected estimate (the refined map), not
+    the hypotheses it started from."""
+    if result.settled is None or result.code is None:
         return None
-    placed = zip(names, result.chosen, result.snapshot.hypotheses, result.code, strict=True)
+    placed = zip(names, result.settled, result.snapshot.hypotheses, result.code, strict=True)
     return {name: list(pose.position) for name, pose, ranked, rank in placed if not ranked.is_absent(rank)}
 
 

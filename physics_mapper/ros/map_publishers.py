@@ -8,7 +8,7 @@ builds them); each object's pose topics are latched and published only when its 
 fallback, and the object names in the map's order; before the first map it says ``no map yet``.
 With ``publish_tf``, each object's pose (``tf_pose``: settled or chosen) goes on ``/tf`` as frame
 ``<tf_prefix><object>`` of the scene's frame, with every map (``/tf`` is not latched: a listener
-started later gets the next tick's).
+started later gets the next tick's); ``~/objects`` carries the same pose.
 """
 
 from __future__ import annotations
@@ -44,7 +44,8 @@ from physics_mapper.search.results import SearchResult
 
 @dataclass(frozen=True)
 class TfOutput:
-    """The ``publish_tf``, ``tf_prefix`` and ``tf_pose`` parameters: whether, as what and which pose."""
+    """The ``publish_tf``, ``tf_prefix`` and ``tf_pose`` parameters: whether, as what and which pose (the
+    pose ``~/objects`` carries too)."""
 
     enabled: bool
     prefix: str
@@ -104,7 +105,7 @@ class MapPublishers:
         if self.detections is not None:
             from physics_mapper.msg_adapters.objects import objects_msg  # needs vision_msgs: imported where it is
 
-            self.detections.publish(objects_msg(report, scene, stamp_ns=stamp_ns))
+            self.detections.publish(objects_msg(report, scene, stamp_ns=stamp_ns, settled=tf.settled))
 
     def _publish_tf(
         self, result: SearchResult, scene: Scene, stamp_ns: int, tf: TfOutput, present: tuple[int, ...]

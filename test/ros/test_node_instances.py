@@ -7,6 +7,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+import pytest
 from geometry_msgs.msg import Point, Pose, PoseWithCovariance, Quaternion, Vector3
 from ros_helpers import NodeProcess, RosClient
 from std_msgs.msg import Header
@@ -93,3 +94,43 @@ def test_a_bin_of_identical_boxes_keeps_every_identity_over_shuffled_arrays(tmp_
     first = maps[stamp_of(0)].detections[0]
     assert first.results[0].hypothesis.class_id == "box"
     assert (first.bbox.size.x, first.bbox.size.y, first.bbox.size.z) == (0.1, 0.1, 0.1)
+
+
+SUNK_SCENE = """\
+frame_id: world
+static:
+  - {name: floor, shape: plane}
+objects:
+  - {name: box, count: 1, shape: box, size: [0.1, 0.1, 0.1], mass: 0.2}
+search:
+  fallback: refine
+"""
+
+
+@pytest.mark.parametrize(("tf_pose", "height"), [("settled", 0.05), ("chosen", 0.03)])
+def test_objects_carry_the_pose_tf_has_the_refined_one_by_default(tmp_path: Path, tf_pose: str, height: float) -> None:
+    """A box detected 2 cm into the floor, its only result: no valid configuration, so the map is the refined
+    one, the box on the floor. ``~/objects`` carries it there, as ``~/settled_configuration`` and ``/tf`` do,
+    not at the detection; with ``tf_pose: chosen``, at the detection, as ``~/configuration`` does."""
+    scene = tmp_path / "sunk.yaml"
+    scene.write_text(SUNK_SCENE)
+    namespace = f"{NAMESPACE}_{tf_pose}"
+    node = NodeProcess(scene, {"rate_hz": 4.0, "tf_pose": tf_pose}, tmp_path / "node.log", namespace)
+    client = RosClient(namespace)
+    maps: list[Detection3DArray] = []
+    header = Header(stamp=stamp_from_nanoseconds(stamp_of(0)), frame_id="world")
+    sunk = result(np.array([0.0, 0.0, 0.03]), 0.9)
+    box = BoundingBox3D(center=sunk.pose.pose, size=Vector3(x=0.1, y=0.1, z=0.1))
+    message = Detection3DArray(header=header, detections=[Detection3D(header=header, results=[sunk], bbox=box)])
+    try:
+        publisher = client.node.create_publisher(Detection3DArray, "detections", 10)
+        client.node.create_subscription(Detection3DArray, output_topic(OBJECTS_TOPIC, namespace), maps.append, MAP_QOS)
+        client.keep_publishing(lambda: publisher.publish(message), lambda: bool(maps and client.settled), "the map")
+    finally:
+        client.close()
+        assert node.stop() == 0, node.output()
+    (detection,) = maps[-1].detections
+    assert detection.id == "box_1"
+    assert detection.results[0].pose.pose.position.z == pytest.approx(height, abs=0.005)
+    assert detection.bbox.center.position.z == pytest.approx(height, abs=0.005)
+    assert client.settled[-1].poses[0].position.z == pytest.approx(0.05, abs=0.005)  # the refined map
