@@ -5,5 +5,5 @@ Rule 1 (no overlap deeper than ``penetration_threshold``, metres); ``settling`` 
 under gravity for ``settle_time`` seconds, resumable across deadlines); ``checker`` puts the
 three behind :class:`~physics_mapper.physics.checker.PhysicsChecker`. ``collision_table`` caches
 Rule 1 per pair of hypotheses; ``refine`` makes a map when no configuration is valid
-(``fallback: refine``). Imports only ``model``.
+(``fallback: refine``), of the objects ``support`` keeps. Imports only ``model``.
 """

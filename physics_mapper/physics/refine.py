@@ -6,7 +6,8 @@ rule, the refinement repairs the most probable configuration instead of rejectin
 1. **Start.** Each object starts at the weighted mean position of its hypotheses lying within
    ``refine_mean_radius`` metres of its most likely one (where they agree), with the most likely
    one's orientation (:func:`refinement_start`). Orientations are not averaged: the mean of two
-   symmetric readings of a box is a box turned half-way.
+   symmetric readings of a box is a box turned half-way. Which objects start (the search's live root,
+   with the objects another rests on put back) is :mod:`physics_mapper.physics.support`'s rule.
 
 2. **Depenetration, with as little motion as possible.** Positions x_i (metres) move,
    orientations stay. Each iteration lists the pairs of bodies closer than a margin (an object

@@ -58,6 +58,7 @@ from physics_mapper.physics.checker import PhysicsChecker
 from physics_mapper.physics.collision import Collision
 from physics_mapper.physics.refine import RefinedMap, Refinement, refinement_start
 from physics_mapper.physics.settling import PartialSettling, Settling, early_exit_rule
+from physics_mapper.physics.support import put_back_supports
 from physics_mapper.physics.world import TIME_STEP
 from physics_mapper.search.results import (
     Candidate,
@@ -410,11 +411,17 @@ class BestFirst(Generic[G, R]):
     def _refine(self, stop_at: float | None) -> bool:
         """Make (or go on making) the refined map of the live root (the generator's
         :attr:`~CandidateGenerator.live_root`: each object at its most probable rank nothing ruled out
-        alone, so a detection inside a wall or in free fall is left out where it may be absent); False if
+        alone, so a detection inside a wall or in free fall is left out where it may be absent), with the
+        objects it leaves out put back where another rests on them (:func:`put_back_supports`); False if
         ``stop_at`` came first."""
         if self._refinement is None:
             params = self.params
-            self._refined_root = root = self.candidates.live_root
+            scene = self.checker.scene
+            shapes = [scene.objects[i].shape for i in self.objects]
+            root = put_back_supports(
+                self.candidates.live_root, self.hypotheses, shapes, scene.static, params.jitter_threshold
+            )
+            self._refined_root = root
             start = [
                 refinement_start(h, params.refine_mean_radius) if rank == 1 else h.pose(rank)
                 for h, rank in zip(self.hypotheses, root, strict=True)

@@ -179,3 +179,24 @@ def test_the_refined_map_leaves_out_a_detection_in_free_fall_that_may_be_absent(
     assert hypotheses[2].is_absent(3)
     assert not joint.valid and joint.fallback == "refine" and joint.code == (1, 1, 1)
     assert joint.settled_poses is not None and joint.settled_poses[2].position[2] < 0.3  # refined in, fallen
+
+
+def test_the_refined_map_keeps_a_sunk_detection_that_may_be_absent_where_another_rests_on_it() -> None:
+    """A bottom cube that may be absent, seen only 1.5 cm into the floor (ruled out: the live root has it
+    absent), and a top cube on it. Left out, the top cube would fall into its place: the refined map puts
+    it back, lifted out of the floor, and the top cube stays on it."""
+    scene = floor_scene(cube("bottom"), cube("top"))
+    hypotheses = [
+        RankedHypotheses.from_weighted(
+            [Hypothesis(unrotated(0.0, 0.0, ON_FLOOR - 0.015), 0.9), absent_hypothesis(0, 0.1)]
+        ),
+        ranked([unrotated(0.0, 0.0, ON_FLOOR + CUBE_SIZE)], [1]),
+    ]
+    with PhysicsChecker(scene) as checker:
+        result = make_search(checker, hypotheses, SearchParams(fallback="refine")).run(None)
+    assert [(r.object, r.rank, r.reason) for r in result.ruled_out] == [("bottom", 1, "collision")]
+    assert not result.valid and result.fallback == "refine" and result.code == (1, 1)
+    assert result.settled_poses is not None
+    assert [pose.position[2] for pose in result.settled_poses] == pytest.approx(
+        [ON_FLOOR, ON_FLOOR + CUBE_SIZE], abs=0.003
+    )

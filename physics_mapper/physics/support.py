@@ -1,0 +1,121 @@
+"""What the refined map keeps of the objects it would leave out: those another object rests on (ROS-free).
+
+``fallback: refine`` starts from the *live root* (each object at its most probable rank not ruled out
+alone), so an object that may be absent and whose every pose was ruled out is left out of the refined
+map. A detection 1 cm into the floor is ruled out for that alone (deeper than ``penetration_threshold``),
+yet the refinement lifts such a pose out of the floor in a few iterations; left out, the box resting on it
+falls into its place, and the map names the upper box where the lower one stands. So, as the silent
+objects' rule has it (physics keeps an object where others rest on it), an object left out is put back
+where an object of the map would otherwise have nothing under it.
+
+In terms of axis-aligned body boxes (:func:`~physics_mapper.model.extents.body_box`), z along gravity,
+tau = ``jitter_threshold`` (m):
+
+- body B is *below* object X when their footprints (x-y extents) overlap, each axis by at least
+  :data:`FOOTPRINT_SHARE` of the smaller extent, and B's box is lower than X's (both its low and its high
+  z); B *holds X up* when it is below X and its top reaches X's bottom within tau (high_z(B) >= low_z(X) -
+  tau): without anything holding it up, X would fall further than a stable object may move;
+- X *stands* when a static plane lies within tau under its box, or its box centre's x and y lie within
+  the x-y box of the bodies holding it up among the static bodies and the objects in the map (one under
+  its centre, or two it bridges);
+- while some object in the map does not stand, the objects left out below it, each at its most probable
+  pose, are candidates: the one with the highest top (X would land on it first), of equal ones the most
+  probable, is put back, and the rule runs again (the box put back may need its own support; a detection
+  sunk deeper than tau into the floor holds nothing up until the refinement lifts it). Objects it never
+  reaches stay out: a detection in the air or in a wall holds nothing up, and a second detection of a box
+  that stands holds up nothing that box does not.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from physics_mapper.model.extents import FloatArray, body_box, may_overlap_static
+from physics_mapper.model.hypotheses import RankedHypotheses
+from physics_mapper.model.scene import ObjectShape, Plane, StaticBody
+
+#: Least share of the smaller footprint's extent, per horizontal axis, two footprints overlap by for one
+#: body to be under another: a neighbour's box a few millimetres into the footprint (estimates' noise) is not.
+FOOTPRINT_SHARE = 0.25
+
+#: A body's box: (low corner, high corner), metres.
+_Box = tuple[FloatArray, FloatArray]
+
+
+def put_back_supports(
+    root: Sequence[int],
+    hypotheses: Sequence[RankedHypotheses],
+    shapes: Sequence[ObjectShape],
+    static: Sequence[StaticBody],
+    jitter_threshold: float,
+) -> tuple[int, ...]:
+    """``root`` (ranks, 1-based, of the objects of ``hypotheses`` and ``shapes``) with the objects it leaves
+    out (at *absent*) put back at their most probable pose where an object of the map has nothing else
+    under it (module docstring)."""
+    ranks = list(root)
+    boxes = {
+        i: body_box(shapes[i], ranked.pose(rank))
+        for i, (ranked, rank) in enumerate(zip(hypotheses, ranks, strict=True))
+        if not ranked.is_absent(rank)
+    }
+    left_out = {i: rank for i, rank in _most_probable_poses(hypotheses, ranks).items() if i not in boxes}
+    supports = [body_box(body.shape, body.pose) for body in static if not isinstance(body.shape, Plane)]
+    planes = [body for body in static if isinstance(body.shape, Plane)]
+    while left_out:
+        falling = [
+            box
+            for x, box in sorted(boxes.items())
+            if not _stands(box, [b for j, b in boxes.items() if j != x] + supports, planes, jitter_threshold)
+        ]
+        candidates = {
+            i: body_box(shapes[i], hypotheses[i].pose(rank))
+            for i, rank in left_out.items()
+            if any(_below(body_box(shapes[i], hypotheses[i].pose(rank)), box) for box in falling)
+        }
+        if not candidates:
+            break
+        chosen = max(candidates, key=lambda i: (candidates[i][1][2], hypotheses[i].weight(left_out[i]), -i))
+        ranks[chosen] = left_out.pop(chosen)
+        boxes[chosen] = candidates[chosen]
+    return tuple(ranks)
+
+
+def _most_probable_poses(hypotheses: Sequence[RankedHypotheses], ranks: Sequence[int]) -> dict[int, int]:
+    """Per object left out (at *absent*) that has a pose, the rank of its most probable one."""
+    found = {}
+    for i, (ranked, rank) in enumerate(zip(hypotheses, ranks, strict=True)):
+        poses = [r for r in range(1, len(ranked) + 1) if not ranked.is_absent(r)]
+        if ranked.is_absent(rank) and poses:
+            found[i] = poses[0]
+    return found
+
+
+def _below(body: _Box, above: _Box) -> bool:
+    """Whether ``body`` is below ``above`` (module docstring): footprints overlapping, its box lower."""
+    (low, high), (above_low, above_high) = body, above
+    overlap = np.minimum(high[:2], above_high[:2]) - np.maximum(low[:2], above_low[:2])
+    smaller = np.minimum(high[:2] - low[:2], above_high[:2] - above_low[:2])
+    return bool(np.all(overlap >= FOOTPRINT_SHARE * smaller) and low[2] < above_low[2] and high[2] < above_high[2])
+
+
+def _holds_up(body: _Box, above: _Box, jitter_threshold: float) -> bool:
+    """Whether ``body`` holds ``above`` up (module docstring): below it, its top within ``jitter_threshold``
+    of its bottom."""
+    return _below(body, above) and bool(body[1][2] >= above[0][2] - jitter_threshold)
+
+
+def _stands(box: _Box, bodies: list[_Box], planes: list[StaticBody], jitter_threshold: float) -> bool:
+    """Whether an object of box ``box`` stands (module docstring) on a plane of ``planes`` or on ``bodies``."""
+    low, high = box
+    lowered = (np.array([[low[0], low[1], low[2] - jitter_threshold]]), high[np.newaxis, :])
+    if any(may_overlap_static(plane, *lowered, 0.0)[0] for plane in planes):
+        return True
+    under = [b for b in bodies if _holds_up(b, box, jitter_threshold)]
+    if not under:
+        return False
+    centre = (low[:2] + high[:2]) / 2.0
+    reach_low = np.min([b[0][:2] for b in under], axis=0)
+    reach_high = np.max([b[1][:2] for b in under], axis=0)
+    return bool(np.all(reach_low <= centre) and np.all(centre <= reach_high))

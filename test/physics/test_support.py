@@ -1,0 +1,80 @@
+"""What the refined map keeps of the objects it would leave out: those another object rests on."""
+
+from __future__ import annotations
+
+from core_builders import CUBE_SIZE, ON_FLOOR, cube, floor_scene, ranked, unrotated
+
+from physics_mapper.model.geometry import Pose
+from physics_mapper.model.hypotheses import Hypothesis, RankedHypotheses, absent_hypothesis
+from physics_mapper.physics.support import put_back_supports
+
+#: The jitter threshold of the tests, metres.
+TAU = 0.02
+#: A top cube's centre height on a bottom cube.
+ON_CUBE = ON_FLOOR + CUBE_SIZE
+
+
+def may_be_absent(index: int, *poses: Pose) -> RankedHypotheses:
+    """Poses of equal weight and *absent*, ranked last."""
+    return RankedHypotheses.from_weighted([*(Hypothesis(p, 1.0) for p in poses), absent_hypothesis(index, 0.1)])
+
+
+def put_back(hypotheses: list[RankedHypotheses], root: tuple[int, ...]) -> tuple[int, ...]:
+    scene = floor_scene(*(cube(f"c{i}") for i in range(len(hypotheses))))
+    return put_back_supports(root, hypotheses, [o.shape for o in scene.objects], scene.static, TAU)
+
+
+def test_a_cube_left_out_under_a_cube_of_the_map_is_put_back() -> None:
+    """The bottom cube's only pose is 1.5 cm into the floor (ruled out: the live root has it absent); the
+    top cube rests on it, so it is put back at that pose, for the refinement to lift."""
+    hypotheses = [may_be_absent(0, unrotated(0.0, 0.0, ON_FLOOR - 0.015)), ranked([unrotated(0.0, 0.0, ON_CUBE)], [1])]
+    assert put_back(hypotheses, (2, 1)) == (1, 1)
+
+
+def test_a_cube_bridging_two_needs_both() -> None:
+    """A top cube across two bottom ones, 1 cm apart: on the one kept alone, its centre overhangs the gap."""
+    hypotheses = [
+        ranked([unrotated(-0.055, 0.0, ON_FLOOR)], [1]),
+        may_be_absent(1, unrotated(0.055, 0.0, ON_FLOOR - 0.015)),
+        ranked([unrotated(0.0, 0.0, ON_CUBE)], [1]),
+    ]
+    assert put_back(hypotheses, (1, 2, 1)) == (1, 1, 1)
+
+
+def test_a_column_is_put_back_from_the_top_down() -> None:
+    """Three cubes stacked, the lower two left out: the middle one is put back for the top one, then the
+    bottom one for the middle one."""
+    hypotheses = [
+        may_be_absent(0, unrotated(0.0, 0.0, ON_FLOOR - 0.015)),
+        may_be_absent(1, unrotated(0.0, 0.0, ON_CUBE - 0.005)),
+        ranked([unrotated(0.0, 0.0, ON_CUBE + CUBE_SIZE)], [1]),
+    ]
+    assert put_back(hypotheses, (2, 2, 1)) == (1, 1, 1)
+
+
+def test_what_holds_nothing_up_stays_out() -> None:
+    """Left out and staying out: a detection inside the floor under a cube that stands on the floor, one in
+    the air, and a second detection of a bottom cube that holds the top one up already."""
+    hypotheses = [
+        ranked([unrotated(0.0, 0.0, ON_FLOOR)], [1]),
+        ranked([unrotated(0.0, 0.0, ON_CUBE)], [1]),
+        may_be_absent(2, unrotated(0.3, 0.0, ON_FLOOR - 0.06)),  # in the floor, under nothing
+        ranked([unrotated(0.3, 0.0, ON_FLOOR)], [1]),
+        may_be_absent(4, unrotated(0.3, 0.0, 0.5)),  # in the air
+        may_be_absent(5, unrotated(0.005, 0.0, ON_FLOOR - 0.015)),  # the bottom cube again, 5 mm aside
+    ]
+    root = (1, 1, 2, 1, 2, 2)
+    assert put_back(hypotheses, root) == root
+
+
+def test_the_most_probable_of_two_candidates_is_put_back_and_the_other_stays_out() -> None:
+    """Two detections under the same top cube (the bottom cube and its double): one is enough."""
+    bottom = unrotated(0.0, 0.0, ON_FLOOR - 0.015)
+    hypotheses = [
+        RankedHypotheses.from_weighted([Hypothesis(bottom, 0.3), absent_hypothesis(0, 0.7)]),
+        RankedHypotheses.from_weighted([Hypothesis(bottom, 0.6), absent_hypothesis(1, 0.4)]),
+        ranked([unrotated(0.0, 0.0, ON_CUBE)], [1]),
+    ]
+    assert hypotheses[0].is_absent(1) and hypotheses[1].is_absent(2)
+    assert put_back(hypotheses, (1, 2, 1)) == (1, 1, 1)  # both left out: the likelier one is put back, alone
+    assert put_back(hypotheses, (1, 1, 1)) == (1, 1, 1)  # the likelier one in: the other stays out
