@@ -27,7 +27,7 @@ from physics_mapper.model.scene_files import SceneError, search_with_overrides
 
 #: Seconds between two /diagnostics messages unless ``diagnostics_period`` says otherwise (the ~1 Hz convention).
 DEFAULT_DIAGNOSTICS_PERIOD = 1.0
-#: ``tf_pose``'s values: which of an object's map poses its /tf frame takes.
+#: ``tf_pose``'s values: which of an object's map poses its /tf frame and its ``~/objects`` entry take.
 TF_POSES = ("settled", "chosen")
 
 
@@ -100,8 +100,8 @@ PARAMETERS = (
     ParameterSpec("tf_prefix", "prefix of the objects' frame names on /tf", "physics_mapper/"),
     ParameterSpec(
         "tf_pose",
-        f"the pose of each object's /tf frame: {' or '.join(TF_POSES)} (settled: after settling, a fallback's "
-        "corrected estimate; chosen: the chosen hypothesis)",
+        f"the pose of each object's /tf frame and ~/objects entry: {' or '.join(TF_POSES)} (settled: after "
+        "settling, a fallback's corrected estimate; chosen: the chosen hypothesis)",
         "settled",
     ),
     ParameterSpec(
