@@ -37,7 +37,7 @@ from physics_mapper.model.hypotheses import RankedHypotheses
 from physics_mapper.model.scene import ObjectShape, Plane, StaticBody
 
 #: Least share of the smaller footprint's extent, per horizontal axis, two footprints overlap by for one
-#: body to be under another: a neighbour's box a few millimetres into the footprint (estimates' noise) is not.
+#: body to be below another: a neighbour's box a few millimetres into the footprint (estimates' noise) is not.
 FOOTPRINT_SHARE = 0.25
 
 #: A body's box: (low corner, high corner), metres.
@@ -60,7 +60,7 @@ def put_back_supports(
         for i, (ranked, rank) in enumerate(zip(hypotheses, ranks, strict=True))
         if not ranked.is_absent(rank)
     }
-    left_out = {i: rank for i, rank in _most_probable_poses(hypotheses, ranks).items() if i not in boxes}
+    left_out = _most_probable_poses(hypotheses, ranks)
     supports = [body_box(body.shape, body.pose) for body in static if not isinstance(body.shape, Plane)]
     planes = [body for body in static if isinstance(body.shape, Plane)]
     while left_out:
