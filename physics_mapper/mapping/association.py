@@ -66,14 +66,17 @@ saw, and keeps no order across frames. The rules that give each detection of a *
   a reflection in the air seen in every frame, is never confirmed by repeating itself, nor by a
   fallback's map, which holds every object it is given.
 - **Misses and ends.** An instance no detection matched keeps its own state and hypotheses; it
-  never takes another's. A tentative track ends once ``tentative_misses`` arrays in a row (2)
-  matched it no detection (an estimator misses a true object now and then, a false detection seldom
-  comes back to the same place), and when physics leaves its instance out
+  never takes another's. A tentative track matched only once ends once ``tentative_misses`` arrays in a
+  row (2) matched it no detection (an estimator misses a true object now and then, a false detection
+  seldom comes back to the same place: one matched :data:`CAME_BACK_HITS` times came back), and when
+  physics leaves its instance out
   (:meth:`InstanceTracks.reject`): a finished search's map does, or every pose of it is ruled out before
   the search, or :data:`CUT_SHORT_LEAVINGS` (2) valid maps in a row of searches the deadline stopped
   do (an invalid map of a stopped search is no verdict); a confirmed one ends when unmatched for more
-  than ``max_age`` seconds. An ended track frees its instance, and the instance's hypotheses are
-  forgotten.
+  than ``max_age`` seconds. Two tracks on one body, whose poses the search rules out each against every
+  pose of the other (:func:`~physics_mapper.mapping.existence.twins`), end as one, confirmed or not
+  (:meth:`InstanceTracks.end_twins`). An ended track frees its instance, and the instance's hypotheses
+  are forgotten.
 - **Existence.** An instance that may not be there, a tentative track or an instance of a
   ``count: {max: K}`` entry, has a weight for *absent*:
   w_absent = prod_k (1 - c_k) over its track's (newest 20) matched detections, c_k the detection's best
@@ -104,6 +107,11 @@ from physics_mapper.model.scene import ObjectShape, Plane, Scene
 MAX_CONFIDENCE = 0.95
 #: Matched detections whose confidence counts for existence (the newest): w_absent stays above 0.05^20.
 CONFIDENCES_KEPT = 20
+#: Matches after which a tentative track has come back to its place: misses no longer end it (``max_age``
+#: and physics still do), since a false detection seldom comes back to the same place and a true object
+#: missed twice in a row (10 % misses: often, in a bin of 24) would lose its track, and its name, while no
+#: valid map has confirmed it yet.
+CAME_BACK_HITS = 2
 #: Valid maps of searches the deadline stopped that must leave a tentative instance out in a row before its
 #: track ends: one such map may have left out a true object a longer search would have kept, and ended, its
 #: track would start again with one detection's evidence, its *absent* then likelier than any one pose, so
@@ -119,7 +127,8 @@ class AssociationSettings:
 
     gate: metres beyond which a detection never matches an instance (0: half the largest extent
     of the class's shape). confirm_hits: matches after which a track is confirmed.
-    tentative_misses: arrays in a row without a detection matched to a tentative track, after which it ends.
+    tentative_misses: arrays in a row without a detection matched to a tentative track matched once only, after
+    which it ends.
     process_noise: m²/s of random walk per second. measurement_noise: m, standard deviation of a
     detection's position. max_age: seconds a confirmed track lives unmatched.
     """
@@ -371,6 +380,30 @@ class InstanceTracks:
             self._end(name, now)
         return ended
 
+    def same_class(self, name: str, other: str) -> bool:
+        """Whether the objects ``name`` and ``other`` are instances of one tracked class."""
+        return name in self.tracks and other in self.tracks and self.scene.class_of(name) == self.scene.class_of(other)
+
+    def end_twins(self, pairs: Sequence[tuple[str, str]], now: float) -> tuple[str, ...]:
+        """End one track of each pair (instance, twin) of tracks on one body
+        (:func:`~physics_mapper.mapping.existence.twins`), confirmed or not: the instance's, or where the twin
+        is ruled out by it too, the one matched fewer times (then the later in scene order). Returns the
+        names whose tracks ended."""
+        paired = set(pairs)
+        ended: list[str] = []
+        for name, twin in pairs:
+            if name in ended or twin in ended or name not in self.tracks or twin not in self.tracks:
+                continue
+            if (twin, name) in paired and self._evidence(name) > self._evidence(twin):
+                name = twin
+            self._end(name, now)
+            ended.append(name)
+        return tuple(ended)
+
+    def _evidence(self, name: str) -> tuple[int, int]:
+        """What keeps ``name``'s track rather than its twin's: more matches, then earlier in scene order."""
+        return self.tracks[name].hits, -self.scene.object_names.index(name)
+
     def _end(self, name: str, now: float) -> None:
         self._last_position[name] = self.tracks[name].position
         del self.tracks[name]
@@ -468,10 +501,16 @@ class InstanceTracks:
         ended = []
         for name in names:
             self.tracks[name].misses += 1
-            if self.tentative(name) and self.tracks[name].misses >= self.settings.tentative_misses:
+            if self._ended_by_misses(name):
                 self._end(name, now)
                 ended.append(name)
         return ended
+
+    def _ended_by_misses(self, name: str) -> bool:
+        """Whether ``name``'s track ends by its misses: a tentative track matched fewer than
+        :data:`CAME_BACK_HITS` times, missed ``tentative_misses`` times in a row."""
+        track = self.tracks[name]
+        return self.tentative(name) and track.hits < CAME_BACK_HITS and track.misses >= self.settings.tentative_misses
 
     def _match(
         self, observations: list[Observation], names: list[str], class_id: str, now: float
@@ -525,9 +564,10 @@ class InstanceTracks:
         return min(unclaimed, key=lambda n: self._ended_at[n], default=None)
 
     def _yielded(self, names: Sequence[str], matched: set[str], now: float) -> str | None:
-        """With no instance free: the instance of a tentative track that no valid map held yet and this
-        array's miss ends (matched nothing here nor in the ``tentative_misses`` - 1 arrays before), now
-        ended (the one with the least evidence of existing), or None."""
+        """With no instance free: the instance of a tentative track that no valid map held and that matched
+        nothing here nor in the ``tentative_misses`` - 1 arrays before (ended by this array's miss if it was
+        matched only once, :meth:`_ended_by_misses`; ended here however often it came back, as a true object's
+        detection needs its name more), now ended (the one with the least evidence of existing), or None."""
         last = self.settings.tentative_misses - 1
         waiting = [  # a track no valid map held is tentative
             n

@@ -151,6 +151,34 @@ def _ruled_out_alone(
     return tuple(left_out)
 
 
+def twins(
+    names: tuple[str, ...],
+    hypotheses: tuple[RankedHypotheses, ...],
+    result: SearchResult | None,
+    tracks: InstanceTracks,
+) -> tuple[tuple[str, str], ...]:
+    """Pairs (instance, twin) of tracked instances of one class, the first of which the search ruled out at
+    every pose because each overlaps the twin at every pose of the twin's (:mod:`~physics_mapper.search.ruling_out`):
+    two tracks on one body (a second detection of a part a centimetre off, born as an instance of its own).
+    Confirmed, neither may be absent, and no configuration holds both: every search ends with none valid
+    until one track ends (:meth:`~physics_mapper.mapping.association.InstanceTracks.end_twins`)."""
+    if result is None:
+        return ()
+    others: dict[str, set[str]] = {}
+    ranks: dict[str, set[int]] = {}
+    for ruling in result.ruled_out:
+        if ruling.reason == "collision" and ruling.other in names:
+            others.setdefault(ruling.object, set()).add(ruling.other)
+            ranks.setdefault(ruling.object, set()).add(ruling.rank)
+    found = []
+    for name, ranked in zip(names, hypotheses, strict=True):
+        poses = {rank for rank in range(1, len(ranked) + 1) if not ranked.is_absent(rank)}
+        twin = others.get(name, set())
+        if len(twin) == 1 and poses and poses <= ranks[name] and tracks.same_class(name, next(iter(twin))):
+            found.append((name, next(iter(twin))))
+    return tuple(found)
+
+
 def absent_objects(
     names: tuple[str, ...], hypotheses: tuple[RankedHypotheses, ...], result: SearchResult | None
 ) -> tuple[str, ...]:
@@ -186,11 +214,12 @@ def learn_from_result(
 ) -> tuple[str, ...]:
     """What a tick's search teaches the next ticks: its map remembered if valid, the instances a valid map
     holds confirmed, and the tentative ones physics leaves out (:func:`left_out_by_physics`) ended at
-    ``now`` (s), those valid maps cut short leave out once repeated. Returns the names whose tracks ended
-    (their inputs are to be forgotten)."""
+    ``now`` (s), those valid maps cut short leave out once repeated, and one track of each pair of
+    :func:`twins`. Returns the names whose tracks ended (their inputs are to be forgotten)."""
     if result is None:
         return ()
     memory.remember(names, hypotheses, result)
     tracks.keep(held_by_valid_map(names, hypotheses, result))
     left_out = left_out_by_physics(names, hypotheses, result)
-    return tracks.reject(left_out.placeless, left_out.cut_short, now)
+    ended = tracks.reject(left_out.placeless, left_out.cut_short, now)
+    return (*ended, *tracks.end_twins(twins(names, hypotheses, result, tracks), now))

@@ -122,7 +122,10 @@ def test_an_instance_ends_after_max_age_and_its_name_is_free_again() -> None:
     assert set(tracks.tracks) == {"box_1"} and tracks.ends == 1
 
 
-def test_a_tentative_track_ends_after_two_misses_in_a_row() -> None:
+def test_a_tentative_track_seen_once_ends_after_two_misses_in_a_row_one_that_came_back_does_not() -> None:
+    """A detection in the air, seen once, then missed, seen again, then missed four times: seen once, two
+    misses would have ended it; seen twice (it came back to its place), misses do not (``max_age`` and
+    physics do). A new one seen once and missed twice ends."""
     scene = bin_scene(3)
     tracks = InstanceTracks(scene)  # confirmed after 3 matches
     a, floating = (0.0, 0.0, 0.05), (0.5, 0.0, 0.4)
@@ -139,8 +142,16 @@ def test_a_tentative_track_ends_after_two_misses_in_a_row() -> None:
         assert association is not None
         ended.append(association.ended)
     assert ended == [(), (), ()]  # missed, matched again, missed: never twice in a row
-    last = detection_inputs(array([detection(result(a))]), scene, received=3.5, tracks=tracks).association
-    assert last is not None and last.ended == ("box_2",)
+    for time in (3.5, 4.0, 4.5):
+        later = detection_inputs(array([detection(result(a))]), scene, received=time, tracks=tracks).association
+        assert later is not None and later.ended == ()
+    assert tracks.tentative("box_2") and tracks.tracks["box_2"].misses == 4
+    elsewhere = (0.5, 0.3, 0.4)
+    detection_inputs(array([detection(result(a)), detection(result(elsewhere))]), scene, received=5.0, tracks=tracks)
+    assert "box_3" in tracks.tracks
+    for time, gone in ((5.5, ()), (6.0, ("box_3",))):
+        later = detection_inputs(array([detection(result(a))]), scene, received=time, tracks=tracks).association
+        assert later is not None and later.ended == gone
 
 
 def test_count_max_stops_at_its_maximum_with_a_diagnostic() -> None:

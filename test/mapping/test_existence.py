@@ -231,3 +231,24 @@ def test_a_map_that_fails_the_rules_confirms_no_instance() -> None:
     assert report.result is not None and report.result.valid and report.result.stats.visited > 0
     assert report.absent == ("box_4",)
     assert "box_4" not in mapper.tracks.tracks
+
+
+def test_two_confirmed_tracks_on_one_body_keep_one_and_the_map_is_valid_again() -> None:
+    """A row of seven boxes 1 cm apart and an eighth whose detections come closer step by step until they lie
+    6 cm from the first's (a second detection of one box, a few centimetres off, tracked as an instance of its
+    own). All confirmed, none may be absent: once every pose of the eighth overlaps every pose of the first,
+    no configuration holds both and every search would end with none valid. The twins' rule ends one of the
+    two tracks, and the next maps are valid."""
+    mapper = Mapper(make_scene({"name": "box", "count": 8, **BOX}))
+    row = [(0.0, 0.11 * k, 0.05) for k in range(7)]
+    reports = []
+    for step, x in enumerate(np.arange(0.3, 0.05, -0.02)):
+        feed(mapper, [*row, (float(x), 0.0, 0.05)], 0.5 * step)
+        reports.append(mapper.tick(0.5 * step + 0.1, SETTINGS))
+        if step == 3:
+            assert not any(mapper.tracks.tentative(f"box_{k}") for k in range(1, 9))  # all confirmed
+    invalid = [k for k, report in enumerate(reports) if report.result is None or not report.result.valid]
+    assert invalid, "the eighth box never overlapped the first"
+    assert len(mapper.tracks.tracks) == 7  # one of the twins' tracks ended
+    assert invalid[-1] < len(reports) - 1  # and the maps after it are valid again
+    assert all(r.result is not None and r.result.valid for r in reports[invalid[-1] + 1 :])
