@@ -71,7 +71,8 @@ saw, and keeps no order across frames. The rules that give each detection of a *
   seldom comes back to the same place: one matched :data:`CAME_BACK_HITS` times came back), and when
   physics leaves its instance out
   (:meth:`InstanceTracks.reject`): a finished search's map does, or every pose of it is ruled out before
-  the search, or :data:`CUT_SHORT_LEAVINGS` (2) valid maps in a row of searches the deadline stopped
+  the search and the map leaves it out (a refined map keeps one another rests on), or
+  :data:`CUT_SHORT_LEAVINGS` (2) valid maps in a row of searches the deadline stopped
   do (an invalid map of a stopped search is no verdict); a confirmed one ends when unmatched for more
   than ``max_age`` seconds. Two tracks on one body, whose poses the search rules out each against every
   pose of the other (:func:`~physics_mapper.mapping.existence.twins`), end as one, confirmed or not

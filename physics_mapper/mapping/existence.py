@@ -115,9 +115,9 @@ def left_out_by_physics(
     names: tuple[str, ...], hypotheses: tuple[RankedHypotheses, ...], result: SearchResult | None
 ) -> LeftOut:
     """The objects physics finds no place for (``placeless``): those a *finished* search's map leaves out,
-    and, in any map, those that may be absent and whose every other rank overlaps a static body or falls
-    freely (ruled out before the search began: no configuration holds them); and those a *valid* map of a
-    search the deadline stopped leaves out (``cut_short``: a verdict only once repeated,
+    and, in any map that leaves them out, those that may be absent and whose every other rank overlaps a
+    static body or falls freely (ruled out before the search began: no configuration holds them); and those
+    a *valid* map of a search the deadline stopped leaves out (``cut_short``: a verdict only once repeated,
     :data:`~physics_mapper.mapping.association.CUT_SHORT_LEAVINGS`). A search the deadline stopped without
     a valid map gives its best so far: no verdict.
 
@@ -138,15 +138,18 @@ def _ruled_out_alone(
     names: tuple[str, ...], hypotheses: tuple[RankedHypotheses, ...], result: SearchResult
 ) -> tuple[str, ...]:
     """The objects with an *absent* rank whose every other rank the search ruled out before it began
-    by a body that is none of ``names`` (a static body), or as a free fall (no ``other``)."""
+    by a body that is none of ``names`` (a static body), or as a free fall (no ``other``), and that the
+    map leaves out (a refined map keeps such an object where another rests on it:
+    :mod:`physics_mapper.physics.support`)."""
     ruled: dict[str, set[int]] = {}
     for ruling in result.ruled_out:
         if ruling.other not in names:
             ruled.setdefault(ruling.object, set()).add(ruling.rank)
     left_out = []
-    for name, ranked in zip(names, hypotheses, strict=True):
+    for index, (name, ranked) in enumerate(zip(names, hypotheses, strict=True)):
         present = {rank for rank in range(1, len(ranked) + 1) if not ranked.is_absent(rank)}
-        if len(present) < len(ranked) and present <= ruled.get(name, set()):
+        held = result.code is not None and result.code[index] in present
+        if len(present) < len(ranked) and present <= ruled.get(name, set()) and not held:
             left_out.append(name)
     return tuple(left_out)
 

@@ -8,13 +8,17 @@ from dataclasses import replace
 from typing import Any
 
 import numpy as np
+from core_builders import CUBE_SIZE, ON_FLOOR, cube, floor_scene, ranked, unrotated
 from detection_builders import array, detection, result
 
 from physics_mapper.mapping.existence import left_out_by_physics, silent_absent_weight
 from physics_mapper.mapping.inputs import InputSettings, check_poses, check_weights
 from physics_mapper.mapping.mapper import Mapper, MapperSettings, TickReport
+from physics_mapper.model.hypotheses import Hypothesis, RankedHypotheses, absent_hypothesis
 from physics_mapper.model.scene import Scene, SearchParams
 from physics_mapper.model.scene_files import scene_from_dict
+from physics_mapper.physics.checker import PhysicsChecker
+from physics_mapper.search.strategy import make_search
 
 BOX = {"shape": "box", "size": [0.1, 0.1, 0.1], "mass": 0.2}
 FLOOR = {"name": "floor", "shape": "plane"}
@@ -252,3 +256,21 @@ def test_two_confirmed_tracks_on_one_body_keep_one_and_the_map_is_valid_again() 
     assert len(mapper.tracks.tracks) == 7  # one of the twins' tracks ended
     assert invalid[-1] < len(reports) - 1  # and the maps after it are valid again
     assert all(r.result is not None and r.result.valid for r in reports[invalid[-1] + 1 :])
+
+
+def test_an_instance_the_refined_map_keeps_under_another_is_not_placeless() -> None:
+    """A bottom box that may be absent, seen only 1.5 cm into the floor (every pose ruled out alone), under
+    a box: the refined map keeps it (:mod:`physics_mapper.physics.support`), so physics found it a place and
+    its track goes on; left out, it would be placeless and its track would end."""
+    scene = floor_scene(cube("bottom"), cube("top"))
+    sunk = unrotated(0.0, 0.0, ON_FLOOR - 0.015)
+    hypotheses = (
+        RankedHypotheses.from_weighted([Hypothesis(sunk, 0.9), absent_hypothesis(0, 0.1)]),
+        ranked([unrotated(0.0, 0.0, ON_FLOOR + CUBE_SIZE)], [1]),
+    )
+    with PhysicsChecker(scene) as checker:
+        result = make_search(checker, hypotheses, SearchParams(fallback="refine")).run(None)
+    assert result.fallback == "refine" and result.code == (1, 1)
+    assert [(r.object, r.rank) for r in result.ruled_out] == [("bottom", 1)]
+    assert left_out_by_physics(("bottom", "top"), hypotheses, result) == ((), ())
+    assert left_out_by_physics(("bottom", "top"), hypotheses, replace(result, code=(2, 1))) == (("bottom",), ())
