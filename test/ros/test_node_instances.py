@@ -21,13 +21,20 @@ NAMESPACE = "/bin_camera"
 #: Twelve 10 cm boxes, 4 x 3 on the floor, 1 cm apart.
 BOXES = [(0.11 * (i % 4), 0.11 * (i // 4), 0.05) for i in range(12)]
 FRAMES = 20
-SCENE = """\
+
+
+def box_scene(count: int, search: str = "") -> str:
+    """A scene file of ``count`` identical 10 cm boxes on a floor, with a ``search:`` section's lines."""
+    return f"""\
 frame_id: world
 static:
-  - {name: floor, shape: plane}
+  - {{name: floor, shape: plane}}
 objects:
-  - {name: box, count: 12, shape: box, size: [0.1, 0.1, 0.1], mass: 0.2}
-"""
+  - {{name: box, count: {count}, shape: box, size: [0.1, 0.1, 0.1], mass: 0.2}}
+{search}"""
+
+
+SCENE = box_scene(12)
 
 
 def result(position: np.ndarray, score: float) -> ObjectHypothesisWithPose:
@@ -96,15 +103,7 @@ def test_a_bin_of_identical_boxes_keeps_every_identity_over_shuffled_arrays(tmp_
     assert (first.bbox.size.x, first.bbox.size.y, first.bbox.size.z) == (0.1, 0.1, 0.1)
 
 
-SUNK_SCENE = """\
-frame_id: world
-static:
-  - {name: floor, shape: plane}
-objects:
-  - {name: box, count: 1, shape: box, size: [0.1, 0.1, 0.1], mass: 0.2}
-search:
-  fallback: refine
-"""
+SUNK_SCENE = box_scene(1, "search:\n  fallback: refine\n")
 
 
 @pytest.mark.parametrize(("tf_pose", "height"), [("settled", 0.05), ("chosen", 0.03)])
