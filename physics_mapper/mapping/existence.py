@@ -147,7 +147,7 @@ def _ruled_out_alone(
             ruled.setdefault(ruling.object, set()).add(ruling.rank)
     left_out = []
     for index, (name, ranked) in enumerate(zip(names, hypotheses, strict=True)):
-        present = {rank for rank in range(1, len(ranked) + 1) if not ranked.is_absent(rank)}
+        present = set(ranked.pose_ranks())
         held = result.code is not None and result.code[index] in present
         if len(present) < len(ranked) and present <= ruled.get(name, set()) and not held:
             left_out.append(name)
@@ -175,7 +175,7 @@ def twins(
             ranks.setdefault(ruling.object, set()).add(ruling.rank)
     found = []
     for name, ranked in zip(names, hypotheses, strict=True):
-        poses = {rank for rank in range(1, len(ranked) + 1) if not ranked.is_absent(rank)}
+        poses = set(ranked.pose_ranks())
         twin = others.get(name, set())
         if len(twin) == 1 and poses and poses <= ranks[name] and tracks.same_class(name, next(iter(twin))):
             found.append((name, next(iter(twin))))

@@ -74,7 +74,7 @@ def previous_map_code(
 def _rank(ranked: RankedHypotheses, remembered: Pose | None) -> int:
     if remembered is None:
         return 1
-    present = [rank for rank in range(1, len(ranked) + 1) if not ranked.is_absent(rank)]
+    present = ranked.pose_ranks()
     distances = {rank: math.dist(ranked.pose(rank).position, remembered.position) for rank in present}
     nearest = min(distances, key=distances.__getitem__, default=None)
     return nearest if nearest is not None and distances[nearest] <= NEAR else 1

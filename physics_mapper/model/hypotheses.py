@@ -109,6 +109,10 @@ class RankedHypotheses:
         """Whether the hypothesis of 1-based ``rank`` is *absent*."""
         return self.hypotheses[rank - 1].absent
 
+    def pose_ranks(self) -> tuple[int, ...]:
+        """The 1-based ranks of the hypotheses that are poses (not *absent*), ascending."""
+        return tuple(rank for rank, h in enumerate(self.hypotheses, start=1) if not h.absent)
+
     def pose(self, rank: int) -> Pose:
         """Pose of the hypothesis of 1-based ``rank``."""
         return self.hypotheses[rank - 1].pose

@@ -86,7 +86,7 @@ def _most_probable_poses(hypotheses: Sequence[RankedHypotheses], ranks: Sequence
     """Per object left out (at *absent*) that has a pose, the rank of its most probable one."""
     found = {}
     for i, (ranked, rank) in enumerate(zip(hypotheses, ranks, strict=True)):
-        poses = [r for r in range(1, len(ranked) + 1) if not ranked.is_absent(r)]
+        poses = ranked.pose_ranks()
         if ranked.is_absent(rank) and poses:
             found[i] = poses[0]
     return found
