@@ -393,7 +393,7 @@ class InstanceTracks:
         paired = set(pairs)
         ended: list[str] = []
         for name, twin in pairs:
-            if name in ended or twin in ended or name not in self.tracks or twin not in self.tracks:
+            if name not in self.tracks or twin not in self.tracks:  # one of the two ended already
                 continue
             if (twin, name) in paired and self._evidence(name) > self._evidence(twin):
                 name = twin

@@ -176,9 +176,11 @@ def twins(
     found = []
     for name, ranked in zip(names, hypotheses, strict=True):
         poses = set(ranked.pose_ranks())
-        twin = others.get(name, set())
-        if len(twin) == 1 and poses and poses <= ranks[name] and tracks.same_class(name, next(iter(twin))):
-            found.append((name, next(iter(twin))))
+        if len(others.get(name, ())) != 1 or not poses or not poses <= ranks[name]:
+            continue
+        (twin,) = others[name]
+        if tracks.same_class(name, twin):
+            found.append((name, twin))
     return tuple(found)
 
 

@@ -61,6 +61,7 @@ def put_back_supports(
         if not ranked.is_absent(rank)
     }
     left_out = _most_probable_poses(hypotheses, ranks)
+    left_out_boxes = {i: body_box(shapes[i], hypotheses[i].pose(rank)) for i, rank in left_out.items()}
     supports = [body_box(body.shape, body.pose) for body in static if not isinstance(body.shape, Plane)]
     planes = [body for body in static if isinstance(body.shape, Plane)]
     while left_out:
@@ -69,16 +70,12 @@ def put_back_supports(
             for x, box in sorted(boxes.items())
             if not _stands(box, [b for j, b in boxes.items() if j != x] + supports, planes, jitter_threshold)
         ]
-        candidates = {
-            i: body_box(shapes[i], hypotheses[i].pose(rank))
-            for i, rank in left_out.items()
-            if any(_below(body_box(shapes[i], hypotheses[i].pose(rank)), box) for box in falling)
-        }
+        candidates = [i for i in left_out if any(_below(left_out_boxes[i], box) for box in falling)]
         if not candidates:
             break
-        chosen = max(candidates, key=lambda i: (candidates[i][1][2], hypotheses[i].weight(left_out[i]), -i))
+        chosen = max(candidates, key=lambda i: (left_out_boxes[i][1][2], hypotheses[i].weight(left_out[i]), -i))
         ranks[chosen] = left_out.pop(chosen)
-        boxes[chosen] = candidates[chosen]
+        boxes[chosen] = left_out_boxes[chosen]
     return tuple(ranks)
 
 
