@@ -6,8 +6,8 @@ Imported only where vision_msgs is installed (the node checks first). Each Detec
 * one result: ``class_id`` the object's class (:meth:`~physics_mapper.model.scene.Scene.class_of`:
   the ``count:`` entry's name, the ``class_map`` id, or the object's name), ``score`` the chosen
   hypothesis's normalised weight (its share of p(C), the *absent* hypothesis included in the
-  normalisation), and the object's map pose with a zero covariance: its settled pose, or with
-  ``settled=False`` its chosen hypothesis (the node's ``tf_pose``: ``~/objects`` and ``/tf`` agree). The
+  normalisation), and the object's map pose with a zero covariance: the pose the node's ``tf_pose``
+  selects (``~/objects`` and ``/tf`` agree), its settled pose or its chosen hypothesis. The
   two differ by less than ``jitter_threshold`` in a valid map; in a fallback's map the settled pose is the
   corrected estimate (``fallback: refine``'s refined map) and the chosen one the hypothesis it started from;
 * ``bbox``: the box of the shape in its own frame at that pose (a box's size, a sphere's or a
@@ -17,6 +17,8 @@ Objects the map leaves out (*absent*) are not listed. The header carries the map
 """
 
 from __future__ import annotations
+
+from collections.abc import Sequence
 
 from geometry_msgs.msg import PoseWithCovariance, Vector3
 from std_msgs.msg import Header
@@ -46,11 +48,12 @@ def shape_box(shape: ObjectShape) -> tuple[Point3, Point3]:
     return (centre[0], centre[1], centre[2]), (size[0], size[1], size[2])
 
 
-def objects_msg(report: TickReport, scene: Scene, *, stamp_ns: int, settled: bool = True) -> Detection3DArray | None:
-    """The map of ``report`` as a Detection3DArray at the settled poses, or the chosen ones (``settled=False``)
-    (module docstring); None if nothing was chosen."""
+def objects_msg(
+    report: TickReport, scene: Scene, poses: Sequence[Pose] | None, *, stamp_ns: int
+) -> Detection3DArray | None:
+    """The map of ``report`` as a Detection3DArray, its objects at ``poses`` (scene order: the settled poses
+    or the chosen hypotheses, module docstring); None if nothing was chosen."""
     result = report.result
-    poses = None if result is None else result.settled_poses if settled else result.poses
     if result is None or result.code is None or poses is None:
         return None
     header = Header(frame_id=scene.frame_id, stamp=stamp_from_nanoseconds(stamp_ns))

@@ -34,6 +34,7 @@ from physics_mapper.mapping.topics import (
     object_pose_topic,
     object_settled_pose_topic,
 )
+from physics_mapper.model.geometry import Pose
 from physics_mapper.model.scene import Scene
 from physics_mapper.msg_adapters.results import configuration_msgs, map_status_msg, markers_msg, object_pose_msgs
 from physics_mapper.msg_adapters.transforms import object_transforms
@@ -50,6 +51,10 @@ class TfOutput:
     enabled: bool
     prefix: str
     settled: bool
+
+    def poses(self, result: SearchResult) -> tuple[Pose, ...] | None:
+        """The map's poses ``tf_pose`` selects: the settled ones or the chosen hypotheses (None: none)."""
+        return result.settled_poses if self.settled else result.poses
 
     @staticmethod
     def of(values: Mapping[str, Any]) -> TfOutput:
@@ -105,13 +110,13 @@ class MapPublishers:
         if self.detections is not None:
             from physics_mapper.msg_adapters.objects import objects_msg  # needs vision_msgs: imported where it is
 
-            self.detections.publish(objects_msg(report, scene, stamp_ns=stamp_ns, settled=tf.settled))
+            self.detections.publish(objects_msg(report, scene, tf.poses(result), stamp_ns=stamp_ns))
 
     def _publish_tf(
         self, result: SearchResult, scene: Scene, stamp_ns: int, tf: TfOutput, present: tuple[int, ...]
     ) -> None:
         """Each present object's frame on /tf, when ``publish_tf`` is on (and tf2_msgs installed)."""
-        poses = result.settled_poses if tf.settled else result.poses
+        poses = tf.poses(result)
         if not tf.enabled or self.tf is None or poses is None:
             return
         publisher, message_type = self.tf
