@@ -46,7 +46,8 @@ saw, and keeps no order across frames. The rules that give each detection of a *
   order, else the one whose track ended longest ago, of those whose ended track was not last
   within the gate of another detection of the array that matched no instance (that one comes back
   to it, whichever of them is born first). With no free instance it takes that of a
-  tentative track no valid map held and that this array's miss ends anyway; else it is counted
+  tentative track no valid map held, on which the last map held nothing up, and that this array's miss ends
+  anyway; else it is counted
   as outside every gate and not used (``count: {max: K}`` stops at K). Detections born together
   take their instances in the order of the heights of their bodies' centres at their central results'
   poses (z, along gravity in REP-103's frames: a mesh's frame may lie at its bottom; ties by the
@@ -68,7 +69,9 @@ saw, and keeps no order across frames. The rules that give each detection of a *
 - **Misses and ends.** An instance no detection matched keeps its own state and hypotheses; it
   never takes another's. A tentative track matched only once ends once ``tentative_misses`` arrays in a
   row (2) matched it no detection (an estimator misses a true object now and then, a false detection
-  seldom comes back to the same place: one matched :data:`CAME_BACK_HITS` times came back), and when
+  seldom comes back to the same place: one matched :data:`CAME_BACK_HITS` times came back), unless the
+  last map held another object up on it (:meth:`InstanceTracks.hold_up`; the box under a stacked one
+  is the one the camera misses, and a false detection holds nothing up), and when
   physics leaves its instance out
   (:meth:`InstanceTracks.reject`): a finished search's map does, or every pose of it is ruled out before
   the search and the map leaves it out (a refined map keeps one another rests on), or
@@ -199,6 +202,7 @@ class Track:
     cut_short_leavings: int = 0  # valid maps cut short by the deadline in a row that left its instance out
     confidences: list[float] = field(default_factory=list)
     kept: bool = False  # some valid map held its instance
+    holds_up: bool = False  # the last map held another object up on its instance
 
     @property
     def position(self) -> NDArray[np.float64]:
@@ -348,6 +352,13 @@ class InstanceTracks:
             if track is not None:
                 track.kept = True
                 track.cut_short_leavings = 0
+
+    def hold_up(self, names: Sequence[str]) -> None:
+        """Note that the last map holds another object up on each instance of ``names`` (and on no other):
+        misses do not end their tracks."""
+        held = set(names)
+        for name, track in self.tracks.items():
+            track.holds_up = name in held
 
     def instances_per_class(self) -> dict[str, int]:
         """Tracked classes -> their instances with a track."""
@@ -509,9 +520,15 @@ class InstanceTracks:
 
     def _ended_by_misses(self, name: str) -> bool:
         """Whether ``name``'s track ends by its misses: a tentative track matched fewer than
-        :data:`CAME_BACK_HITS` times, missed ``tentative_misses`` times in a row."""
+        :data:`CAME_BACK_HITS` times, missed ``tentative_misses`` times in a row, on which the last map held no
+        other object up."""
         track = self.tracks[name]
-        return self.tentative(name) and track.hits < CAME_BACK_HITS and track.misses >= self.settings.tentative_misses
+        return (
+            self.tentative(name)
+            and track.hits < CAME_BACK_HITS
+            and track.misses >= self.settings.tentative_misses
+            and not track.holds_up
+        )
 
     def _match(
         self, observations: list[Observation], names: list[str], class_id: str, now: float
@@ -565,15 +582,20 @@ class InstanceTracks:
         return min(unclaimed, key=lambda n: self._ended_at[n], default=None)
 
     def _yielded(self, names: Sequence[str], matched: set[str], now: float) -> str | None:
-        """With no instance free: the instance of a tentative track that no valid map held and that matched
-        nothing here nor in the ``tentative_misses`` - 1 arrays before (ended by this array's miss if it was
-        matched only once, :meth:`_ended_by_misses`; ended here however often it came back, as a true object's
-        detection needs its name more), now ended (the one with the least evidence of existing), or None."""
+        """With no instance free: the instance of a tentative track that no valid map held, on which the last
+        map held nothing up, and that matched nothing here nor in the ``tentative_misses`` - 1 arrays before
+        (ended by this array's miss if it was matched only once, :meth:`_ended_by_misses`; ended here however
+        often it came back, as a true object's detection needs its name more), now ended (the one with the
+        least evidence of existing), or None."""
         last = self.settings.tentative_misses - 1
         waiting = [  # a track no valid map held is tentative
             n
             for n in names
-            if n in self.tracks and n not in matched and not self.tracks[n].kept and self.tracks[n].misses >= last
+            if n in self.tracks
+            and n not in matched
+            and not self.tracks[n].kept
+            and not self.tracks[n].holds_up
+            and self.tracks[n].misses >= last
         ]
         if not waiting:
             return None

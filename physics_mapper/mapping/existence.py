@@ -32,6 +32,8 @@ from physics_mapper.mapping.association import InstanceTracks
 from physics_mapper.mapping.inputs import InputSnapshot
 from physics_mapper.model.geometry import Pose
 from physics_mapper.model.hypotheses import Hypothesis, RankedHypotheses, absent_hypothesis
+from physics_mapper.model.scene import Scene
+from physics_mapper.physics.support import holding_up
 from physics_mapper.search.results import SearchResult
 
 
@@ -209,6 +211,22 @@ def held_by_valid_map(
     return tuple(name for name in names if name not in left_out)
 
 
+def holding_others_up(
+    names: tuple[str, ...], hypotheses: tuple[RankedHypotheses, ...], result: SearchResult | None, scene: Scene
+) -> tuple[str, ...]:
+    """The objects of a result's map, valid or not, that hold another object of it up where it came to rest
+    (:func:`~physics_mapper.physics.support.holding_up`); ``names`` are ``scene``'s objects, in its order."""
+    if result is None or result.code is None:
+        return ()
+    poses = result.settled_poses or result.poses
+    if poses is None:
+        return ()
+    left_out = set(absent_objects(names, hypotheses, result))
+    in_map = [None if name in left_out else pose for name, pose in zip(names, poses, strict=True)]
+    shapes = [model.shape for model in scene.objects]
+    return tuple(names[i] for i in holding_up(in_map, shapes, scene.search.jitter_threshold))
+
+
 def learn_from_result(
     memory: MapMemory,
     tracks: InstanceTracks,
@@ -218,13 +236,15 @@ def learn_from_result(
     now: float,
 ) -> tuple[str, ...]:
     """What a tick's search teaches the next ticks: its map remembered if valid, the instances a valid map
-    holds confirmed, and the tentative ones physics leaves out (:func:`left_out_by_physics`) ended at
-    ``now`` (s), those valid maps cut short leave out once repeated, and one track of each pair of
-    :func:`twins`. Returns the names whose tracks ended (their inputs are to be forgotten)."""
+    holds confirmed, those on which its map (any) holds another object up noted (misses do not end them),
+    and the tentative ones physics leaves out (:func:`left_out_by_physics`) ended at ``now`` (s), those
+    valid maps cut short leave out once repeated, and one track of each pair of :func:`twins`. Returns the
+    names whose tracks ended (their inputs are to be forgotten)."""
     if result is None:
         return ()
     memory.remember(names, hypotheses, result)
     tracks.keep(held_by_valid_map(names, hypotheses, result))
+    tracks.hold_up(holding_others_up(names, hypotheses, result, tracks.scene))
     left_out = left_out_by_physics(names, hypotheses, result)
     ended = tracks.reject(left_out.placeless, left_out.cut_short, now)
     return (*ended, *tracks.end_twins(twins(names, hypotheses, result, tracks), now))

@@ -109,6 +109,10 @@ class RankedHypotheses:
         """Whether the hypothesis of 1-based ``rank`` is *absent*."""
         return self.hypotheses[rank - 1].absent
 
+    def absent_rank(self) -> int | None:
+        """The 1-based rank of the *absent* hypothesis (None without one)."""
+        return next((rank for rank, h in enumerate(self.hypotheses, start=1) if h.absent), None)
+
     def pose_ranks(self) -> tuple[int, ...]:
         """The 1-based ranks of the hypotheses that are poses (not *absent*), ascending."""
         return tuple(rank for rank, h in enumerate(self.hypotheses, start=1) if not h.absent)

@@ -1,4 +1,5 @@
-"""What the refined map keeps of the objects it would leave out: those another object rests on (ROS-free).
+"""What holds what up in a map, and which objects the refined map holds: those another object rests on,
+not those it moved away from where they were seen (ROS-free).
 
 ``fallback: refine`` starts from the *live root* (each object at its most probable rank not ruled out
 alone), so an object that may be absent and whose every pose was ruled out is left out of the refined
@@ -24,6 +25,17 @@ tau = ``jitter_threshold`` (m):
   sunk deeper than tau into the floor holds nothing up until the refinement lifts it). Objects it never
   reaches stay out: a detection in the air or in a wall holds nothing up, and a second detection of a box
   that stands holds up nothing that box does not.
+
+Once refined, an object that may be absent and that the refinement moved farther than half its shape's
+largest extent from its start (the association's default gate: it is no longer where it was seen), and on
+which no object of the map rests, is left out (:func:`leave_out_displaced`), repeated until none is. A box
+seen on top of one the estimator missed falls a whole layer into its place, and the map would name it where
+the other box stands; a detection in the air the free-fall rule could not rule out falls onto the pile, and a
+second detection of a box is pushed out of it: the map holds each of them where nothing was seen. Objects
+that may not be absent (named ones, confirmed instances) stay where the refinement put them.
+
+The objects of a map that hold another up (:func:`holding_up`) are also those whose tracks misses do not end
+(:mod:`~physics_mapper.mapping.association`): the box under a stacked one is often hidden from the camera.
 """
 
 from __future__ import annotations
@@ -32,7 +44,8 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from physics_mapper.model.extents import FloatArray, body_box, may_overlap_static
+from physics_mapper.model.extents import FloatArray, body_box, may_overlap_static, shape_extents
+from physics_mapper.model.geometry import Pose
 from physics_mapper.model.hypotheses import RankedHypotheses
 from physics_mapper.model.scene import ObjectShape, Plane, StaticBody
 
@@ -77,6 +90,45 @@ def put_back_supports(
         ranks[chosen] = left_out.pop(chosen)
         boxes[chosen] = left_out_boxes[chosen]
     return tuple(ranks)
+
+
+def holding_up(poses: Sequence[Pose | None], shapes: Sequence[ObjectShape], jitter_threshold: float) -> tuple[int, ...]:
+    """The objects of a map (``poses`` of the objects of ``shapes``, None for one the map leaves out) that hold
+    another object of the map up (module docstring), by index."""
+    boxes = {i: body_box(shape, pose) for i, (shape, pose) in enumerate(zip(shapes, poses, strict=True)) if pose}
+    return tuple(
+        i
+        for i, box in boxes.items()
+        if any(_holds_up(box, other, jitter_threshold) for j, other in boxes.items() if j != i)
+    )
+
+
+def leave_out_displaced(
+    code: Sequence[int],
+    hypotheses: Sequence[RankedHypotheses],
+    shapes: Sequence[ObjectShape],
+    start: Sequence[Pose],
+    settled: Sequence[Pose],
+    jitter_threshold: float,
+) -> tuple[int, ...]:
+    """``code`` (ranks, 1-based) of a refined map that took each object from ``start`` to ``settled``, with
+    the objects it moved farther than half their shape's largest extent set to *absent*, where they may be
+    absent and no object of the map rests on them (module docstring); repeated until none is."""
+    ranks = list(code)
+    absent = {i: rank for i, ranked in enumerate(hypotheses) if (rank := ranked.absent_rank()) is not None}
+    displaced = {
+        i
+        for i in absent
+        if np.linalg.norm(np.subtract(settled[i].position, start[i].position)) > 0.5 * np.max(shape_extents(shapes[i]))
+    }
+    while True:
+        in_map = [None if h.is_absent(r) else pose for h, r, pose in zip(hypotheses, ranks, settled, strict=True)]
+        holding = set(holding_up(in_map, shapes, jitter_threshold))
+        leaving = [i for i in displaced if in_map[i] is not None and i not in holding]
+        if not leaving:
+            return tuple(ranks)
+        for i in leaving:
+            ranks[i] = absent[i]
 
 
 def _most_probable_poses(hypotheses: Sequence[RankedHypotheses], ranks: Sequence[int]) -> dict[int, int]:

@@ -58,7 +58,7 @@ from physics_mapper.physics.checker import PhysicsChecker
 from physics_mapper.physics.collision import Collision
 from physics_mapper.physics.refine import RefinedMap, Refinement, refinement_start
 from physics_mapper.physics.settling import PartialSettling, Settling, early_exit_rule
-from physics_mapper.physics.support import put_back_supports
+from physics_mapper.physics.support import leave_out_displaced, put_back_supports
 from physics_mapper.physics.world import TIME_STEP
 from physics_mapper.search.results import (
     Candidate,
@@ -297,7 +297,8 @@ class BestFirst(Generic[G, R]):
         self._refinement: Refinement | None = None
         self._refined: RefinedMap | None = None
         self._root: Code = tuple(1 for _ in self.hypotheses)
-        self._refined_root: Code = self._root  # the code the refined map is of
+        self._refined_root: Code = self._root  # the code the refined map starts from
+        self._refined_candidate: Candidate | None = None  # the map it makes, displaced objects left out
         self._absent_weights = tuple(ranked.absent_weight() for ranked in self.hypotheses)
 
     def probability(self, code: Code) -> float:
@@ -412,12 +413,13 @@ class BestFirst(Generic[G, R]):
         """Make (or go on making) the refined map of the live root (the generator's
         :attr:`~CandidateGenerator.live_root`: each object at its most probable rank nothing ruled out
         alone, so a detection inside a wall or in free fall is left out where it may be absent), with the
-        objects it leaves out put back where another rests on them (:func:`put_back_supports`); False if
-        ``stop_at`` came first."""
+        objects it leaves out put back where another rests on them (:func:`put_back_supports`), and those it
+        then moves farther than half their size left out where they may be absent and hold nothing up
+        (:func:`leave_out_displaced`); False if ``stop_at`` came first."""
+        params = self.params
+        scene = self.checker.scene
+        shapes = [scene.objects[i].shape for i in self.objects]
         if self._refinement is None:
-            params = self.params
-            scene = self.checker.scene
-            shapes = [scene.objects[i].shape for i in self.objects]
             root = put_back_supports(
                 self.candidates.live_root, self.hypotheses, shapes, scene.static, params.jitter_threshold
             )
@@ -427,11 +429,25 @@ class BestFirst(Generic[G, R]):
                 for h, rank in zip(self.hypotheses, root, strict=True)
             ]
             self._refinement = Refinement(self.checker, self.objects, start, self.poses(root), params)
-        self._refined = self._refinement.run(stop_at)
-        if self._refined is None:
+        refined = self._refined = self._refinement.run(stop_at)
+        if refined is None:
             return False
         for observe in self._on_refined:
-            observe(self._refined)
+            observe(refined)
+        code = leave_out_displaced(
+            self._refined_root,
+            self.hypotheses,
+            shapes,
+            refined.start_poses,
+            refined.settled_poses,
+            params.jitter_threshold,
+        )
+        left_out = {i for i, (before, now) in enumerate(zip(self._refined_root, code, strict=True)) if before != now}
+        settled = tuple(
+            self.hypotheses[i].pose(code[i]) if i in left_out else pose for i, pose in enumerate(refined.settled_poses)
+        )
+        jitters = tuple(0.0 if i in left_out else jitter for i, jitter in enumerate(refined.jitters))
+        self._refined_candidate = Candidate(code, self.probability(code), Settling(settled, jitters))
         return True
 
     def visit(self, item: QueueItem, stop_at: float | None) -> TraceEntry | None:
@@ -525,12 +541,7 @@ class BestFirst(Generic[G, R]):
         if self._best is not None:
             return self._best, True
         if self.params.fallback == "refine":
-            refined = self._refined
-            if refined is None:
-                return None, False
-            settling = Settling(refined.settled_poses, refined.jitters)
-            root = self._refined_root
-            return Candidate(root, self.probability(root), settling), False
+            return self._refined_candidate, False
         candidate = self._first_collision_free
         if candidate is None or self.params.fallback != "settled":
             return None, False

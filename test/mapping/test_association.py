@@ -205,6 +205,25 @@ def test_with_no_instance_free_a_new_detection_takes_that_of_a_tentative_track_e
     assert second.outside == {} and tracks.tracks["box_2"].position.tolist() == list(b)
 
 
+def test_a_track_on_which_the_map_holds_another_up_is_not_ended_by_misses_nor_gives_its_instance_away() -> None:
+    """A bottom box seen once, then missed while the top box on it is seen: the map holds the top box up
+    on it, so neither two misses end its track nor a new detection (no instance free) takes its instance;
+    once the map no longer does, its next miss ends it."""
+    scene = bin_scene(2)
+    tracks = InstanceTracks(scene)
+    bottom, top, floating = (0.0, 0.0, 0.05), (0.0, 0.0, 0.15), (0.3, 0.0, 0.4)
+    detection_inputs(array([detection(result(top)), detection(result(bottom))]), scene, received=0.0, tracks=tracks)
+    assert tracks.tracks["box_1"].position.tolist() == list(bottom)  # born from the lowest up
+    tracks.hold_up(["box_1"])
+    for time, seen in ((0.5, [top]), (1.0, [top, floating])):
+        association = detection_inputs(array([detection(result(p)) for p in seen]), scene, received=time, tracks=tracks)
+        assert association.association is not None and association.association.ended == ()
+    assert association.association.outside == {"box": 1} and tracks.tracks["box_1"].misses == 2
+    tracks.hold_up([])
+    later = detection_inputs(array([detection(result(top))]), scene, received=1.5, tracks=tracks).association
+    assert later is not None and later.ended == ("box_1",)
+
+
 def test_the_gate_is_to_the_nearest_result_not_to_the_results_spread() -> None:
     """Results on both sides of an instance, none within its gate (5 cm), do not match it; one near result
     among far ones does, and it is the one the instance's filter takes."""

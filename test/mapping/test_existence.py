@@ -274,3 +274,22 @@ def test_an_instance_the_refined_map_keeps_under_another_is_not_placeless() -> N
     assert [(r.object, r.rank) for r in result.ruled_out] == [("bottom", 1)]
     assert left_out_by_physics(("bottom", "top"), hypotheses, result) == ((), ())
     assert left_out_by_physics(("bottom", "top"), hypotheses, replace(result, code=(2, 1))) == (("bottom",), ())
+
+
+def test_misses_do_not_end_a_track_seen_once_on_which_the_map_holds_another_up() -> None:
+    """Three boxes seen once, two stacked and one beside them; then only the top box, twice: the box
+    beside them, missed twice, ends (a false detection seldom comes back), the bottom box, as often missed
+    (the camera sees the top of a stack), keeps its track and its place under the top one."""
+    mapper = Mapper(make_scene({"name": "box", "count": 3, **BOX}))
+    bottom, top, beside = (0.0, 0.0, 0.05), (0.0, 0.0, 0.15), (0.3, 0.0, 0.05)
+    mapper.add_detections(array([detection(result(p, 0.9)) for p in (bottom, top, beside)]), received=0.0)
+    first = mapper.tick(0.1, SETTINGS)
+    assert first.result is not None and first.result.valid and first.absent == ()
+    names = {position: name for name, position in present(first).items()}
+    for time in (0.4, 0.8):  # within SETTINGS' max_age of the first array
+        mapper.add_detections(array([detection(result(top, 0.9))]), received=time)
+        report = mapper.tick(time + 0.1, SETTINGS)
+    assert names[beside] not in mapper.tracks.tracks
+    assert names[bottom] in mapper.tracks.tracks and mapper.tracks.tentative(names[bottom])
+    assert report.result is not None and report.result.valid
+    assert present(report) == {names[bottom]: bottom, names[top]: top}

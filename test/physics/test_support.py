@@ -6,7 +6,7 @@ from core_builders import CUBE_SIZE, ON_FLOOR, cube, floor_scene, ranked, unrota
 
 from physics_mapper.model.geometry import Pose
 from physics_mapper.model.hypotheses import Hypothesis, RankedHypotheses, absent_hypothesis
-from physics_mapper.physics.support import put_back_supports
+from physics_mapper.physics.support import holding_up, leave_out_displaced, put_back_supports
 
 #: The jitter threshold of the tests, metres.
 TAU = 0.02
@@ -78,3 +78,48 @@ def test_the_most_probable_of_two_candidates_is_put_back_and_the_other_stays_out
     assert hypotheses[0].is_absent(1) and hypotheses[1].is_absent(2)
     assert put_back(hypotheses, (1, 2, 1)) == (1, 1, 1)  # both left out: the likelier one is put back, alone
     assert put_back(hypotheses, (1, 1, 1)) == (1, 1, 1)  # the likelier one in: the other stays out
+
+
+def test_the_objects_holding_others_up_are_those_under_another_within_the_jitter_threshold() -> None:
+    """A stack of two, a cube beside it, a cube left out of the map under the one beside, and a cube in the
+    air over the stack, 3 cm over the top cube (more than tau): only the bottom cube of the stack holds one up."""
+    poses = [
+        unrotated(0.0, 0.0, ON_FLOOR),
+        unrotated(0.0, 0.0, ON_CUBE),
+        unrotated(0.3, 0.0, ON_CUBE),
+        None,
+        unrotated(0.0, 0.0, ON_CUBE + CUBE_SIZE + 0.03),
+    ]
+    scene = floor_scene(*(cube(f"c{i}") for i in range(len(poses))))
+    assert holding_up(poses, [o.shape for o in scene.objects], TAU) == (0,)
+    poses[3] = unrotated(0.3, 0.0, ON_FLOOR)
+    assert holding_up(poses, [o.shape for o in scene.objects], TAU) == (0, 3)
+
+
+def test_what_the_refinement_moved_away_from_where_it_was_seen_is_left_out_if_it_may_be_absent() -> None:
+    """Refined from ``start`` to ``settled``: a cube that fell a layer (10 cm) and may be absent is left out;
+    one as far moved that may not be absent stays, as do one moved 3 cm (less than half its 10 cm) and one
+    that fell a layer but on which another cube rests."""
+    start = [
+        unrotated(0.0, 0.0, ON_CUBE),  # fell into a hole, may be absent
+        unrotated(0.3, 0.0, ON_CUBE),  # fell into a hole, named
+        unrotated(0.6, 0.0, ON_FLOOR + 0.03),  # estimated 3 cm high
+        unrotated(0.9, 0.0, ON_CUBE),  # fell, and another cube rests on it
+        unrotated(0.9, 0.0, ON_CUBE + CUBE_SIZE),
+    ]
+    settled = [
+        unrotated(0.0, 0.0, ON_FLOOR),
+        unrotated(0.3, 0.0, ON_FLOOR),
+        unrotated(0.6, 0.0, ON_FLOOR),
+        unrotated(0.9, 0.0, ON_FLOOR),
+        unrotated(0.9, 0.0, ON_CUBE),
+    ]
+    hypotheses = [
+        may_be_absent(0, start[0]),
+        ranked([start[1]], [1]),
+        may_be_absent(2, start[2]),
+        may_be_absent(3, start[3]),
+        ranked([start[4]], [1]),
+    ]
+    shapes = [o.shape for o in floor_scene(*(cube(f"c{i}") for i in range(len(start)))).objects]
+    assert leave_out_displaced((1, 1, 1, 1, 1), hypotheses, shapes, start, settled, TAU) == (2, 1, 1, 1, 1)

@@ -158,7 +158,8 @@ def test_the_refined_map_leaves_out_a_detection_in_free_fall_that_may_be_absent(
     """Two cubes estimated 4 cm into each other (no valid configuration: the ``refine`` fallback's map),
     and a third that may be absent, seen 30 cm up only: its air ranks are ruled out, so the refined map
     starts from its *absent* rank (the live root) and leaves it out instead of dropping it onto the others;
-    the paper's search, which rules nothing out, refines it in (C11..1)."""
+    the paper's search, which rules nothing out, refines it in (C11..1), drops it 25 cm, farther than half
+    its size from where it was seen, and so leaves it out of the map too."""
     scene = floor_scene(cube("a"), cube("b"), cube("c"))
     hypotheses = [
         ranked([unrotated(0.0, 0.0, ON_FLOOR)], [1]),
@@ -177,8 +178,8 @@ def test_the_refined_map_leaves_out_a_detection_in_free_fall_that_may_be_absent(
     assert {(r.object, r.rank, r.reason) for r in default.ruled_out} == {("c", 1, "floating"), ("c", 2, "floating")}
     assert not default.valid and default.fallback == "refine" and default.code == (1, 1, 3)
     assert hypotheses[2].is_absent(3)
-    assert not joint.valid and joint.fallback == "refine" and joint.code == (1, 1, 1)
-    assert joint.settled_poses is not None and joint.settled_poses[2].position[2] < 0.3  # refined in, fallen
+    assert not joint.valid and joint.fallback == "refine" and joint.code == (1, 1, 3) and joint.ruled_out == ()
+    assert joint.refinement is not None and joint.refinement.settled_poses[2].position[2] < 0.2  # onto the others
 
 
 def test_the_refined_map_keeps_a_sunk_detection_that_may_be_absent_where_another_rests_on_it() -> None:
@@ -200,3 +201,28 @@ def test_the_refined_map_keeps_a_sunk_detection_that_may_be_absent_where_another
     assert [pose.position[2] for pose in result.settled_poses] == pytest.approx(
         [ON_FLOOR, ON_FLOOR + CUBE_SIZE], abs=0.003
     )
+
+
+@pytest.mark.parametrize("may_be_absent", [True, False])
+def test_the_refined_map_leaves_out_what_it_moved_away_from_where_it_was_seen_if_it_may_be_absent(
+    may_be_absent: bool,
+) -> None:
+    """A cube seen 2 cm into the floor (every rank ruled out) and a top cube on its edge, its centre 6 cm
+    aside: lifted out of the floor, the bottom cube tips the top one off onto the floor, 10 cm from where it
+    was seen. The map leaves it out where it may be absent (nothing rests on it) and holds it on the floor
+    where it may not."""
+    seen = unrotated(0.0, 0.0, ON_FLOOR + CUBE_SIZE - 0.02)
+    top = (
+        RankedHypotheses.from_weighted([Hypothesis(seen, 0.9), absent_hypothesis(1, 0.1)])
+        if may_be_absent
+        else ranked([seen], [1])
+    )
+    hypotheses = [ranked([unrotated(0.06, 0.0, ON_FLOOR - 0.02)], [1]), top]
+    with PhysicsChecker(floor_scene(cube("sunk"), cube("top"))) as checker:
+        result = make_search(checker, hypotheses, SearchParams(fallback="refine")).run(None)
+    assert [(r.object, r.rank) for r in result.ruled_out] == [("sunk", 1)]  # the top cube is not in free fall
+    assert not result.valid and result.fallback == "refine" and result.settled_poses is not None
+    assert result.settled_poses[0].position[2] == pytest.approx(ON_FLOOR, abs=0.003)
+    assert result.code == ((1, 2) if may_be_absent else (1, 1))
+    if not may_be_absent:
+        assert result.settled_poses[1].position[2] == pytest.approx(ON_FLOOR, abs=0.003)
