@@ -216,9 +216,10 @@ def test_a_track_on_which_the_map_holds_another_up_is_not_ended_by_misses_nor_gi
     assert tracks.tracks["box_1"].position.tolist() == list(bottom)  # born from the lowest up
     tracks.hold_up(["box_1"])
     for time, seen in ((0.5, [top]), (1.0, [top, floating])):
-        association = detection_inputs(array([detection(result(p)) for p in seen]), scene, received=time, tracks=tracks)
-        assert association.association is not None and association.association.ended == ()
-    assert association.association.outside == {"box": 1} and tracks.tracks["box_1"].misses == 2
+        inputs = detection_inputs(array([detection(result(p)) for p in seen]), scene, received=time, tracks=tracks)
+        association = inputs.association
+        assert association is not None and association.ended == ()
+    assert association is not None and association.outside == {"box": 1} and tracks.tracks["box_1"].misses == 2
     tracks.hold_up([])
     later = detection_inputs(array([detection(result(top))]), scene, received=1.5, tracks=tracks).association
     assert later is not None and later.ended == ("box_1",)
