@@ -95,7 +95,9 @@ def put_back_supports(
 def holding_up(poses: Sequence[Pose | None], shapes: Sequence[ObjectShape], jitter_threshold: float) -> tuple[int, ...]:
     """The objects of a map (``poses`` of the objects of ``shapes``, None for one the map leaves out) that hold
     another object of the map up (module docstring), by index."""
-    boxes = {i: body_box(shape, pose) for i, (shape, pose) in enumerate(zip(shapes, poses, strict=True)) if pose}
+    boxes = {
+        i: body_box(shape, pose) for i, (shape, pose) in enumerate(zip(shapes, poses, strict=True)) if pose is not None
+    }
     return tuple(
         i
         for i, box in boxes.items()

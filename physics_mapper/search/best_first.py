@@ -53,7 +53,7 @@ from typing import Generic, NamedTuple, Protocol, TypeVar
 
 from physics_mapper.model.geometry import Pose
 from physics_mapper.model.hypotheses import RankedHypotheses
-from physics_mapper.model.scene import SearchParams
+from physics_mapper.model.scene import ObjectShape, SearchParams
 from physics_mapper.physics.checker import PhysicsChecker
 from physics_mapper.physics.collision import Collision
 from physics_mapper.physics.refine import RefinedMap, Refinement, refinement_start
@@ -434,21 +434,22 @@ class BestFirst(Generic[G, R]):
             return False
         for observe in self._on_refined:
             observe(refined)
+        self._refined_candidate = self._map_of(refined, shapes)
+        return True
+
+    def _map_of(self, refined: RefinedMap, shapes: Sequence[ObjectShape]) -> Candidate:
+        """The map ``refined`` makes: its settled poses, with the objects it moved away from where they were
+        seen left out (:func:`leave_out_displaced`) at their *absent* hypothesis, J_i 0."""
+        start = self._refined_root
         code = leave_out_displaced(
-            self._refined_root,
-            self.hypotheses,
-            shapes,
-            refined.start_poses,
-            refined.settled_poses,
-            params.jitter_threshold,
+            start, self.hypotheses, shapes, refined.start_poses, refined.settled_poses, self.params.jitter_threshold
         )
-        left_out = {i for i, (before, now) in enumerate(zip(self._refined_root, code, strict=True)) if before != now}
+        left_out = {i for i, (before, now) in enumerate(zip(start, code, strict=True)) if before != now}
         settled = tuple(
             self.hypotheses[i].pose(code[i]) if i in left_out else pose for i, pose in enumerate(refined.settled_poses)
         )
         jitters = tuple(0.0 if i in left_out else jitter for i, jitter in enumerate(refined.jitters))
-        self._refined_candidate = Candidate(code, self.probability(code), Settling(settled, jitters))
-        return True
+        return Candidate(code, self.probability(code), Settling(settled, jitters))
 
     def visit(self, item: QueueItem, stop_at: float | None) -> TraceEntry | None:
         """Check one candidate and let the generator learn from it; None if the deadline interrupted its settling."""
