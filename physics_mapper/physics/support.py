@@ -31,8 +31,11 @@ largest extent from its start (the association's default gate: it is no longer w
 which no object of the map rests, is left out (:func:`leave_out_displaced`), repeated until none is. A box
 seen on top of one the estimator missed falls a whole layer into its place, and the map would name it where
 the other box stands; a detection in the air the free-fall rule could not rule out falls onto the pile, and a
-second detection of a box is pushed out of it: the map holds each of them where nothing was seen. Objects
-that may not be absent (named ones, confirmed instances) stay where the refinement put them.
+second detection of a box is pushed out of it: the map holds each of them where nothing was seen. A
+confirmed instance moved as far (a lego part that slides off the studs it was seen on) stays where it was
+seen, at its depenetrated pose (overlapping nothing; :class:`~physics_mapper.search.best_first.BestFirst`):
+where it slid, the map would name it where a neighbour stands, or where nothing is. Named objects stay
+where the refinement put them.
 
 The objects of a map that hold another up (:func:`holding_up`) are also those whose tracks misses do not end
 (:mod:`~physics_mapper.mapping.association`): the box under a stacked one is often hidden from the camera.
@@ -40,7 +43,7 @@ The objects of a map that hold another up (:func:`holding_up`) are also those wh
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Collection, Sequence
 
 import numpy as np
 
@@ -105,28 +108,33 @@ def holding_up(poses: Sequence[Pose | None], shapes: Sequence[ObjectShape], jitt
     )
 
 
+def moved_away(shapes: Sequence[ObjectShape], start: Sequence[Pose], settled: Sequence[Pose]) -> frozenset[int]:
+    """The objects (indices) a refinement took from ``start`` to ``settled`` farther than half their shape's
+    largest extent: no longer where they were seen (module docstring)."""
+    return frozenset(
+        i
+        for i, shape in enumerate(shapes)
+        if np.linalg.norm(np.subtract(settled[i].position, start[i].position)) > 0.5 * np.max(shape_extents(shape))
+    )
+
+
 def leave_out_displaced(
     code: Sequence[int],
     hypotheses: Sequence[RankedHypotheses],
     shapes: Sequence[ObjectShape],
-    start: Sequence[Pose],
+    moved: Collection[int],
     settled: Sequence[Pose],
     jitter_threshold: float,
 ) -> tuple[int, ...]:
-    """``code`` (ranks, 1-based) of a refined map that took each object from ``start`` to ``settled``, with
-    the objects it moved farther than half their shape's largest extent set to *absent*, where they may be
-    absent and no object of the map rests on them (module docstring); repeated until none is."""
+    """``code`` (ranks, 1-based) of a refined map whose objects came to rest at ``settled``, with those of
+    ``moved`` (:func:`moved_away`) set to *absent* where they may be absent and no object of the map rests on
+    them (module docstring); repeated until none is."""
     ranks = list(code)
-    absent = {i: rank for i, ranked in enumerate(hypotheses) if (rank := ranked.absent_rank()) is not None}
-    displaced = {
-        i
-        for i in absent
-        if np.linalg.norm(np.subtract(settled[i].position, start[i].position)) > 0.5 * np.max(shape_extents(shapes[i]))
-    }
+    absent = {i: rank for i in moved if (rank := hypotheses[i].absent_rank()) is not None}
     while True:
         in_map = [None if h.is_absent(r) else pose for h, r, pose in zip(hypotheses, ranks, settled, strict=True)]
         holding = set(holding_up(in_map, shapes, jitter_threshold))
-        leaving = [i for i in displaced if in_map[i] is not None and i not in holding]
+        leaving = [i for i in absent if in_map[i] is not None and i not in holding]
         if not leaving:
             return tuple(ranks)
         for i in leaving:

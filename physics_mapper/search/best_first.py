@@ -51,14 +51,14 @@ from dataclasses import replace
 from operator import getitem
 from typing import Generic, NamedTuple, Protocol, TypeVar
 
-from physics_mapper.model.geometry import Pose
+from physics_mapper.model.geometry import Pose, pose_displacement
 from physics_mapper.model.hypotheses import RankedHypotheses
 from physics_mapper.model.scene import ObjectShape, SearchParams
 from physics_mapper.physics.checker import PhysicsChecker
 from physics_mapper.physics.collision import Collision
 from physics_mapper.physics.refine import RefinedMap, Refinement, refinement_start
 from physics_mapper.physics.settling import PartialSettling, Settling, early_exit_rule
-from physics_mapper.physics.support import leave_out_displaced, put_back_supports
+from physics_mapper.physics.support import leave_out_displaced, moved_away, put_back_supports
 from physics_mapper.physics.world import TIME_STEP
 from physics_mapper.search.results import (
     Candidate,
@@ -300,6 +300,8 @@ class BestFirst(Generic[G, R]):
         self._refined_root: Code = self._root  # the code the refined map starts from
         self._refined_candidate: Candidate | None = None  # the map it makes, displaced objects left out
         self._absent_weights = tuple(ranked.absent_weight() for ranked in self.hypotheses)
+        scene = checker.scene
+        self._tracked = tuple(scene.is_tracked(scene.class_of(scene.objects[i].name)) for i in self.objects)
 
     def probability(self, code: Code) -> float:
         """p(C): product of the chosen hypotheses' normalised weights."""
@@ -438,18 +440,24 @@ class BestFirst(Generic[G, R]):
         return True
 
     def _map_of(self, refined: RefinedMap, shapes: Sequence[ObjectShape]) -> Candidate:
-        """The map ``refined`` makes: its settled poses, with the objects it moved away from where they were
-        seen left out (:func:`leave_out_displaced`) at their *absent* hypothesis, J_i 0."""
-        start = self._refined_root
+        """The map ``refined`` makes: its settled poses, but of the objects it moved away from where they were
+        seen (:func:`moved_away`), those that may be absent left out (:func:`leave_out_displaced`: their
+        *absent* hypothesis, J_i 0), and the instances of tracked classes that may not, at their depenetrated
+        pose, where they were seen (J_i from their hypothesis)."""
+        params = self.params
+        moved = moved_away(shapes, refined.start_poses, refined.settled_poses)
         code = leave_out_displaced(
-            start, self.hypotheses, shapes, refined.start_poses, refined.settled_poses, self.params.jitter_threshold
+            self._refined_root, self.hypotheses, shapes, moved, refined.settled_poses, params.jitter_threshold
         )
-        left_out = {i for i, (before, now) in enumerate(zip(start, code, strict=True)) if before != now}
-        settled = tuple(
-            self.hypotheses[i].pose(code[i]) if i in left_out else pose for i, pose in enumerate(refined.settled_poses)
-        )
-        jitters = tuple(0.0 if i in left_out else jitter for i, jitter in enumerate(refined.jitters))
-        return Candidate(code, self.probability(code), Settling(settled, jitters))
+        poses, jitters = list(refined.settled_poses), list(refined.jitters)
+        for i in moved:
+            ranked = self.hypotheses[i]
+            if ranked.is_absent(code[i]):
+                poses[i], jitters[i] = ranked.pose(code[i]), 0.0
+            elif ranked.absent_rank() is None and self._tracked[i]:
+                poses[i] = refined.depenetrated_poses[i]
+                jitters[i] = pose_displacement(ranked.pose(code[i]), poses[i], params.angular_weight)
+        return Candidate(code, self.probability(code), Settling(tuple(poses), tuple(jitters)))
 
     def visit(self, item: QueueItem, stop_at: float | None) -> TraceEntry | None:
         """Check one candidate and let the generator learn from it; None if the deadline interrupted its settling."""

@@ -6,7 +6,7 @@ from core_builders import CUBE_SIZE, ON_FLOOR, cube, floor_scene, ranked, unrota
 
 from physics_mapper.model.geometry import Pose
 from physics_mapper.model.hypotheses import Hypothesis, RankedHypotheses, absent_hypothesis
-from physics_mapper.physics.support import holding_up, leave_out_displaced, put_back_supports
+from physics_mapper.physics.support import holding_up, leave_out_displaced, moved_away, put_back_supports
 
 #: The jitter threshold of the tests, metres.
 TAU = 0.02
@@ -122,4 +122,6 @@ def test_what_the_refinement_moved_away_from_where_it_was_seen_is_left_out_if_it
         ranked([start[4]], [1]),
     ]
     shapes = [o.shape for o in floor_scene(*(cube(f"c{i}") for i in range(len(start)))).objects]
-    assert leave_out_displaced((1, 1, 1, 1, 1), hypotheses, shapes, start, settled, TAU) == (2, 1, 1, 1, 1)
+    moved = moved_away(shapes, start, settled)
+    assert moved == {0, 1, 3, 4}  # all but the one estimated 3 cm high
+    assert leave_out_displaced((1, 1, 1, 1, 1), hypotheses, shapes, moved, settled, TAU) == (2, 1, 1, 1, 1)

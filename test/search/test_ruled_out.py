@@ -3,6 +3,7 @@ Rule 2's free fall."""
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import pytest
@@ -203,26 +204,33 @@ def test_the_refined_map_keeps_a_sunk_detection_that_may_be_absent_where_another
     )
 
 
-@pytest.mark.parametrize("may_be_absent", [True, False])
-def test_the_refined_map_leaves_out_what_it_moved_away_from_where_it_was_seen_if_it_may_be_absent(
-    may_be_absent: bool,
-) -> None:
+@pytest.mark.parametrize("top", ["may be absent", "named", "confirmed instance"])
+def test_the_refined_map_holds_nothing_where_it_moved_away_from_where_it_was_seen(top: str) -> None:
     """A cube seen 2 cm into the floor (every rank ruled out) and a top cube on its edge, its centre 6 cm
     aside: lifted out of the floor, the bottom cube tips the top one off onto the floor, 10 cm from where it
-    was seen. The map leaves it out where it may be absent (nothing rests on it) and holds it on the floor
-    where it may not."""
+    was seen. The map leaves it out where it may be absent (nothing rests on it), holds a confirmed instance
+    of a tracked class where it was seen (depenetrated, overlapping nothing), and a named cube where it fell."""
     seen = unrotated(0.0, 0.0, ON_FLOOR + CUBE_SIZE - 0.02)
-    top = (
+    hypotheses = [
+        ranked([unrotated(0.06, 0.0, ON_FLOOR - 0.02)], [1]),
         RankedHypotheses.from_weighted([Hypothesis(seen, 0.9), absent_hypothesis(1, 0.1)])
-        if may_be_absent
-        else ranked([seen], [1])
-    )
-    hypotheses = [ranked([unrotated(0.06, 0.0, ON_FLOOR - 0.02)], [1]), top]
-    with PhysicsChecker(floor_scene(cube("sunk"), cube("top"))) as checker:
+        if top == "may be absent"
+        else ranked([seen], [1]),
+    ]
+    scene = floor_scene(cube("sunk"), cube("top"))
+    if top == "confirmed instance":
+        scene = replace(scene, class_map=(("cube", ("sunk", "top")),))
+    with PhysicsChecker(scene) as checker:
         result = make_search(checker, hypotheses, SearchParams(fallback="refine")).run(None)
     assert [(r.object, r.rank) for r in result.ruled_out] == [("sunk", 1)]  # the top cube is not in free fall
     assert not result.valid and result.fallback == "refine" and result.settled_poses is not None
+    assert result.refinement is not None and result.refinement.settled_poses[1].position[2] == pytest.approx(
+        ON_FLOOR, abs=0.003
+    )  # the top cube fell
     assert result.settled_poses[0].position[2] == pytest.approx(ON_FLOOR, abs=0.003)
-    assert result.code == ((1, 2) if may_be_absent else (1, 1))
-    if not may_be_absent:
-        assert result.settled_poses[1].position[2] == pytest.approx(ON_FLOOR, abs=0.003)
+    assert result.code == ((1, 2) if top == "may be absent" else (1, 1))
+    if top == "named":
+        assert result.settled_poses[1] == result.refinement.settled_poses[1]
+    if top == "confirmed instance":
+        assert result.settled_poses[1] == result.refinement.depenetrated_poses[1]
+        assert result.settled_poses[1].position[2] > ON_FLOOR + CUBE_SIZE - 0.025
