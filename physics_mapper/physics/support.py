@@ -46,6 +46,7 @@ from __future__ import annotations
 from collections.abc import Collection, Sequence
 
 import numpy as np
+from numpy.typing import NDArray
 
 from physics_mapper.model.extents import FloatArray, body_box, may_overlap_static, shape_extents
 from physics_mapper.model.geometry import Pose
@@ -101,11 +102,14 @@ def holding_up(poses: Sequence[Pose | None], shapes: Sequence[ObjectShape], jitt
     boxes = {
         i: body_box(shape, pose) for i, (shape, pose) in enumerate(zip(shapes, poses, strict=True)) if pose is not None
     }
-    return tuple(
-        i
-        for i, box in boxes.items()
-        if any(_holds_up(box, other, jitter_threshold) for j, other in boxes.items() if j != i)
-    )
+    if not boxes:
+        return ()
+    lows, highs = np.array([low for low, _ in boxes.values()]), np.array([high for _, high in boxes.values()])
+    holds = _holds_up_pairs(lows, highs, lows, highs, jitter_threshold)
+    np.fill_diagonal(holds, False)
+    holding = np.flatnonzero(holds.any(axis=1))
+    indices = list(boxes)
+    return tuple(indices[k] for k in holding)
 
 
 def moved_away(shapes: Sequence[ObjectShape], start: Sequence[Pose], settled: Sequence[Pose]) -> frozenset[int]:
@@ -151,18 +155,46 @@ def _most_probable_poses(hypotheses: Sequence[RankedHypotheses], ranks: Sequence
     return found
 
 
+def _holds_up_pairs(
+    lows: FloatArray, highs: FloatArray, above_lows: FloatArray, above_highs: FloatArray, jitter_threshold: float
+) -> NDArray[np.bool_]:
+    """[i, j]: whether body i (box corners ``lows[i]``, ``highs[i]``: N x 3) holds body j (``above_lows[j]``,
+    ``above_highs[j]``: M x 3) up (module docstring): below it, its top within ``jitter_threshold`` of its
+    bottom. Pairwise at once: a map of 50 objects is 2,500 pairs."""
+    return _below_pairs(lows, highs, above_lows, above_highs) & (
+        highs[:, np.newaxis, 2] >= above_lows[np.newaxis, :, 2] - jitter_threshold
+    )
+
+
+def _below_pairs(
+    lows: FloatArray, highs: FloatArray, above_lows: FloatArray, above_highs: FloatArray
+) -> NDArray[np.bool_]:
+    """[i, j]: whether body i is below body j (module docstring): footprints overlapping, its box lower."""
+    low, high = lows[:, np.newaxis, :], highs[:, np.newaxis, :]
+    above_low, above_high = above_lows[np.newaxis, :, :], above_highs[np.newaxis, :, :]
+    overlap = np.minimum(high[..., :2], above_high[..., :2]) - np.maximum(low[..., :2], above_low[..., :2])
+    smaller = np.minimum(high[..., :2] - low[..., :2], above_high[..., :2] - above_low[..., :2])
+    below: NDArray[np.bool_] = (
+        np.all(overlap >= FOOTPRINT_SHARE * smaller, axis=-1)
+        & (low[..., 2] < above_low[..., 2])
+        & (high[..., 2] < above_high[..., 2])
+    )
+    return below
+
+
 def _below(body: _Box, above: _Box) -> bool:
-    """Whether ``body`` is below ``above`` (module docstring): footprints overlapping, its box lower."""
-    (low, high), (above_low, above_high) = body, above
-    overlap = np.minimum(high[:2], above_high[:2]) - np.maximum(low[:2], above_low[:2])
-    smaller = np.minimum(high[:2] - low[:2], above_high[:2] - above_low[:2])
-    return bool(np.all(overlap >= FOOTPRINT_SHARE * smaller) and low[2] < above_low[2] and high[2] < above_high[2])
+    """Whether ``body`` is below ``above`` (module docstring)."""
+    return bool(
+        _below_pairs(body[0][np.newaxis], body[1][np.newaxis], above[0][np.newaxis], above[1][np.newaxis])[0, 0]
+    )
 
 
 def _holds_up(body: _Box, above: _Box, jitter_threshold: float) -> bool:
-    """Whether ``body`` holds ``above`` up (module docstring): below it, its top within ``jitter_threshold``
-    of its bottom."""
-    return _below(body, above) and bool(body[1][2] >= above[0][2] - jitter_threshold)
+    """Whether ``body`` holds ``above`` up (module docstring)."""
+    pairs = _holds_up_pairs(
+        body[0][np.newaxis], body[1][np.newaxis], above[0][np.newaxis], above[1][np.newaxis], jitter_threshold
+    )
+    return bool(pairs[0, 0])
 
 
 def _stands(box: _Box, bodies: list[_Box], planes: list[StaticBody], jitter_threshold: float) -> bool:
