@@ -79,15 +79,15 @@ def put_back_supports(
     }
     left_out = _most_probable_poses(hypotheses, ranks)
     left_out_boxes = {i: body_box(shapes[i], hypotheses[i].pose(rank)) for i, rank in left_out.items()}
-    supports = [body_box(body.shape, body.pose) for body in static if not isinstance(body.shape, Plane)]
+    supports = _corners([body_box(body.shape, body.pose) for body in static if not isinstance(body.shape, Plane)])
     planes = [body for body in static if isinstance(body.shape, Plane)]
     while left_out:
-        falling = [
-            box
-            for x, box in sorted(boxes.items())
-            if not _stands(box, [b for j, b in boxes.items() if j != x] + supports, planes, jitter_threshold)
-        ]
-        candidates = [i for i in left_out if any(_below(left_out_boxes[i], box) for box in falling)]
+        lows, highs = _corners(list(boxes.values()))
+        falling = _falling(lows, highs, supports, planes, jitter_threshold)
+        waiting = list(left_out)
+        left_lows, left_highs = _corners([left_out_boxes[i] for i in waiting])
+        under_falling = _below_pairs(left_lows, left_highs, lows[falling], highs[falling]).any(axis=1)
+        candidates = [waiting[k] for k in np.flatnonzero(under_falling)]
         if not candidates:
             break
         chosen = max(candidates, key=lambda i: (left_out_boxes[i][1][2], hypotheses[i].weight(left_out[i]), -i))
@@ -102,14 +102,11 @@ def holding_up(poses: Sequence[Pose | None], shapes: Sequence[ObjectShape], jitt
     boxes = {
         i: body_box(shape, pose) for i, (shape, pose) in enumerate(zip(shapes, poses, strict=True)) if pose is not None
     }
-    if not boxes:
-        return ()
-    lows, highs = np.array([low for low, _ in boxes.values()]), np.array([high for _, high in boxes.values()])
+    lows, highs = _corners(list(boxes.values()))
     holds = _holds_up_pairs(lows, highs, lows, highs, jitter_threshold)
     np.fill_diagonal(holds, False)
-    holding = np.flatnonzero(holds.any(axis=1))
     indices = list(boxes)
-    return tuple(indices[k] for k in holding)
+    return tuple(indices[k] for k in np.flatnonzero(holds.any(axis=1)))
 
 
 def moved_away(shapes: Sequence[ObjectShape], start: Sequence[Pose], settled: Sequence[Pose]) -> frozenset[int]:
@@ -182,31 +179,34 @@ def _below_pairs(
     return below
 
 
-def _below(body: _Box, above: _Box) -> bool:
-    """Whether ``body`` is below ``above`` (module docstring)."""
-    return bool(
-        _below_pairs(body[0][np.newaxis], body[1][np.newaxis], above[0][np.newaxis], above[1][np.newaxis])[0, 0]
-    )
+def _corners(boxes: Sequence[_Box]) -> tuple[FloatArray, FloatArray]:
+    """The boxes' low and high corners, each K x 3 (m)."""
+    lows = np.array([low for low, _ in boxes], dtype=float).reshape(-1, 3)
+    highs = np.array([high for _, high in boxes], dtype=float).reshape(-1, 3)
+    return lows, highs
 
 
-def _holds_up(body: _Box, above: _Box, jitter_threshold: float) -> bool:
-    """Whether ``body`` holds ``above`` up (module docstring)."""
-    pairs = _holds_up_pairs(
-        body[0][np.newaxis], body[1][np.newaxis], above[0][np.newaxis], above[1][np.newaxis], jitter_threshold
-    )
-    return bool(pairs[0, 0])
-
-
-def _stands(box: _Box, bodies: list[_Box], planes: list[StaticBody], jitter_threshold: float) -> bool:
-    """Whether an object of box ``box`` stands (module docstring) on a plane of ``planes`` or on ``bodies``."""
-    low, high = box
-    lowered = (np.array([[low[0], low[1], low[2] - jitter_threshold]]), high[np.newaxis, :])
-    if any(may_overlap_static(plane, *lowered, 0.0)[0] for plane in planes):
-        return True
-    under = [b for b in bodies if _holds_up(b, box, jitter_threshold)]
-    if not under:
-        return False
-    centre = (low[:2] + high[:2]) / 2.0
-    reach_low = np.min([b[0][:2] for b in under], axis=0)
-    reach_high = np.max([b[1][:2] for b in under], axis=0)
-    return bool(np.all(reach_low <= centre) and np.all(centre <= reach_high))
+def _falling(
+    lows: FloatArray,
+    highs: FloatArray,
+    supports: tuple[FloatArray, FloatArray],
+    planes: Sequence[StaticBody],
+    jitter_threshold: float,
+) -> NDArray[np.bool_]:
+    """Per object of the map (box ``lows[k]``, ``highs[k]``: K x 3), whether it does not stand (module
+    docstring) on a plane of ``planes``, on another of the map's objects or on ``supports`` (the other static
+    bodies' box corners)."""
+    lowered = lows - np.array([0.0, 0.0, jitter_threshold])
+    stands = np.zeros(len(lows), dtype=bool)
+    for plane in planes:
+        stands |= may_overlap_static(plane, lowered, highs, 0.0)
+    body_lows, body_highs = np.vstack([lows, supports[0]]), np.vstack([highs, supports[1]])
+    holds = _holds_up_pairs(body_lows, body_highs, lows, highs, jitter_threshold)  # [body, object]
+    holds[np.arange(len(lows)), np.arange(len(lows))] = False
+    centres = (lows[:, :2] + highs[:, :2]) / 2.0
+    for k in np.flatnonzero(~stands & holds.any(axis=0)):
+        under = holds[:, k]
+        reach_low, reach_high = body_lows[under, :2].min(axis=0), body_highs[under, :2].max(axis=0)
+        stands[k] = bool(np.all(reach_low <= centres[k]) and np.all(centres[k] <= reach_high))
+    falling: NDArray[np.bool_] = ~stands
+    return falling
