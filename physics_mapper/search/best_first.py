@@ -300,8 +300,6 @@ class BestFirst(Generic[G, R]):
         self._refined_root: Code = self._root  # the code the refined map starts from
         self._refined_candidate: Candidate | None = None  # the map it makes, displaced objects left out
         self._absent_weights = tuple(ranked.absent_weight() for ranked in self.hypotheses)
-        scene = checker.scene
-        self._tracked = tuple(scene.is_tracked(scene.class_of(scene.objects[i].name)) for i in self.objects)
 
     def probability(self, code: Code) -> float:
         """p(C): product of the chosen hypotheses' normalised weights."""
@@ -444,7 +442,7 @@ class BestFirst(Generic[G, R]):
         seen (:func:`moved_away`), those that may be absent left out (:func:`leave_out_displaced`: their
         *absent* hypothesis, J_i 0), and the instances of tracked classes that may not, at their depenetrated
         pose, where they were seen (J_i from their hypothesis)."""
-        params = self.params
+        params, scene = self.params, self.checker.scene
         moved = moved_away(shapes, refined.start_poses, refined.settled_poses)
         code = leave_out_displaced(
             self._refined_root, self.hypotheses, shapes, moved, refined.settled_poses, params.jitter_threshold
@@ -454,7 +452,7 @@ class BestFirst(Generic[G, R]):
             ranked = self.hypotheses[i]
             if ranked.is_absent(code[i]):
                 poses[i], jitters[i] = ranked.pose(code[i]), 0.0
-            elif ranked.absent_rank() is None and self._tracked[i]:
+            elif ranked.absent_rank() is None and scene.is_tracked(scene.class_of(scene.objects[self.objects[i]].name)):
                 poses[i] = refined.depenetrated_poses[i]
                 jitters[i] = pose_displacement(ranked.pose(code[i]), poses[i], params.angular_weight)
         return Candidate(code, self.probability(code), Settling(tuple(poses), tuple(jitters)))
