@@ -23,7 +23,7 @@ Last round's default. With ``--previous DIR`` (a copy of last round's ``physics_
 e.g. ``git archive d7d60c9 physics_mapper | tar -x -C DIR``), each problem is also searched by that
 code's default search, in a subprocess given the same problem (pickled), in the same run.
 
-Run: ``physics-mapper bench crowded [--seeds N] [--quick] [--previous DIR] [-o DIR]``. Prints the
+Run: ``physics-mapper bench crowded [--seeds N] [--quick | --layouts L ...] [--previous DIR] [-o DIR]``. Prints the
 table and the targets BENCHMARKS.md records ("Crowded scenes"), and the scale suite checked with the
 default search; with ``-o DIR`` it also writes ``crowded.png`` (time to the answer against N) and
 ``crowded_search.png`` (one search, candidate by candidate: ``crowded_picture.py``) into ``DIR``, and
@@ -210,6 +210,17 @@ def suite_cases(
     cases = [CrowdedCase(layout, n, m, 100 + seed) for seed, (layout, n, m) in enumerate(cells)]  # type: ignore[arg-type]
     uniform = [replace(case, weights="uniform") for case in cases if case.layout != "mesh_bin"]
     return [*cases, *uniform]
+
+
+def chosen_cases(seeds: int, quick: bool, layouts: Sequence[str] | None) -> list[CrowdedCase]:
+    """The suite's cases: ``seeds`` per (layout, N, M), or the small suite (``quick``), of ``layouts`` only
+    (None: all; ``mesh_bin`` for the bins of meshes)."""
+    if quick:
+        return suite_cases(sizes=(10, 20), hypotheses=(5,), seeds=1, mesh_sizes=(10,))
+    if layouts is None:
+        return suite_cases(seeds=seeds)
+    primitive = [layout for layout in CROWDED_LAYOUTS if layout in layouts]
+    return suite_cases(primitive, seeds=seeds, mesh_sizes=MESH_SIZES if "mesh_bin" in layouts else ())
 
 
 def run_suite(
@@ -433,6 +444,12 @@ def main(argv: Sequence[str] | None = None) -> None:
     parser = argparse.ArgumentParser(prog="physics-mapper bench crowded", description=__doc__)
     parser.add_argument("--seeds", type=int, default=3, help="problems per (layout, N, M) (default: 3)")
     parser.add_argument("--quick", action="store_true", help="a small suite (N 10, 20; M 5; 1 seed), to try it out")
+    parser.add_argument(
+        "--layouts",
+        nargs="+",
+        choices=[*CROWDED_LAYOUTS, "mesh_bin"],
+        help="only these layouts in the suite (default: all); the reduced and the scale suite run whole",
+    )
     parser.add_argument("--previous", type=Path, help="folder holding last round's physics_mapper package")
     parser.add_argument(
         "-o", "--output", type=Path, help="folder for crowded.png and crowded_search.png (default: none)"
@@ -444,11 +461,7 @@ def main(argv: Sequence[str] | None = None) -> None:
         raise InputError(f"--previous {args.previous}: no physics_mapper package there")
     reference = reference_settling()
     deadline = scaled_deadline(reference)
-    cases = (
-        suite_cases(sizes=(10, 20), hypotheses=(5,), seeds=1, mesh_sizes=(10,))
-        if args.quick
-        else suite_cases(seeds=args.seeds)
-    )
+    cases = chosen_cases(args.seeds, args.quick, args.layouts)
     started = time.monotonic()
 
     def progress(done: int, total: int, run: ProblemRun) -> None:

@@ -37,7 +37,7 @@ import numpy as np
 
 from physics_mapper.model.geometry import Pose, quaternion_about_axis, quaternion_multiply
 from physics_mapper.model.hypotheses import Hypothesis, RankedHypotheses
-from physics_mapper.model.meshes import MeshRequest, load_mesh_geometry
+from physics_mapper.model.meshes import MeshError, MeshRequest, load_mesh_geometry
 from physics_mapper.model.resources import resolve_package_url
 from physics_mapper.model.scene import (
     Box,
@@ -133,10 +133,16 @@ def _shelf(objects: int, rng: np.random.Generator) -> _Layout:
 
 
 def _random_mesh(index: int, rng: np.random.Generator) -> ObjectModel:
-    """One of pybullet_data's random objects, collided as its convex hull, scaled to :data:`MESH_EXTENT`."""
-    number = int(rng.integers(0, RANDOM_MESHES))
-    path = resolve_package_url(f"package://pybullet_data/random_urdfs/{number:03d}/{number:03d}.obj")
-    unit = load_mesh_geometry(MeshRequest(path), lambda _: None)
+    """One of pybullet_data's random objects, collided as its convex hull, scaled to :data:`MESH_EXTENT`; one
+    that does not load (``random_urdfs/168``'s vertices are NaN) is drawn again."""
+    while True:
+        number = int(rng.integers(0, RANDOM_MESHES))
+        path = resolve_package_url(f"package://pybullet_data/random_urdfs/{number:03d}/{number:03d}.obj")
+        try:
+            unit = load_mesh_geometry(MeshRequest(path), lambda _: None)
+        except MeshError:
+            continue
+        break
     extent = float(np.max(np.subtract(unit.bounds[1], unit.bounds[0])))
     scale = float(rng.uniform(*MESH_EXTENT)) / extent
     request = MeshRequest(path, (scale, scale, scale))

@@ -13,6 +13,7 @@ from core_builders import PHYSICS_MAPPER, cli
 from physics_mapper.model.scene_files import load_problem
 
 sys.path.insert(0, str(REPO / "benchmarks"))  # the benchmarks import each other by name, as scripts do
+from crowded import chosen_cases, suite_cases
 from physics_costs import measure
 
 #: What a benchmark run may change in the checkout: nothing but caches and build folders.
@@ -64,6 +65,18 @@ def test_bench_refuses_bad_repeats_missing_files_and_unknown_benchmarks() -> Non
     completed = cli("bench", "scale", "--no-such-option")
     assert completed.returncode == 2
     assert "unrecognized arguments: --no-such-option" in completed.stderr
+
+
+def test_bench_crowded_searches_only_the_layouts_asked_for() -> None:
+    meshes = chosen_cases(2, False, ["mesh_bin"])
+    assert [(case.layout, case.objects) for case in meshes] == [("mesh_bin", n) for n in (10, 10, 20, 20, 30, 30)]
+    rows = chosen_cases(1, False, ["row", "mesh_bin"])
+    assert {case.layout for case in rows} == {"row", "mesh_bin"}
+    assert {case.weights for case in rows if case.layout == "row"} == {"drawn", "uniform"}
+    assert chosen_cases(1, False, None) == suite_cases(seeds=1)
+    completed = cli("bench", "crowded", "--layouts", "pile")
+    assert completed.returncode == 2
+    assert "--layouts: invalid choice: 'pile'" in completed.stderr
 
 
 def checkout_files() -> dict[Path, float]:
