@@ -297,7 +297,6 @@ class ConflictFreeCandidates:
             held = but[j] & inside
             if not held:
                 continue
-            forced.add(j)
             live = self._live[j]
             resolved = self._resolved[j]
             for rank in live:
@@ -305,8 +304,12 @@ class ConflictFreeCandidates:
                     break
             else:
                 return None
-            if rank != live[0] and best > 0.0:  # the first live rank's weight is in the suffix product
-                best *= self._w[j][rank - 1] / self._first[j]
+            # At its first live rank j pays nothing here (that weight is in the suffix product), so a conflict
+            # it must resolve may still price it; only a j moved off that rank is priced once, here.
+            if rank != live[0]:
+                forced.add(j)
+                if best > 0.0:
+                    best *= self._w[j][rank - 1] / self._first[j]
         return self._resolving(k, inside, forced, best)
 
     def _resolving(self, k: int, inside: int, forced: set[int], best: float) -> float | None:

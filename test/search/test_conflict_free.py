@@ -7,7 +7,7 @@ import itertools
 import math
 from collections.abc import Callable
 
-from hypothesis import given
+from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from physics_mapper.search.best_first import tie_key
@@ -59,6 +59,9 @@ def generated(
     return found
 
 
+# A thousand groups: a bound that prices one object twice (forward checking and a conflict it must
+# resolve) puts candidates out of order in a few of them only.
+@settings(max_examples=1_000)
 @given(groups())
 def test_the_generator_yields_exactly_the_conflict_free_configurations_in_the_papers_order(
     group: tuple[list[list[float]], list[Conflict]],
