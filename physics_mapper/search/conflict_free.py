@@ -235,6 +235,8 @@ class ConflictFreeCandidates:
             variables = sorted(self._variable[p] for p in conflict.positions)
             for k in range(variables[-1], len(self._within)):
                 self._within[k] |= flag
+            if len(variables) == 1:
+                continue  # ruled out alone: no live rank holds it, so forward checking has nothing to do
             for j in variables:
                 before = max((v for v in variables if v != j), default=-1)
                 for k in range(before + 1, j + 1):
