@@ -1,16 +1,16 @@
 """What generating candidates costs: the conflict-free generator's work for the same candidates, this code's
 and last round's side by side.
 
-The conflict-free generator (``physics_mapper/search/conflict_free.py``) makes the default search's
-candidates in the paper's order; a cheaper one makes the same candidates with fewer prefixes checked and less
-time. For each problem (the crowded suite's layouts, N = 20, 30 and 50, M = 5 and 10, both weightings, seed
-``--seed``), the default search runs from scratch until it has visited ``--visits`` candidates or ended, in
-this process and, with last round's package (``--previous DIR``, e.g. ``git archive main physics_mapper | tar
--x -C DIR``), in a subprocess given the same problem (pickled). Counted in each: the prefixes the generator
-checked (calls of its ``_checked``: a prefix taken off its queue and bounded, whatever the version), and the
-CPU seconds spent finding candidates (``ConflictDirectedCandidates.ready``); both searches visit the same
-candidates of each group, in the same order (checked and printed), so the figures compare the same work.
-Prefixes are a count: they do not depend on the machine. Between groups the interleaving may differ (the
+The conflict-free generator (``physics_mapper/search/conflict_free.py``) makes the default search's candidates in
+the paper's order; a cheaper one makes the same candidates with fewer prefixes checked and less time. For each
+problem (the crowded suite's layouts, N = 20, 30 and 50, M = 5 and 10, both weightings, and its bins of meshes,
+N = 20 and 30, M = 5; seed ``--seed``), the default search runs from scratch until it has visited ``--visits``
+candidates or ended, in this process and, with last round's package (``--previous DIR``, e.g. ``git archive main
+physics_mapper | tar -x -C DIR``), in a subprocess given the same problem (pickled). Counted in each: the
+prefixes the generator checked (calls of its ``_checked``: a prefix taken off its queue and bounded, whatever the
+version), and the CPU seconds spent finding candidates (``ConflictDirectedCandidates.ready``); both searches
+visit the same candidates of each group, in the same order (checked and printed), so the figures compare the same
+work. Prefixes are a count: they do not depend on the machine. Between groups the interleaving may differ (the
 grouped search steps the group whose next candidate's bound is highest, and bounds are a generator's own), so
 agreement is judged per group, over the shorter trace.
 
@@ -34,6 +34,9 @@ from physics_mapper.scenarios.crowded_suite import CROWDED_LAYOUTS, CrowdedCase,
 
 SIZES = (20, 30, 50)
 HYPOTHESES = (5, 10)
+#: The bins of meshes: N and M (the crowded suite's largest).
+MESH_SIZES = (20, 30)
+MESH_HYPOTHESES = 5
 #: (group, code, outcome) of every trace entry, in order.
 Visits = list[tuple[int | None, tuple[int, ...], str]]
 
@@ -117,6 +120,7 @@ def main(argv: Sequence[str] | None = None) -> None:
         for objects in SIZES
         for count in HYPOTHESES
     ]
+    cases += [CrowdedCase("mesh_bin", objects, MESH_HYPOTHESES, args.seed) for objects in MESH_SIZES]
     here = Path(physics_mapper.__file__).resolve().parent.parent
     print(f"default search, to {args.visits} candidates; now / last round's")
     print("| problem | visited | prefixes checked | ratio | generator CPU time | ratio | same candidates |")

@@ -7,6 +7,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
 from conftest import PROBLEMS, REPO
 from core_builders import PHYSICS_MAPPER, cli
 
@@ -15,6 +16,7 @@ from physics_mapper.model.scene_files import load_problem
 sys.path.insert(0, str(REPO / "benchmarks"))  # the benchmarks import each other by name, as scripts do
 from crowded import chosen_cases, suite_cases
 from physics_costs import measure
+from with_package import run_with_package
 
 #: What a benchmark run may change in the checkout: nothing but caches and build folders.
 NOT_CHECKOUT = {".git", ".venv", "build", "install", "log", ".mypy_cache", ".ruff_cache", ".pytest_cache"}
@@ -77,6 +79,22 @@ def test_bench_crowded_searches_only_the_layouts_asked_for() -> None:
     completed = cli("bench", "crowded", "--layouts", "pile")
     assert completed.returncode == 2
     assert "--layouts: invalid choice: 'pile'" in completed.stderr
+
+
+def test_a_side_by_side_runs_the_package_given_even_from_the_checkout(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.chdir(REPO)  # "python -c" puts the working directory first: the checkout's own package
+    copy = tmp_path / "copy"
+    (copy / "physics_mapper").mkdir(parents=True)
+    (copy / "physics_mapper" / "__init__.py").write_text('ROUND = "last"\n')
+    script = (
+        "import json, pickle, sys, physics_mapper\n"
+        "print(json.dumps([physics_mapper.ROUND, pickle.load(sys.stdin.buffer)]))"
+    )
+    assert run_with_package(script, copy, 7, "the copy failed") == ["last", 7]
+    with pytest.raises(RuntimeError, match=r"physics_mapper was imported from .*, not from"):
+        run_with_package("print(1)", tmp_path, None, "no package there")
 
 
 def checkout_files() -> dict[Path, float]:
