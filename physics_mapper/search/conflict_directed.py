@@ -42,11 +42,8 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Mapping, Sequence
 
-import numpy as np
-
-from physics_mapper.model.extents import stable_growth
 from physics_mapper.model.hypotheses import RankedHypotheses
-from physics_mapper.model.scene import SearchParams, object_radius
+from physics_mapper.model.scene import SearchParams
 from physics_mapper.physics.checker import PhysicsChecker
 from physics_mapper.physics.collision_table import CollisionTable
 from physics_mapper.physics.settling import Settling
@@ -64,7 +61,7 @@ from physics_mapper.search.conflicts import Blame, Conflict, ConflictStore, coll
 from physics_mapper.search.groups import Grouping
 from physics_mapper.search.results import Code, Counters, RuledOut, SearchEnd, SearchStats
 from physics_mapper.search.rule2 import physics_key
-from physics_mapper.search.ruling_out import FreeFall, Ruling, RulingOut
+from physics_mapper.search.ruling_out import FreeFall, Ground, Ruling, RulingOut
 from physics_mapper.search.trial_settling import TrialSettling
 
 #: Instabilities a group keeps, until it finds a valid configuration, to teach again by the chain rule if it
@@ -76,10 +73,11 @@ class ConflictDirectedCandidates:
     """The candidates of one interaction group, generated conflict-free, learning a conflict from each
     rejection (module docstring); its conflicts in :attr:`conflicts`.
 
-    ``objects``: the group's scene indices; ``hypotheses``: every object's of the scene (the free-fall
-    pass looks at all of them); ``grouping``: the interaction groups the group is one of (its volumes
-    bound the ruling-out passes); ``table()``: the pairwise Rule 1 table (asked at each use: a grouped
-    search that adopts the group hands it its own); ``blame``: the group's blame rule for
+    ``objects``: the group's scene indices; ``hypotheses``: every object's of the scene; ``grouping``: the
+    interaction groups the group is one of (its volumes bound the Rule 1 pass); ``table()``: the pairwise
+    Rule 1 table (asked at each use: a grouped search that adopts the group hands it its own); ``ground()``:
+    the scene's :class:`~physics_mapper.search.ruling_out.Ground` for the free-fall pass (made once for
+    every group of the grouping); ``blame``: the group's blame rule for
     instabilities. Counts the ``conflicts`` learned (``conflicts_kept``: carried over), the ranks
     ``ruled_out`` before the first candidate, and the prefixes the queue limit ``dropped``.
     """
@@ -92,6 +90,7 @@ class ConflictDirectedCandidates:
         params: SearchParams,
         grouping: Grouping,
         table: Callable[[], CollisionTable],
+        ground: Callable[[], Ground],
         blame: Blame,
         bound: Bound,
         trace_group: int | None,
@@ -118,20 +117,7 @@ class ConflictDirectedCandidates:
             params.penetration_threshold,
             self.conflicts,
         ).run(scene.static)
-        growths = [
-            stable_growth(object_radius(o.shape), params.jitter_threshold, params.angular_weight) for o in scene.objects
-        ]
-        rulings += FreeFall(
-            self.objects,
-            [
-                (low + half_margin - growth, high - half_margin + growth)
-                for low, high, growth in zip(grouping.lows, grouping.highs, growths, strict=True)
-            ],
-            growths,
-            [np.array([not h.absent for h in ranked.hypotheses]) for ranked in hypotheses],
-            params.settle_time,
-            self.conflicts,
-        ).run(scene.static)
+        rulings += FreeFall(self.objects, ground(), self.conflicts).run()
         self._ruled_out = tuple(self._named_ruling(r) for r in rulings)
         self.conflicts_learned += len(rulings)
         self._root: Code = tuple(1 for _ in self.objects)

@@ -58,6 +58,7 @@ from physics_mapper.search.best_first import BestFirst, G, R, Trace, continuable
 from physics_mapper.search.groups import Grouping, interaction_groups
 from physics_mapper.search.results import Code, SearchEnd, SearchResult, SearchStats, TraceEntry
 from physics_mapper.search.rule2 import SETTLE_MEMO_LIMIT, SettleMemo, physics_key
+from physics_mapper.search.ruling_out import Ground, Grounds
 
 
 class Escape(Exception):  # not an error: the guard's signal to merge groups
@@ -70,15 +71,21 @@ class Escape(Exception):  # not an error: the guard's signal to merge groups
 
 class GroupLink:
     """What a group's parts share with the grouped search that holds the group: the pairwise table, the
-    grouping and the trace. A later search that adopts the group points them at its own."""
+    grouping, the free-fall pass's grounds and the trace. A later search that adopts the group points them
+    at its own."""
 
-    def __init__(self, table: CollisionTable, grouping: Grouping, trace: Trace) -> None:
+    def __init__(self, table: CollisionTable, grouping: Grouping, grounds: Grounds, trace: Trace) -> None:
         self.table = table
         self.grouping = grouping
+        self.grounds = grounds
         self.trace = trace
 
     def collision_table(self) -> CollisionTable:
         return self.table
+
+    def ground(self) -> Ground:
+        """The scene's ground for the free-fall pass, under the grouping as it is now."""
+        return self.grounds.of(self.grouping)
 
     def record(self, entry: TraceEntry) -> None:
         self.trace.record(entry)
@@ -216,6 +223,7 @@ class GroupedSearch(Generic[G, R]):
             [] if previous is None else [link for link in previous.links if all(unchanged[i] for i in link)]
         )
         self.grouping: Grouping = interaction_groups(checker.scene, hypotheses, params.interaction_margin, self.links)
+        self.grounds = Grounds(checker.scene, hypotheses, params)
         self._next_id: int = 0 if previous is None else previous.next_group_id
         self._groups: dict[int, BestFirst[G, R]] = {}
         self._links: dict[int, GroupLink] = {}
@@ -279,7 +287,7 @@ class GroupedSearch(Generic[G, R]):
             memo = SettleMemo(hypotheses, physics_key(self.params), SETTLE_MEMO_LIMIT)
         group_id = self._next_id
         self._next_id += 1
-        link = GroupLink(self.table, self.grouping, self._trace)
+        link = GroupLink(self.table, self.grouping, self.grounds, self._trace)
         # Trace entries name the group unless it holds every object (then its codes are whole codes).
         trace_group = None if objects == self.checker.all_objects else group_id
         spec = GroupSpec(
@@ -298,7 +306,7 @@ class GroupedSearch(Generic[G, R]):
         """Take over a previous search's group, progress and all."""
         group = previous._groups[group_id]
         link = previous._links[group_id]
-        link.table, link.grouping, link.trace = self.table, self.grouping, self._trace
+        link.table, link.grouping, link.grounds, link.trace = self.table, self.grouping, self.grounds, self._trace
         group.params = self.params
         self._groups[group_id] = group
         self._links[group_id] = link

@@ -88,7 +88,16 @@ def conflict_group(spec: GroupSpec) -> ConflictGroup:
     blame = Blame([checker.scene.objects[i].shape for i in objects], hypotheses, params)
     bound = Bound.of(params, weight_table(hypotheses))
     candidates = ConflictDirectedCandidates(
-        checker, objects, spec.hypotheses, params, link.grouping, link.collision_table, blame, bound, spec.trace_group
+        checker,
+        objects,
+        spec.hypotheses,
+        params,
+        link.grouping,
+        link.collision_table,
+        link.ground,
+        blame,
+        bound,
+        spec.trace_group,
     )
     settling = FullSettling(checker, objects, params, moving=True, track_reach=True, observers=[guard.settled])
     confirm = MemoisedSettling(spec.memo, settling)

@@ -28,6 +28,7 @@ from physics_mapper.search.paper_queue import PaperQueue
 from physics_mapper.search.results import SearchResult
 from physics_mapper.search.rule1 import FullCollisionPass, PairwiseTable
 from physics_mapper.search.rule2 import FullSettling, MemoisedSettling
+from physics_mapper.search.ruling_out import Grounds
 from physics_mapper.search.strategy import STRATEGIES, make_search, paper_search
 from physics_mapper.search.trial_settling import TrialSettling
 
@@ -104,13 +105,14 @@ def conflict_free_and_full_pass(
     bound = Bound.of(params, weight_table(hypotheses))
     blame = Blame([o.shape for o in scene.objects], hypotheses, params)
     grouping = interaction_groups(scene, hypotheses, params.interaction_margin)
+    ground = Grounds(scene, hypotheses, params).of(grouping)
     return BestFirst(
         checker,
         hypotheses,
         params,
         objects,
         candidates=ConflictDirectedCandidates(
-            checker, objects, hypotheses, params, grouping, lambda: table, blame, bound, None
+            checker, objects, hypotheses, params, grouping, lambda: table, lambda: ground, blame, bound, None
         ),
         rule1=FullCollisionPass(checker, params.penetration_threshold),
         rule2=FullSettling(checker, objects, params),

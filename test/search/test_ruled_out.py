@@ -13,8 +13,10 @@ from core_builders import CUBE_SIZE, ON_FLOOR, cli, cube, floor_scene, ranked, s
 from physics_mapper.model.hypotheses import Hypothesis, RankedHypotheses, absent_hypothesis
 from physics_mapper.model.scene import SearchParams
 from physics_mapper.physics.checker import PhysicsChecker
+from physics_mapper.search.groups import interaction_groups
 from physics_mapper.search.report import ruled_out_text
 from physics_mapper.search.results import RuledOut
+from physics_mapper.search.ruling_out import Grounds
 from physics_mapper.search.strategy import make_search
 
 #: pybullet's own mug (its frame at the bottom), collided as its own convex decomposition.
@@ -113,6 +115,27 @@ def test_a_rank_in_free_fall_is_ruled_out_and_one_in_reach_of_a_neighbour_is_not
             assert not checker.settle(poses, 0.5, SearchParams().angular_weight).is_stable(
                 SearchParams().jitter_threshold
             )
+
+
+def test_the_ground_is_made_once_per_grouping_for_all_its_groups() -> None:
+    """Three cubes far apart, three groups: the free-fall pass of each reads one ground, made again only for a
+    new grouping (a merge), and the same there: c's air pose alone is not grounded."""
+    scene = floor_scene(cube("a"), cube("b"), cube("c"))
+    hypotheses = [
+        ranked([unrotated(0.0, 0.0, ON_FLOOR)], [1]),
+        ranked([unrotated(0.4, 0.0, ON_FLOOR)], [1]),
+        ranked([unrotated(0.8, 0.0, ON_FLOOR), unrotated(0.8, 0.4, 0.3)], [1, 1]),
+    ]
+    params = SearchParams()
+    grouping = interaction_groups(scene, hypotheses, params.interaction_margin)
+    assert len(grouping.groups) == 3
+    grounds = Grounds(scene, hypotheses, params)
+    ground = grounds.of(grouping)
+    assert grounds.of(grouping) is ground
+    regrouped = grounds.of(interaction_groups(scene, hypotheses, params.interaction_margin))
+    assert regrouped is not ground
+    for made in (ground, regrouped):
+        assert [grounded.tolist() for grounded in made.grounded] == [[True], [True], [True, False]]
 
 
 def test_detections_in_the_air_side_by_side_are_ruled_out_and_a_column_standing_on_the_floor_is_not() -> None:
