@@ -8,11 +8,12 @@ N = 20 and 30, M = 5; seed ``--seed``), the default search runs from scratch unt
 candidates or ended, in this process and, with last round's package (``--previous DIR``, e.g. ``git archive main
 physics_mapper | tar -x -C DIR``), in a subprocess given the same problem (pickled). Counted in each: the
 prefixes the generator checked (calls of its ``_checked``: a prefix taken off its queue and bounded, whatever the
-version), and the CPU seconds spent finding candidates (``ConflictDirectedCandidates.ready``); both searches
-visit the same candidates of each group, in the same order (checked and printed), so the figures compare the same
-work. Prefixes are a count: they do not depend on the machine. Between groups the interleaving may differ (the
-grouped search steps the group whose next candidate's bound is highest, and bounds are a generator's own), so
-agreement is judged per group, over the shorter trace.
+version), and the CPU seconds spent finding candidates (``ConflictDirectedCandidates.ready``). Whether both
+searches visit the same candidates of each group, in the same order, is checked and printed: where they do, the
+figures compare the same work. Prefixes are a count: they do not depend on the machine. Between groups the
+interleaving may differ (the grouped search steps the group whose next candidate's bound is highest, and bounds
+are a generator's own), so agreement is judged per group, over the shorter trace; a group that learned a conflict
+elsewhere first (a collision, before its candidate holding it came) then visits other candidates.
 
 Run: ``physics-mapper bench generator_cost [--visits N] [--seed N] --previous DIR``. Progress goes to stderr.
 """

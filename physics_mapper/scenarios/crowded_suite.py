@@ -140,9 +140,9 @@ def _random_mesh(index: int, rng: np.random.Generator) -> ObjectModel:
         path = resolve_package_url(f"package://pybullet_data/random_urdfs/{number:03d}/{number:03d}.obj")
         try:
             unit = load_mesh_geometry(MeshRequest(path), lambda _: None)
+            break
         except MeshError:
-            continue
-        break
+            pass
     extent = float(np.max(np.subtract(unit.bounds[1], unit.bounds[0])))
     scale = float(rng.uniform(*MESH_EXTENT)) / extent
     request = MeshRequest(path, (scale, scale, scale))
