@@ -147,7 +147,11 @@ class Settling:
     ``steps`` of ``steps_total`` :data:`TIME_STEP` steps were simulated. ``reach``, when the
     settling was asked to track it, is each object's :data:`PositionRange` over its start and every
     look at the world (every :data:`CLOCK_CHECK_STEPS` steps, and the end); ``extent`` the smallest
-    box holding the object's body (Bullet's axis-aligned bounding box) at those moments.
+    box holding the object's body (Bullet's axis-aligned bounding box) at those moments. ``beyond``: for a
+    settling stopped ``beyond_threshold``, the objects (indices into ``jitters``) that were beyond at the
+    early exit's ``beyond_looks`` last looks: the ones shown unstable. Another object's J_i beyond the
+    threshold at that moment may be a passing swing (a part rocking as a neighbour falls) that would
+    have come back.
     """
 
     settled_poses: tuple[Pose, ...]
@@ -159,6 +163,7 @@ class Settling:
     extent: tuple[PositionRange, ...] | None = None
     #: Bullet solver iterations it ran with when fewer than Rule 2's (None: Rule 2's, ``SOLVER_ITERATIONS``).
     solver_iterations: int | None = None
+    beyond: tuple[int, ...] = ()
 
     @property
     def total_jitter(self) -> float:
@@ -184,8 +189,8 @@ class PartialSettling:
     checker that interrupted it recognises it as the settling it kept. ``objects``,
     ``max_speed``, ``early_exit`` and ``solver_iterations`` are the settling's (see :meth:`PhysicsChecker.settle`), with
     ``fixed`` are objects held where they are (scene index, pose), with the consecutive looks so far
-    with every object at rest (``rest_checks``) and with an object at rest beyond the jitter threshold
-    (``beyond_checks``), the last looks' poses (``recent``: step, poses; for ``wobble_rate``), and the
+    with every object at rest (``rest_checks``) and, per object, with it beyond (``beyond_checks``, empty
+    before the first look), the last looks' poses (``recent``: step, poses; for ``wobble_rate``), and the
     ``reach`` and ``extent`` so far (None: not tracked; an extent not begun).
     """
 
@@ -199,7 +204,7 @@ class PartialSettling:
     fixed: tuple[tuple[int, Pose], ...] = ()
     solver_iterations: int | None = None
     rest_checks: int = 0
-    beyond_checks: int = 0
+    beyond_checks: tuple[int, ...] = ()
     recent: tuple[tuple[int, tuple[Pose, ...]], ...] = ()
     reach: tuple[PositionRange, ...] | None = None
     extent: tuple[PositionRange, ...] | None = None
@@ -207,7 +212,7 @@ class PartialSettling:
     def restarted(self) -> PartialSettling:
         """The same settling, not yet begun."""
         start = None if self.reach is None else _start_reach(self.poses)
-        return replace(self, steps_done=0, rest_checks=0, beyond_checks=0, recent=(), reach=start, extent=None)
+        return replace(self, steps_done=0, rest_checks=0, beyond_checks=(), recent=(), reach=start, extent=None)
 
 
 def _start_reach(poses: Sequence[Pose]) -> tuple[PositionRange, ...]:
@@ -230,6 +235,21 @@ def _grown(ranges: tuple[PositionRange, ...], boxes: Sequence[PositionRange]) ->
             )
         )
     return tuple(grown)
+
+
+def _beyond_checks(
+    checks: tuple[int, ...], rule: EarlyExit, at_rest: Sequence[bool], jitters: Sequence[float]
+) -> tuple[int, ...]:
+    """Per object, its consecutive looks beyond after this one (``checks``: before it, empty before the first):
+    at rest with J_i beyond ``rule.jitter_threshold``, or anyhow beyond ``rule.moving_beyond``."""
+    threshold, moving = rule.jitter_threshold, rule.moving_beyond
+    before = checks or (0,) * len(jitters)
+    return tuple(
+        looks + 1
+        if (threshold is not None and resting and jitter > threshold) or (moving is not None and jitter > moving)
+        else 0
+        for looks, resting, jitter in zip(before, at_rest, jitters, strict=True)
+    )
 
 
 class SettleOptions(TypedDict, total=False):
@@ -388,17 +408,20 @@ class Settler:
                         uids, plan.angular_weight, plan.early_exit, recent[0], poses, steps_done, steps_total
                     )
                     recent = (*recent, (steps_done, poses))[-REST_CHECKS:]
-                    threshold = plan.early_exit.jitter_threshold
-                    beyond = threshold is not None and any(
-                        resting and jitter > threshold for resting, jitter in zip(at_rest, jitters, strict=True)
-                    )
-                    moving = plan.early_exit.moving_beyond
-                    beyond = beyond or (moving is not None and max(jitters, default=0.0) > moving)
-                    beyond_checks = beyond_checks + 1 if beyond else 0
+                    beyond_checks = _beyond_checks(beyond_checks, plan.early_exit, at_rest, jitters)
                     rest_checks = rest_checks + 1 if all(at_rest) else 0
-                    if beyond_checks >= plan.early_exit.beyond_looks:
+                    shown = tuple(i for i, looks in enumerate(beyond_checks) if looks >= plan.early_exit.beyond_looks)
+                    if shown:
                         return Settling(
-                            poses, jitters, "beyond_threshold", steps_done, steps_total, reach, extent, iterations
+                            poses,
+                            jitters,
+                            "beyond_threshold",
+                            steps_done,
+                            steps_total,
+                            reach,
+                            extent,
+                            iterations,
+                            shown,
                         )
                     if rest_checks >= REST_CHECKS:
                         return Settling(poses, jitters, "rest", steps_done, steps_total, reach, extent, iterations)

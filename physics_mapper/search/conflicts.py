@@ -20,7 +20,9 @@ two conflicts, {i: a, j: every such rank} and {i: every such rank, j: b}. A reje
 teaches them for every overlap beyond the threshold, not only the deepest one.
 
 From an instability (Rule 2), the *blame rule*. Let the settling of configuration C move the objects U
-beyond ``jitter_threshold`` tau (J_u > tau). Write
+beyond ``jitter_threshold`` tau (J_u > tau). A settling stopped early as unstable shows U as the objects it
+stopped for (:attr:`~physics_mapper.physics.settling.Settling.beyond`): at that moment another object may
+be beyond tau only in passing, rocking as a neighbour falls, and would come back. Write
 
 - S_p for object p's *swept box* in that settling: the smallest box holding its body at every moment
   looked at (:attr:`~physics_mapper.physics.settling.Settling.extent`, every 8 steps, 33 ms);
@@ -311,7 +313,7 @@ class Blame:
     def conflicts(self, code: Sequence[int], settling: Settling) -> list[Conflict]:
         """The conflicts an unstable settling of configuration ``code`` teaches: one per object that moved
         beyond the threshold (each alone makes the configuration unstable), smallest first."""
-        moved = [p for p, jitter in enumerate(settling.jitters) if jitter > self.threshold]
+        moved = unstable_objects(settling, self.threshold)
         if settling.extent is None or not moved:
             return [Conflict(tuple(enumerate(code)), "unstable")]
         low = np.array([low for low, _ in settling.extent])
@@ -365,6 +367,14 @@ class Blame:
         env_low, env_high = self.envelopes[position]
         low, high = np.asarray(region[0]), np.asarray(region[1])
         return bool(np.any(meets_box(env_low, env_high, low, high)))
+
+
+def unstable_objects(settling: Settling, threshold: float) -> list[int]:
+    """The objects (indices into the settling's) it shows moved beyond ``threshold``: those it stopped early
+    for (:attr:`~physics_mapper.physics.settling.Settling.beyond`), else every one with J_i beyond it."""
+    if settling.stopped == "beyond_threshold" and settling.beyond:
+        return list(settling.beyond)
+    return [p for p, jitter in enumerate(settling.jitters) if jitter > threshold]
 
 
 def body_boxes(shape: ObjectShape, ranked: RankedHypotheses) -> tuple[FloatArray, FloatArray]:

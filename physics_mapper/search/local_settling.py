@@ -144,6 +144,7 @@ class LocalSettling:
             tuple(reach),
             tuple(extent),
             local.solver_iterations,
+            tuple(plan.simulated[index] for index in local.beyond),
         )
 
 
