@@ -79,7 +79,7 @@ class ConflictDirectedCandidates:
     the scene's :class:`~physics_mapper.search.ruling_out.Ground` for the free-fall pass (made once for
     every group of the grouping); ``blame``: the group's blame rule for
     instabilities. Counts the ``conflicts`` learned (``conflicts_kept``: carried over), the ranks
-    ``ruled_out`` before the first candidate, and the prefixes the queue limit ``dropped``.
+    ``ruled_out`` before the first candidate, and the regions of configurations the queue limit ``dropped``.
     """
 
     def __init__(
@@ -267,7 +267,7 @@ class ConflictDirectedCandidates:
 
     @property
     def end(self) -> SearchEnd | None:
-        """None while a candidate is left; ``truncated`` when the queue limit dropped prefixes, ``bounded``
+        """None while a candidate is left; ``truncated`` when the queue limit dropped regions, ``bounded``
         when the bound kept configurations out, else ``exhausted``."""
         if not self.exhausted:
             return None
@@ -277,7 +277,7 @@ class ConflictDirectedCandidates:
 
     @property
     def queued(self) -> int:
-        """Prefixes the generator holds, and a candidate whose settling the deadline interrupted."""
+        """Regions the generator holds, and a candidate whose settling the deadline interrupted."""
         return len(self.candidates) + (self._waiting is not None)
 
     @property
