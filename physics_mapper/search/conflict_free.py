@@ -54,7 +54,7 @@ import time
 from collections.abc import Callable, Sequence
 from typing import NamedTuple
 
-from physics_mapper.search.best_first import tie_key
+from physics_mapper.search.best_first import code_probability, tie_key
 from physics_mapper.search.conflicts import ConflictStore
 from physics_mapper.search.results import Code
 
@@ -72,13 +72,15 @@ RankSets = tuple[tuple[int, int], ...]
 
 class _Region(NamedTuple):
     """A queued region, compared as a tuple by (-key, best completion): unique (regions are disjoint).
-    ``known``: the conflicts known when its key was made (-1: its key is its parent's, made when taken up)."""
+    ``known``: the conflicts known when its key was made (-1: its key is its parent's, made when taken up);
+    ``masked``: the conflicts known when the ranks ruled out alone were last taken out of ``allowed``."""
 
     neg_key: float
     code: Code
     allowed: Ranks
     probability: float
     known: int
+    masked: int
 
 
 class _Candidate(NamedTuple):
@@ -106,6 +108,7 @@ class ConflictFreeCandidates:
         queue_limit: int,
     ) -> None:
         self.weights = tuple(tuple(w) for w in weights)
+        self._table = tuple((0.0, *w) for w in self.weights)  # by rank, for code_probability
         self.store = store
         self.is_bounded = is_bounded
         self.queue_limit = queue_limit
@@ -119,9 +122,12 @@ class ConflictFreeCandidates:
         self._handed_out = 0  # 1 from a candidate handed out to the next look for one
         self._rank_sets: list[RankSets] = []  # per known conflict (bit k: the k-th learned)
         self._live_at = -1
+        self._live_changed = 0  # the conflicts known when a rank was last ruled out alone
         self._live: Ranks = ()
         self._queue: list[_Region] = []
-        root = self._region(tuple((1 << (len(w) + 1)) - 2 for w in self.weights), -math.inf)
+        every = tuple((1 << (len(w) + 1)) - 2 for w in self.weights)
+        best = tuple(1 for _ in self.weights)
+        root = self._region(_Region(-math.inf, best, every, code_probability(self._table, best), -1, -1))
         if root is not None:
             self._queue.append(root)
 
@@ -189,7 +195,7 @@ class ConflictFreeCandidates:
         again if its key fell), then split; its best completion returned if it is a candidate."""
         self.taken_up += 1
         if region.known != len(self.store):
-            fresh = self._region(region.allowed, region.neg_key)
+            fresh = self._region(region)
             if fresh is None:
                 return None
             if fresh.neg_key > region.neg_key:
@@ -199,7 +205,7 @@ class ConflictFreeCandidates:
         if not self._may_have_parent_above_bound(region):
             self.cut += 1
             return None
-        held = self._held(region.code)
+        held = self.store.held(region.code)
         if held:
             self._split(region, self._smallest(held))
             return None
@@ -218,37 +224,33 @@ class ConflictFreeCandidates:
             self._rank_sets.append(
                 tuple((p, _bits(ranks)) for p, ranks in zip(conflict.positions, conflict.ranks, strict=True))
             )
-        self._live = tuple(_bits(self.store.live_ranks(p)) for p in range(len(self.weights)))
+        live = tuple(_bits(self.store.live_ranks(p)) for p in range(len(self.weights)))
+        if live != self._live:
+            self._live, self._live_changed = live, len(self.store)
         self._live_at = len(self.store)
 
-    def _region(self, allowed: Ranks, parent_key: float) -> _Region | None:
-        """The region of ``allowed`` ranks without those ruled out alone, under its own key (at most
-        ``parent_key``, negated); None if it holds no conflict-free configuration."""
+    def _region(self, region: _Region) -> _Region | None:
+        """``region`` without the ranks ruled out alone, under its own key (at most its key now); None if it
+        holds no conflict-free configuration."""
         self._index()
-        allowed = tuple(ranks & live for ranks, live in zip(allowed, self._live, strict=True))
-        if not all(allowed):
-            return None
-        code = tuple(_first(ranks) for ranks in allowed)
-        probability = _product(self.weights, code)
+        allowed, code, probability = region.allowed, region.code, region.probability
+        if region.masked < self._live_changed:
+            allowed = tuple(ranks & live for ranks, live in zip(allowed, self._live, strict=True))
+            if not all(allowed):
+                return None
+            if allowed != region.allowed:
+                code = tuple(_first(ranks) for ranks in allowed)
+                probability = code_probability(self._table, code)
+        known = len(self.store)
         neg_key = self._neg_key(code, allowed, probability)
         if neg_key is None:
             return None
-        return _Region(max(parent_key, neg_key), code, allowed, probability, len(self.store))
-
-    def _held(self, code: Code) -> int:
-        """The conflicts (bit k: the k-th learned) configuration ``code`` holds."""
-        count = len(self.store)
-        if not count:
-            return 0
-        outside = 0
-        for position, rank in enumerate(code):
-            outside |= self.store.excluded_by_rank(position)[rank]
-        return ((1 << count) - 1) & ~outside
+        return _Region(max(region.neg_key, neg_key), code, allowed, probability, known, known)
 
     def _neg_key(self, code: Code, allowed: Ranks, probability: float) -> float | None:
         """A region's key (module docstring), negated: its best completion ``code``'s p(C) over what resolving
         the conflicts it holds costs at least (None: one of them cannot be resolved within ``allowed``)."""
-        held = self._held(code)
+        held = self.store.held(code)
         if not held:
             return -tie_key(probability)
         costs = []
@@ -277,12 +279,13 @@ class ConflictFreeCandidates:
         return min((self._rank_sets[bit] for bit in _bits_of(held)), key=len)
 
     def _split(self, region: _Region, conflict: RankSets) -> None:
-        """Queue the parts of ``region`` that do not contain ``conflict`` (module docstring)."""
+        """Queue the parts of ``region`` that do not contain ``conflict`` (module docstring). The objects
+        before a part's own stay at their ranks: those are within the conflict's rank sets."""
         allowed = list(region.allowed)
         for position, ranks in conflict:
             outside = allowed[position] & ~ranks
             if outside:
-                self._push_part(region, (*allowed[:position], outside, *allowed[position + 1 :]))
+                self._push_part(region, (*allowed[:position], outside, *allowed[position + 1 :]), position)
             allowed[position] &= ranks
 
     def _split_off(self, region: _Region) -> None:
@@ -291,15 +294,16 @@ class ConflictFreeCandidates:
         for position, rank in enumerate(region.code):
             others = allowed[position] & ~(1 << rank)
             if others:
-                self._push_part(region, (*allowed[:position], others, *allowed[position + 1 :]))
+                self._push_part(region, (*allowed[:position], others, *allowed[position + 1 :]), position)
             allowed[position] = 1 << rank
 
-    def _push_part(self, parent: _Region, allowed: Ranks) -> None:
-        """Queue a part of ``parent`` under the lower of its parent's key and its best completion's p(C)."""
-        code = tuple(_first(ranks) for ranks in allowed)
-        probability = _product(self.weights, code)
+    def _push_part(self, parent: _Region, allowed: Ranks, changed: int) -> None:
+        """Queue a part of ``parent`` whose best completion differs from its parent's at position ``changed``
+        alone, under the lower of its parent's key and its best completion's p(C)."""
+        code = (*parent.code[:changed], _first(allowed[changed]), *parent.code[changed + 1 :])
+        probability = code_probability(self._table, code)
         neg_key = max(parent.neg_key, -tie_key(probability * (1.0 + BOUND_SLACK)))
-        self._push(_Region(neg_key, code, allowed, probability, -1))
+        self._push(_Region(neg_key, code, allowed, probability, -1, parent.masked))
 
     def _push(self, region: _Region) -> None:
         heapq.heappush(self._queue, region)
@@ -326,7 +330,7 @@ class ConflictFreeCandidates:
         for position, rank in enumerate(code):
             if rank > 1:
                 parent = (*code[:position], rank - 1, *code[position + 1 :])
-                if not self.is_bounded(_product(self.weights, parent)):
+                if not self.is_bounded(code_probability(self._table, parent)):
                     return True
         return False
 
@@ -361,8 +365,3 @@ def _bits_of(held: int) -> list[int]:
 def _ratio(weights: Sequence[float], rank: int) -> float:
     """w(rank - 1) / w(rank): what p(C) gains one rank lower (inf for a zero weight)."""
     return weights[rank - 2] / weights[rank - 1] if weights[rank - 1] > 0.0 else math.inf
-
-
-def _product(weights: Sequence[Sequence[float]], code: Sequence[int]) -> float:
-    """p(C) of ``code``, multiplied in the group's object order as the searches do."""
-    return math.prod(w[rank - 1] for w, rank in zip(weights, code, strict=True))

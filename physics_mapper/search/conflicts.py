@@ -196,13 +196,17 @@ class ConflictStore:
                 return following
         return None
 
+    def held(self, code: Sequence[int]) -> int:
+        """The known conflicts configuration ``code`` contains (bit k: the k-th learned)."""
+        if not self._conflicts:
+            return 0
+        outside = functools.reduce(operator.or_, map(operator.getitem, self._excluded, code))
+        return ((1 << len(self._conflicts)) - 1) & ~outside
+
     def contained(self, code: Sequence[int]) -> Conflict | None:
         """The smallest known conflict that configuration ``code`` contains, the first learned of equal
         ones (None: it resolves every one)."""
-        if not self._conflicts:
-            return None
-        outside = functools.reduce(operator.or_, map(operator.getitem, self._excluded, code))
-        held = ((1 << len(self._conflicts)) - 1) & ~outside
+        held = self.held(code)
         best: Conflict | None = None
         while held:
             lowest = held & -held
