@@ -127,16 +127,18 @@ class MeshGeometry:
     @functools.cached_property
     def bounds(self) -> tuple[Vector3, Vector3]:
         """Axis-aligned bounding box (min corner, max corner) of the mesh and its parts, m, mesh frame."""
-        points = self._points()
+        points = self.collision_points
         low, high = points.min(axis=0), points.max(axis=0)
         return (float(low[0]), float(low[1]), float(low[2])), (float(high[0]), float(high[1]), float(high[2]))
 
     @functools.cached_property
     def bounding_radius(self) -> float:
         """Largest distance (m) from the mesh frame's origin to a point of the mesh or of its parts."""
-        return float(np.linalg.norm(self._points(), axis=1).max())
+        return float(np.linalg.norm(self.collision_points, axis=1).max())
 
-    def _points(self) -> FloatArray:
+    @functools.cached_property
+    def collision_points(self) -> FloatArray:
+        """Every vertex of the surface and of the parts (K x 3, m, mesh frame)."""
         points: FloatArray = np.vstack([self.vertices, *(part.vertices for part in self.parts)])
         return points
 
