@@ -271,7 +271,8 @@ class SearchParams:
         metadata=_doc("metres between two hypotheses' body boxes below which their objects share a group"),
     )
     queue_limit: int = field(
-        default=20_000, metadata=_doc("nodes the search's queues hold at most (each group an equal share)")
+        default=20_000,
+        metadata=_doc("nodes the search's queues hold at most (each group a share in proportion to its objects)"),
     )
     trace_limit: int | None = field(
         default=5_000, metadata=_doc("trace entries kept at most (None: all); later visits are counted, not recorded")

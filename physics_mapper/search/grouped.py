@@ -25,9 +25,10 @@ volume, the groups concerned are merged and the merged group is searched again f
 visits of the groups it replaces leave the trace). Merged objects stay together in later searches
 (the node's next ticks) while their hypotheses are unchanged.
 
-Settle memo: each group remembers up to its share of :data:`~physics_mapper.search.rule2.SETTLE_MEMO_LIMIT`
-settlings by sub-code (:class:`~physics_mapper.search.rule2.SettleMemo`), kept by a group searched
-again with the same objects and hypotheses.
+Settle memo: each group remembers up to its share (in proportion to its objects, as its share of
+``queue_limit``) of :data:`~physics_mapper.search.rule2.SETTLE_MEMO_LIMIT` settlings by sub-code
+(:class:`~physics_mapper.search.rule2.SettleMemo`), kept by a group searched again with the same objects and
+hypotheses.
 
 Carry-over: a group searched anew because some of its objects got new hypotheses keeps, through the
 *carry-over* part, what the previous search's groups learned about the others (the conflict-directed
@@ -315,11 +316,12 @@ class GroupedSearch(Generic[G, R]):
         self._reschedule(group_id)
 
     def _share_limits(self) -> None:
-        """Give each group an equal share of the queue and memo limits."""
-        count = len(self._groups)
+        """Give each group a share of the queue and memo limits in proportion to its objects: a group of one
+        object never holds more than its ranks, one of 26 meshes needs thousands of nodes."""
+        count = sum(len(group.objects) for group in self._groups.values())
         for group_id, group in self._groups.items():
-            group.candidates.queue_limit = max(1, self.params.queue_limit // count)
-            self._memos[group_id].limit = max(1, SETTLE_MEMO_LIMIT // count)
+            group.candidates.queue_limit = max(1, self.params.queue_limit * len(group.objects) // count)
+            self._memos[group_id].limit = max(1, SETTLE_MEMO_LIMIT * len(group.objects) // count)
 
     def _merge(self, escaped_id: int, positions: tuple[int, ...]) -> None:
         """The escape guard's answer: replace the group ``escaped_id`` and the groups at ``positions`` by one,

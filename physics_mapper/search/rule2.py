@@ -27,7 +27,7 @@ from physics_mapper.physics.checker import PhysicsChecker
 from physics_mapper.physics.settling import PartialSettling, SettleStop, Settling, early_exit_rule
 from physics_mapper.search.results import Code, Counters, SearchStats
 
-#: Settlings a grouped search remembers (each group an equal share), a few hundred bytes each.
+#: Settlings a grouped search remembers (each group a share in proportion to its objects), a few hundred bytes each.
 SETTLE_MEMO_LIMIT = 5_000
 
 #: The parameters a settling's outcome depends on (a memo is valid while they are unchanged).

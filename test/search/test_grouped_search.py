@@ -382,6 +382,21 @@ def test_queue_and_trace_limits_bound_a_search_s_memory() -> None:
     assert {e.code for e in result.trace} <= {e.code for e in full.trace}
 
 
+def test_each_group_s_share_of_the_queue_limit_is_in_proportion_to_its_objects() -> None:
+    """Three cubes side by side (one group) and one far off: the queue limit is shared 3 : 1."""
+    scene = floor_scene(*(cube(name) for name in ("a", "b", "c", "far")))
+    hypotheses = tuple(
+        ranked([unrotated(x, 0.0, ON_FLOOR), unrotated(x, 0.01, ON_FLOOR)], [0.6, 0.4])
+        for x in (0.0, 0.101, 0.202, 1.0)
+    )
+    params = SearchParams(queue_limit=400)
+    with PhysicsChecker(scene) as checker:
+        search = make_search(checker, hypotheses, params)
+        assert isinstance(search, GroupedSearch)
+        shares = {group.objects: group.candidates.queue_limit for group in search.groups()}
+    assert shares == {(0, 1, 2): 300, (3,): 100}
+
+
 def test_runs_cut_short_anywhere_resume_to_the_uninterrupted_grouped_search_bit_for_bit() -> None:
     problem = scale_problem(ScaleCase("pairs", 4, 3, 7), GROUPED)
     scene, hypotheses = problem.problem.scene, problem.problem.hypotheses
