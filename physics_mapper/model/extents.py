@@ -61,7 +61,7 @@ ROTATED_BOUNDS_CACHE = 50_000
 
 
 # Remembered: a search asks for each mesh hypothesis's box many times (every grouping after a merge, each group's
-# blame rule, the support rule), ~16 us each for a mesh of a few hundred points: 16 % of the time to the answer of
+# blame rule, the support rule), ~16 us each for a mesh of a few hundred points: 17 % of the time to the answer of
 # eight bins of 30 meshes. Keyed by the geometry object (compared by identity): two meshes of one file may differ.
 @functools.lru_cache(maxsize=ROTATED_BOUNDS_CACHE)
 def rotated_bounds(geometry: MeshGeometry, orientation: Quaternion) -> tuple[FloatArray, FloatArray]:
