@@ -55,7 +55,7 @@ from collections.abc import Callable, Sequence
 from typing import NamedTuple
 
 from physics_mapper.search.best_first import code_probability, tie_key
-from physics_mapper.search.conflicts import ConflictStore
+from physics_mapper.search.conflicts import ConflictStore, bits_of
 from physics_mapper.search.results import Code
 
 #: Relative slack of a region's key over the best p(C) it holds: far more than the rounding of a product
@@ -72,14 +72,16 @@ RankSets = tuple[tuple[int, int], ...]
 
 class _Region(NamedTuple):
     """A queued region, compared as a tuple by (-key, best completion): unique (regions are disjoint).
-    ``known``: the conflicts known when its key was made (-1: its key is its parent's, made when taken up);
-    ``masked``: the conflicts known when the ranks ruled out alone were last taken out of ``allowed``."""
+    ``known``: the conflicts known when its key was made (-1: its key is its parent's, made when taken up),
+    ``held`` those of them its best completion holds; ``masked``: the conflicts known when the ranks ruled
+    out alone were last taken out of ``allowed``."""
 
     neg_key: float
     code: Code
     allowed: Ranks
     probability: float
     known: int
+    held: int
     masked: int
 
 
@@ -121,13 +123,14 @@ class ConflictFreeCandidates:
         self._ready: list[_Candidate] = []  # found, of one rounded key, by code
         self._handed_out = 0  # 1 from a candidate handed out to the next look for one
         self._rank_sets: list[RankSets] = []  # per known conflict (bit k: the k-th learned)
+        self._objects: list[frozenset[int]] = []  # per known conflict, its objects' positions
         self._live_at = -1
         self._live_changed = 0  # the conflicts known when a rank was last ruled out alone
         self._live: Ranks = ()
         self._queue: list[_Region] = []
         every = tuple((1 << (len(w) + 1)) - 2 for w in self.weights)
         best = tuple(1 for _ in self.weights)
-        root = self._region(_Region(-math.inf, best, every, code_probability(self._table, best), -1, -1))
+        root = self._region(_Region(-math.inf, best, every, code_probability(self._table, best), -1, 0, -1))
         if root is not None:
             self._queue.append(root)
 
@@ -205,11 +208,10 @@ class ConflictFreeCandidates:
         if not self._may_have_parent_above_bound(region):
             self.cut += 1
             return None
-        held = self.store.held(region.code)
-        if held:
-            self._split(region, self._smallest(held))
+        if region.held:  # made under the conflicts known now
+            self._split(region, self._smallest(region.held))
             return None
-        self._split_off(region)
+        self._split(region, tuple((position, 1 << rank) for position, rank in enumerate(region.code)))
         candidate = _Candidate(region.neg_key, region.code, region.probability)
         if self._has_parent_above_bound(candidate):
             return candidate
@@ -224,6 +226,7 @@ class ConflictFreeCandidates:
             self._rank_sets.append(
                 tuple((p, _bits(ranks)) for p, ranks in zip(conflict.positions, conflict.ranks, strict=True))
             )
+            self._objects.append(frozenset(conflict.positions))
         live = tuple(_bits(self.store.live_ranks(p)) for p in range(len(self.weights)))
         if live != self._live:
             self._live, self._live_changed = live, len(self.store)
@@ -241,20 +244,20 @@ class ConflictFreeCandidates:
             if allowed != region.allowed:
                 code = tuple(_first(ranks) for ranks in allowed)
                 probability = code_probability(self._table, code)
-        known = len(self.store)
-        neg_key = self._neg_key(code, allowed, probability)
+        known, held = len(self.store), self.store.held(code)
+        neg_key = self._neg_key(code, allowed, probability, held)
         if neg_key is None:
             return None
-        return _Region(max(region.neg_key, neg_key), code, allowed, probability, known, known)
+        return _Region(max(region.neg_key, neg_key), code, allowed, probability, known, held, known)
 
-    def _neg_key(self, code: Code, allowed: Ranks, probability: float) -> float | None:
+    def _neg_key(self, code: Code, allowed: Ranks, probability: float, held: int) -> float | None:
         """A region's key (module docstring), negated: its best completion ``code``'s p(C) over what resolving
-        the conflicts it holds costs at least (None: one of them cannot be resolved within ``allowed``)."""
-        held = self.store.held(code)
+        the conflicts it holds (``held``) costs at least (None: one of them cannot be resolved within
+        ``allowed``)."""
         if not held:
             return -tie_key(probability)
         costs = []
-        for bit in _bits_of(held):
+        for bit in bits_of(held):
             least = math.inf
             for position, ranks in self._rank_sets[bit]:
                 outside = allowed[position] & ~ranks
@@ -264,7 +267,7 @@ class ConflictFreeCandidates:
                     least = min(least, weights[code[position] - 1] / best if best > 0.0 else math.inf)
             if math.isinf(least):
                 return None
-            costs.append((least, frozenset(position for position, _ in self._rank_sets[bit])))
+            costs.append((least, self._objects[bit]))
         costs.sort(key=lambda cost: cost[0], reverse=True)
         used: frozenset[int] = frozenset()
         bound = probability
@@ -276,11 +279,12 @@ class ConflictFreeCandidates:
 
     def _smallest(self, held: int) -> RankSets:
         """The rank sets of the conflict, among ``held``, with fewest objects (the first learned of equal ones)."""
-        return min((self._rank_sets[bit] for bit in _bits_of(held)), key=len)
+        return min((self._rank_sets[bit] for bit in bits_of(held)), key=len)
 
     def _split(self, region: _Region, conflict: RankSets) -> None:
-        """Queue the parts of ``region`` that do not contain ``conflict`` (module docstring). The objects
-        before a part's own stay at their ranks: those are within the conflict's rank sets."""
+        """Queue the parts of ``region`` that do not contain ``conflict`` (module docstring); with every object
+        at its best completion's rank as the conflict, the parts without the best completion (Murty's
+        partition). The objects before a part's own stay at their ranks: those are within the rank sets."""
         allowed = list(region.allowed)
         for position, ranks in conflict:
             outside = allowed[position] & ~ranks
@@ -288,22 +292,13 @@ class ConflictFreeCandidates:
                 self._push_part(region, (*allowed[:position], outside, *allowed[position + 1 :]), position)
             allowed[position] &= ranks
 
-    def _split_off(self, region: _Region) -> None:
-        """Queue the parts of ``region`` without its best completion (Murty's partition)."""
-        allowed = list(region.allowed)
-        for position, rank in enumerate(region.code):
-            others = allowed[position] & ~(1 << rank)
-            if others:
-                self._push_part(region, (*allowed[:position], others, *allowed[position + 1 :]), position)
-            allowed[position] = 1 << rank
-
     def _push_part(self, parent: _Region, allowed: Ranks, changed: int) -> None:
         """Queue a part of ``parent`` whose best completion differs from its parent's at position ``changed``
         alone, under the lower of its parent's key and its best completion's p(C)."""
         code = (*parent.code[:changed], _first(allowed[changed]), *parent.code[changed + 1 :])
         probability = code_probability(self._table, code)
         neg_key = max(parent.neg_key, -tie_key(probability * (1.0 + BOUND_SLACK)))
-        self._push(_Region(neg_key, code, allowed, probability, -1, parent.masked))
+        self._push(_Region(neg_key, code, allowed, probability, -1, 0, parent.masked))
 
     def _push(self, region: _Region) -> None:
         heapq.heappush(self._queue, region)
@@ -350,16 +345,6 @@ def _bits(ranks: Sequence[int] | frozenset[int]) -> int:
 def _first(ranks: int) -> int:
     """The lowest rank of a non-empty bit set."""
     return (ranks & -ranks).bit_length() - 1
-
-
-def _bits_of(held: int) -> list[int]:
-    """The indices of a bit set's bits, lowest first."""
-    found = []
-    while held:
-        lowest = held & -held
-        found.append(lowest.bit_length() - 1)
-        held ^= lowest
-    return found
 
 
 def _ratio(weights: Sequence[float], rank: int) -> float:

@@ -206,15 +206,18 @@ class ConflictStore:
     def contained(self, code: Sequence[int]) -> Conflict | None:
         """The smallest known conflict that configuration ``code`` contains, the first learned of equal
         ones (None: it resolves every one)."""
-        held = self.held(code)
-        best: Conflict | None = None
-        while held:
-            lowest = held & -held
-            conflict = self._conflicts[lowest.bit_length() - 1]
-            if best is None or len(conflict.assignments) < len(best.assignments):
-                best = conflict
-            held ^= lowest
-        return best
+        held = (self._conflicts[bit] for bit in bits_of(self.held(code)))
+        return min(held, key=lambda conflict: len(conflict.assignments), default=None)
+
+
+def bits_of(bits: int) -> list[int]:
+    """The indices of a bit set's bits, lowest first (conflict k is bit k of a store's bit sets)."""
+    found = []
+    while bits:
+        lowest = bits & -bits
+        found.append(lowest.bit_length() - 1)
+        bits ^= lowest
+    return found
 
 
 def collision_conflicts(
