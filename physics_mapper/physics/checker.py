@@ -74,6 +74,11 @@ class PhysicsChecker:
         """Pairs of placed bodies closer than ``margin`` metres (:func:`~collision.proximities`)."""
         return collision.proximities(self.world, poses, margin, objects)
 
+    def clearance(self, first: int, first_pose: Pose, second: int, second_pose: Pose, cap: float) -> float:
+        """Metres between two objects' bodies were they at these poses, at most ``cap``
+        (:func:`~collision.clearance`)."""
+        return collision.clearance(self.world, first, first_pose, second, second_pose, cap)
+
     def static_overlap(self, index: int, pose: Pose) -> float:
         """Object ``index``'s deepest overlap (m) at ``pose`` with the static bodies."""
         return collision.static_overlap(self.world, index, pose)

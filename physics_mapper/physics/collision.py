@@ -78,7 +78,7 @@ def contact_depths(world: PhysicsWorld, objects: Sequence[int], poses: Sequence[
         raise ValueError(f"{len(poses)} poses for {len(objects)} objects")
     world.save_kept()
     world.empty_contact_caches(world.placed)
-    world.simulate_only(tuple(objects))  # Bullet skips pairs of two fixed bodies
+    world.detect_only(tuple(objects))
     for index, pose in zip(objects, poses, strict=True):
         world.set_pose(index, pose)
     world.placed = tuple(objects)
@@ -131,6 +131,30 @@ def proximities(
                 normal = (float(closest[7][0]), float(closest[7][1]), float(closest[7][2]))
                 found.append(Proximity(index, other_index, normal, float(closest[8])))
     return tuple(found)
+
+
+def clearance(world: PhysicsWorld, first: int, first_pose: Pose, second: int, second_pose: Pose, cap: float) -> float:
+    """Metres between objects ``first`` and ``second`` (scene indices) were they at these poses, or ``cap``
+    when they are at least that far apart; no body moves (Bullet's closest points of their collision
+    shapes, placed at the poses). Negative: they would overlap.
+
+    The shapes keep Bullet's default collision margin, which a mesh's body has not (a hull is
+    inflated by up to 1 mm): the distance may fall short of the bodies' by a millimetre or two, never
+    beyond it, so it errs towards the bodies touching.
+    """
+    points = pybullet.getClosestPoints(
+        -1,
+        -1,
+        cap,
+        collisionShapeA=world.object_shapes[first],
+        collisionShapeB=world.object_shapes[second],
+        collisionShapePositionA=first_pose.position,
+        collisionShapeOrientationA=first_pose.orientation,
+        collisionShapePositionB=second_pose.position,
+        collisionShapeOrientationB=second_pose.orientation,
+        physicsClientId=world.client,
+    )
+    return min((float(point[8]) for point in points), default=cap)
 
 
 def static_overlap(world: PhysicsWorld, index: int, pose: Pose) -> float:

@@ -38,7 +38,7 @@ from dataclasses import dataclass, replace
 from typing import Literal, TypedDict, Unpack, overload
 
 from physics_mapper.model.bullet import pybullet
-from physics_mapper.model.geometry import Pose, Vector3, pose_displacement
+from physics_mapper.model.geometry import Pose, Vector3, pose_displacement, rotation_angle, translation_distance
 from physics_mapper.model.scene import SearchParams
 from physics_mapper.physics.world import SOLVER_ITERATIONS, TIME_STEP, PhysicsWorld
 
@@ -73,17 +73,20 @@ class EarlyExit:
     ``drift`` / (``rest_rate`` x the time left), when that is more than 1: an object drifting on at
     the rate would add at most ``drift`` to its J_i by the settling's end. None: fixed rates.
     ``beyond_looks``: the consecutive looks an object must be beyond (at rest beyond
-    ``jitter_threshold``, or anyhow beyond ``moving_beyond``) before the settling stops.
+    ``jitter_threshold``, or anyhow its position beyond ``moving_beyond`` or its orientation beyond
+    ``turning_beyond``) before the settling stops.
     """
 
     rest_rate: float
     jitter_threshold: float | None
-    #: (m + weighted rad) once an object's J_i has been beyond this at ``beyond_looks`` consecutive
+    #: (m) once an object's position has been beyond this from its start at ``beyond_looks`` consecutive
     #: looks, at rest or not, the settling stops (``"beyond_threshold"``); None: only at rest.
     moving_beyond: float | None = None
     wobble_rate: float | None = None
     drift: float | None = None
     beyond_looks: int = REST_CHECKS
+    #: (rad) as ``moving_beyond``, for the angle an object turned from its start; None: not by its angle.
+    turning_beyond: float | None = None
 
     def rate_scale(self, time_left: float) -> float:
         """What the rates are multiplied by with ``time_left`` seconds of the settling to go (``drift``)."""
@@ -95,10 +98,17 @@ class EarlyExit:
 #: An object is at rest while its jitter rate (m/s, |v| + angular_weight * |omega|) would add at most
 #: this share of ``jitter_threshold`` over a whole ``settle_time``.
 REST_SHARE = 0.05
-#: How many jitter thresholds away an object that is still moving must be, at :data:`MOVING_BEYOND_LOOKS`
-#: consecutive looks, to end a ``moving`` settling as unstable: a body falling, sliding or toppling
-#: that far does not come back within the threshold (measured on the crowded suite).
+#: How many jitter thresholds from its start an object's position must be, moving or not, at
+#: :data:`MOVING_BEYOND_LOOKS` consecutive looks, to end a ``moving`` settling as unstable: a body falling
+#: or sliding that far does not come back within the threshold (measured on the crowded suite). Its position
+#: alone, not J_i: a body rocking in place turns and comes back (a lego brick on another's studs tipped
+#: 0.36 rad, J_i 4.5 cm at two looks, its position 9 mm, and came to rest at J_i 1.1 cm).
 MOVING_BEYOND_SHARE = 2.0
+#: Radians an object must have turned from its start, moving or not, at :data:`MOVING_BEYOND_LOOKS`
+#: consecutive looks, to end a ``moving`` settling as unstable: it topples rather than rocks (the lego brick
+#: above turned 0.36 rad at most). A domino toppling on the tabletop is beyond at steps 56 and 64, its
+#: position at 80 and 88 (its J_i at 48 and 56).
+TURNING_BEYOND = 0.5
 #: Consecutive looks (every :data:`CLOCK_CHECK_STEPS` steps, 33 ms apart) that end a ``moving``
 #: settling once an object is beyond: a cube floating 2 to 4 cm is 2 thresholds down at the look after
 #: 67 ms and lands by 90 ms, so two looks end its trial at step 24 instead of 32 (the crowded
@@ -121,8 +131,9 @@ def early_exit_rule(
     wobbling at up to :data:`WOBBLE_SHARE` x the rest rate as at rest while its pose stays put, both
     rates measured against the time left (``drift``: :data:`REST_SHARE` x jitter_threshold, what the
     rest rate allows over a whole settling). ``moving`` (not with ``complete``) does too, and also
-    stops a settling once an object has been :data:`MOVING_BEYOND_SHARE` x the threshold away, or at
-    rest beyond the threshold, at :data:`MOVING_BEYOND_LOOKS` consecutive looks: the
+    stops a settling once an object's position has been :data:`MOVING_BEYOND_SHARE` x the threshold away,
+    or it has turned :data:`TURNING_BEYOND`, or it has been at rest beyond the threshold, at
+    :data:`MOVING_BEYOND_LOOKS` consecutive looks: the
     conflict-directed search's verdicts, whose agreement with full settling ``physics-mapper bench
     --crowded`` measures.
     """
@@ -135,7 +146,7 @@ def early_exit_rule(
     wobble_rate, drift = (WOBBLE_SHARE * rest_rate, REST_SHARE * threshold) if wobbling or moving else (None, None)
     if moving:
         beyond = MOVING_BEYOND_SHARE * threshold
-        return EarlyExit(rest_rate, jitter_threshold, beyond, wobble_rate, drift, MOVING_BEYOND_LOOKS)
+        return EarlyExit(rest_rate, jitter_threshold, beyond, wobble_rate, drift, MOVING_BEYOND_LOOKS, TURNING_BEYOND)
     return EarlyExit(rest_rate, jitter_threshold, None, wobble_rate, drift)
 
 
@@ -147,7 +158,8 @@ class Settling:
     ``steps`` of ``steps_total`` :data:`TIME_STEP` steps were simulated. ``reach``, when the
     settling was asked to track it, is each object's :data:`PositionRange` over its start and every
     look at the world (every :data:`CLOCK_CHECK_STEPS` steps, and the end); ``extent`` the smallest
-    box holding the object's body (Bullet's axis-aligned bounding box) at those moments. ``beyond``: for a
+    box holding the object's body (Bullet's axis-aligned bounding box) at those moments, ``path`` every
+    object's poses at them (the start first, the end last). ``beyond``: for a
     settling stopped ``beyond_threshold``, the objects (indices into ``jitters``) that were beyond at the
     early exit's ``beyond_looks`` last looks: the ones shown unstable. Another object's J_i beyond the
     threshold at that moment may be a passing swing (a part rocking as a neighbour falls) that would
@@ -164,6 +176,7 @@ class Settling:
     #: Bullet solver iterations it ran with when fewer than Rule 2's (None: Rule 2's, ``SOLVER_ITERATIONS``).
     solver_iterations: int | None = None
     beyond: tuple[int, ...] = ()
+    path: tuple[tuple[Pose, ...], ...] | None = None
 
     @property
     def total_jitter(self) -> float:
@@ -191,7 +204,7 @@ class PartialSettling:
     ``fixed`` are objects held where they are (scene index, pose), with the consecutive looks so far
     with every object at rest (``rest_checks``) and, per object, with it beyond (``beyond_checks``, empty
     before the first look), the last looks' poses (``recent``: step, poses; for ``wobble_rate``), and the
-    ``reach`` and ``extent`` so far (None: not tracked; an extent not begun).
+    ``reach``, ``extent`` and ``path`` so far (None: not tracked; an extent not begun).
     """
 
     poses: tuple[Pose, ...]
@@ -208,11 +221,14 @@ class PartialSettling:
     recent: tuple[tuple[int, tuple[Pose, ...]], ...] = ()
     reach: tuple[PositionRange, ...] | None = None
     extent: tuple[PositionRange, ...] | None = None
+    path: tuple[tuple[Pose, ...], ...] | None = None
 
     def restarted(self) -> PartialSettling:
         """The same settling, not yet begun."""
-        start = None if self.reach is None else _start_reach(self.poses)
-        return replace(self, steps_done=0, rest_checks=0, beyond_checks=(), recent=(), reach=start, extent=None)
+        start, path = (None, None) if self.reach is None else (_start_reach(self.poses), (self.poses,))
+        return replace(
+            self, steps_done=0, rest_checks=0, beyond_checks=(), recent=(), reach=start, extent=None, path=path
+        )
 
 
 def _start_reach(poses: Sequence[Pose]) -> tuple[PositionRange, ...]:
@@ -238,17 +254,31 @@ def _grown(ranges: tuple[PositionRange, ...], boxes: Sequence[PositionRange]) ->
 
 
 def _beyond_checks(
-    checks: tuple[int, ...], rule: EarlyExit, at_rest: Sequence[bool], jitters: Sequence[float]
+    checks: tuple[int, ...],
+    rule: EarlyExit,
+    at_rest: Sequence[bool],
+    jitters: Sequence[float],
+    start: Sequence[Pose],
+    now: Sequence[Pose],
 ) -> tuple[int, ...]:
     """Per object, its consecutive looks beyond after this one (``checks``: before it, empty before the first):
-    at rest with J_i beyond ``rule.jitter_threshold``, or anyhow beyond ``rule.moving_beyond``."""
-    threshold, moving = rule.jitter_threshold, rule.moving_beyond
+    at rest with J_i beyond ``rule.jitter_threshold``, or anyhow its position from ``start`` to ``now`` beyond
+    ``rule.moving_beyond`` or its turn beyond ``rule.turning_beyond``."""
     before = checks or (0,) * len(jitters)
     return tuple(
-        looks + 1
-        if (threshold is not None and resting and jitter > threshold) or (moving is not None and jitter > moving)
-        else 0
-        for looks, resting, jitter in zip(before, at_rest, jitters, strict=True)
+        looks + 1 if (resting and _beyond(rule.jitter_threshold, jitter)) or _moved_beyond(rule, a, b) else 0
+        for looks, resting, jitter, a, b in zip(before, at_rest, jitters, start, now, strict=True)
+    )
+
+
+def _beyond(bound: float | None, value: float) -> bool:
+    return bound is not None and value > bound
+
+
+def _moved_beyond(rule: EarlyExit, start: Pose, now: Pose) -> bool:
+    """Whether an object's pose ``now`` is beyond the rule's ``moving_beyond`` or ``turning_beyond`` from ``start``."""
+    return _beyond(rule.moving_beyond, translation_distance(start, now)) or _beyond(
+        rule.turning_beyond, rotation_angle(start.orientation, now.orientation)
     )
 
 
@@ -280,9 +310,9 @@ class Settler:
     def __init__(self, world: PhysicsWorld) -> None:
         self.world = world
         # The interrupted settling a resume continues (the world keeps its simulation), and the
-        # objects that were massless when it stopped.
+        # world's count of re-entries when it stopped.
         self._interrupted: PartialSettling | None = None
-        self._interrupted_massless: set[int] = set()
+        self._interrupted_entries = 0
 
     @overload
     def settle(
@@ -338,6 +368,7 @@ class Settler:
             fixed=fixed,
             solver_iterations=options.get("solver_iterations"),
             reach=_start_reach(poses) if options.get("track_reach", False) else None,
+            path=(tuple(poses),) if options.get("track_reach", False) else None,
         )
         return self._simulate(plan, stop_at)
 
@@ -359,7 +390,7 @@ class Settler:
         if partial is not self._interrupted:
             self.world.place(partial.poses, partial.objects, partial.fixed)
             return self._simulate(partial.restarted(), stop_at)
-        if self.world.kept_was_saved() and self.world.massless != self._interrupted_massless:
+        if self.world.kept_was_saved() and self.world.entries != self._interrupted_entries:
             # Objects were parked or placed since (their masses changed): Bullet re-entered them into
             # its world, so the saved contact points would not come back as they were. Start over.
             self._forget_interrupted()
@@ -386,7 +417,7 @@ class Settler:
         steps_done, steps_total = plan.steps_done, plan.steps_total
         uids = self.world.uids(plan.objects)
         watched = plan.early_exit is not None or plan.reach is not None
-        rest_checks, beyond_checks, reach = plan.rest_checks, plan.beyond_checks, plan.reach
+        rest_checks, beyond_checks, reach, path = plan.rest_checks, plan.beyond_checks, plan.reach, plan.path
         extent, recent = plan.extent, plan.recent or ((0, plan.poses),)
         iterations = plan.solver_iterations
         if reach is not None and extent is None:
@@ -402,13 +433,14 @@ class Settler:
                 poses = self.world.poses(plan.objects)
                 if reach is not None and extent is not None:
                     reach, extent = _widened(reach, poses), _grown(extent, self.world.extents(uids))
+                    path = None if path is None else (*path, poses)
                 if plan.early_exit is not None:
                     jitters = self._jitters(plan.poses, poses, plan.angular_weight)
                     at_rest = self._at_rest(
                         uids, plan.angular_weight, plan.early_exit, recent[0], poses, steps_done, steps_total
                     )
                     recent = (*recent, (steps_done, poses))[-REST_CHECKS:]
-                    beyond_checks = _beyond_checks(beyond_checks, plan.early_exit, at_rest, jitters)
+                    beyond_checks = _beyond_checks(beyond_checks, plan.early_exit, at_rest, jitters, plan.poses, poses)
                     rest_checks = rest_checks + 1 if all(at_rest) else 0
                     shown = tuple(i for i, looks in enumerate(beyond_checks) if looks >= plan.early_exit.beyond_looks)
                     if shown:
@@ -422,9 +454,12 @@ class Settler:
                             extent,
                             iterations,
                             shown,
+                            path,
                         )
                     if rest_checks >= REST_CHECKS:
-                        return Settling(poses, jitters, "rest", steps_done, steps_total, reach, extent, iterations)
+                        return Settling(
+                            poses, jitters, "rest", steps_done, steps_total, reach, extent, iterations, path=path
+                        )
             if stop_at is not None and steps_done < steps_total and time.monotonic() >= stop_at:
                 self.world.keep_simulation()
                 self._interrupted = replace(
@@ -435,14 +470,16 @@ class Settler:
                     recent=recent,
                     reach=reach,
                     extent=extent,
+                    path=path,
                 )
-                self._interrupted_massless = set(self.world.massless)
+                self._interrupted_entries = self.world.entries
                 return self._interrupted
         settled = self.world.poses(plan.objects)
         if reach is not None and extent is not None:
             reach, extent = _widened(reach, settled), _grown(extent, self.world.extents(uids))
+            path = None if path is None else (*path, settled)
         jitters = self._jitters(plan.poses, settled, plan.angular_weight)
-        return Settling(settled, jitters, None, steps_done, steps_total, reach, extent, iterations)
+        return Settling(settled, jitters, None, steps_done, steps_total, reach, extent, iterations, path=path)
 
     def _forget_interrupted(self) -> None:
         self.world.forget_kept()

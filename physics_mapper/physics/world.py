@@ -14,12 +14,15 @@ wait at their parking spots, far above and far apart, where they touch nothing a
 reported, with their mass set to zero, which Bullet treats as fixed: they are never integrated
 and cost almost nothing per step. An object placed again gets its mass and inertia back before
 anything touches it. With every object placed, no mass changes and the world steps exactly as it
-always did. Bullet re-enters a body whose mass changes into its world, which changes the order it
-solves contacts in: box, sphere and cylinder settlings still end bit for bit where a fresh
-world's do (measured on the pyramid's configurations over 5 s), mesh settlings within a few
-micrometres (3.9e-6 m at most on the tabletop scene's ground truth). A world that has held objects
-*absent* (massless at their spots while their inputs came in one by one, as the node's does)
-settled the pyramid's chosen configuration 1.1e-5 m from a fresh world's.
+always did. Bullet re-enters a body whose mass changes into its world, and solves contacts in the
+order bodies entered it; so every change of which objects are simulated re-enters all of them in one
+order (:meth:`PhysicsWorld.simulate_only`), and a settling ends bit for bit where a fresh world's does,
+whatever earlier work parked. Re-entering only the objects whose mass changed left settlings to the
+history: mesh settlings a few micrometres apart mostly, but a part the tabletop's hypotheses put
+rocking on an edge came to rest within the jitter threshold in a fresh world (J 0.6 cm) and 1.6 cm
+beyond it after one collision pass of two other objects, a verdict no search could rely on. The
+re-entry costs about 6 us per object and change (0.6 ms for 50 objects), so a collision pass, which
+steps nothing, re-enters only the objects whose mass changes (:meth:`PhysicsWorld.detect_only`).
 
 A kept simulation. A simulation interrupted by its deadline (Rule 2,
 :mod:`physics_mapper.physics.settling`) may be continued later. While nothing else used the
@@ -69,12 +72,19 @@ class PhysicsWorld:
         if self.client < 0:
             raise PhysicsEngineError("pybullet could not start a world")
         self.object_uids: list[int] = []
+        #: Each object's collision shape (scene order), in its own frame: distances at any pose without moving it.
+        self.object_shapes: list[int] = []
         # A kept simulation (see the module docstring): whether the world holds one, and its
         # saved state once the world was used for something else.
         self._keeping = False
         self._kept_state: int | None = None
         # Objects (scene indices) waiting massless at their parking spots: not simulated.
         self.massless: set[int] = set()
+        # Whether the objects entered Bullet's world in the order :meth:`simulate_only` gives them.
+        self._entered_in_order = False
+        #: How many times objects were re-entered into Bullet's world (a mass changed): a saved
+        #: simulation comes back as it was only while this count is unchanged.
+        self.entries = 0
         # Objects that may be away from their parking spots (None: any object may be).
         self.placed: tuple[int, ...] | None = None
         try:
@@ -92,13 +102,14 @@ class PhysicsWorld:
         )
         statics = []
         for body in self.scene.static:
-            uid = self._create(body.shape, 0.0, body.pose)
+            uid = self._create(body.shape, self._collision_shape(body.shape), 0.0, body.pose)
             pybullet.changeDynamics(uid, -1, lateralFriction=body.friction, physicsClientId=client)
             statics.append(uid)
         # Per object, where its centre of mass frame is in its pose's frame (None: at the pose).
         self._inertial_frames: list[Pose | None] = []
         for model in self.scene.objects:
-            uid = self._create(model.shape, model.mass, ORIGIN)
+            self.object_shapes.append(self._collision_shape(model.shape))
+            uid = self._create(model.shape, self.object_shapes[-1], model.mass, ORIGIN)
             pybullet.changeDynamics(
                 uid, -1, lateralFriction=model.friction, rollingFriction=model.rolling_friction, physicsClientId=client
             )
@@ -113,8 +124,9 @@ class PhysicsWorld:
         self._dynamics = [pybullet.getDynamicsInfo(uid, -1, physicsClientId=client)[:3:2] for uid in self.object_uids]
         self._initial_state = pybullet.saveState(physicsClientId=client)
 
-    def _create(self, shape: Shape, mass: float, pose: Pose) -> int:
-        """A body of ``shape`` at ``pose`` (its own frame: a mesh's file frame), with ``mass`` kg (0: fixed).
+    def _create(self, shape: Shape, collision_shape: int, mass: float, pose: Pose) -> int:
+        """A body of ``shape`` (Bullet's ``collision_shape`` of it) at ``pose`` (its own frame: a mesh's file
+        frame), with ``mass`` kg (0: fixed).
 
         pybullet puts a body's centre of mass and principal axes at its *inertial frame*, given
         in the body's frame; the primitives' is the body frame. A mesh's comes from its mass
@@ -127,7 +139,7 @@ class PhysicsWorld:
         uid = int(
             pybullet.createMultiBody(
                 baseMass=mass,
-                baseCollisionShapeIndex=self._collision_shape(shape),
+                baseCollisionShapeIndex=collision_shape,
                 basePosition=pose.position,
                 baseOrientation=pose.orientation,
                 baseInertialFramePosition=(frame or ORIGIN).position,
@@ -235,7 +247,33 @@ class PhysicsWorld:
         self.placed = (*indices, *(index for index, _ in fixed))
 
     def simulate_only(self, objects: tuple[int, ...]) -> None:
-        """Give ``objects`` their masses back and every other object zero mass (no call when nothing changes)."""
+        """Give ``objects`` their masses and every other object zero mass, ready to step (no call when
+        nothing changes).
+
+        Bullet re-enters a body into its world whenever its mass changes, and solves contacts in the
+        order bodies entered: had only the objects whose mass changes been re-entered, a settling would
+        depend on which objects earlier work had parked (module docstring). So a change re-enters every
+        object: each goes massless in scene order, then the simulated ones get their masses back in
+        scene order, and the world's order depends on ``objects`` alone.
+        """
+        massless = set(self.all_objects).difference(objects)
+        if massless == self.massless and self._entered_in_order:
+            return
+        client = self.client
+        for index, uid in enumerate(self.object_uids):
+            if index in self.massless:  # re-entered too: give it its mass for a moment
+                self._give_mass(index)
+            pybullet.changeDynamics(uid, -1, mass=0.0, physicsClientId=client)
+        for index in sorted(set(self.all_objects) - massless):
+            self._give_mass(index)
+        self.massless = massless
+        self._entered_in_order = True
+        self.entries += 1
+
+    def detect_only(self, objects: tuple[int, ...]) -> None:
+        """Give ``objects`` their masses and every other object zero mass for a collision pass, which steps
+        nothing (Bullet skips pairs of two fixed bodies): only the objects whose mass changes are re-entered,
+        since contact points do not depend on the order; the next :meth:`simulate_only` puts it right."""
         simulated = set(objects)
         for index, uid in enumerate(self.object_uids):
             parked = index not in simulated
@@ -245,9 +283,16 @@ class PhysicsWorld:
                 pybullet.changeDynamics(uid, -1, mass=0.0, physicsClientId=self.client)
                 self.massless.add(index)
             else:
-                mass, inertia = self._dynamics[index]
-                pybullet.changeDynamics(uid, -1, mass=mass, localInertiaDiagonal=inertia, physicsClientId=self.client)
+                self._give_mass(index)
                 self.massless.discard(index)
+            self._entered_in_order = False
+            self.entries += 1
+
+    def _give_mass(self, index: int) -> None:
+        mass, inertia = self._dynamics[index]
+        pybullet.changeDynamics(
+            self.object_uids[index], -1, mass=mass, localInertiaDiagonal=inertia, physicsClientId=self.client
+        )
 
     def set_pose(self, index: int, pose: Pose) -> None:
         """Put object ``index``'s own frame at ``pose`` (pybullet places its inertial frame, see :meth:`_create`)."""

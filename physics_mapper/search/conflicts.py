@@ -48,6 +48,21 @@ configuration a conflict skipped is checked in full by the tests, and none is va
 sampling the motion every 8 steps. A settling without swept boxes (reused from a memo) blames every
 object of the configuration at its rank, which is trivially sound.
 
+Boxes are coarse: a mug turned on a table has a box far wider than its body, and a part rocking in
+place sweeps a box that meets every neighbour's envelope a few centimetres away, so each neighbour was
+held at its rank though none was ever near it. The *clearance rule* then widens a blamed object's rank
+set by distances between bodies (:meth:`~physics_mapper.physics.checker.PhysicsChecker.clearance`,
+Bullet's closest points at given poses). Write u_k and p_k for the poses of u and p at look k of the
+settling (the start first, the end last, :attr:`~physics_mapper.physics.settling.Settling.path`), and
+d_q(k) for how far any point of object q moved from look k to the next: |t_k+1 - t_k| + r_q angle(k,
+k+1) (0 after the last). p *stayed clear* of u in C when at every look its body lies more than
+d_u(k) + d_p(k) + 1 mm from u's: between two looks neither body can close the gap, so p never touched
+u (up to the sampling, as above). Such a p did not act on u, so at any rank h at which it stays clear of
+u's path too, body at h more than g_p + d_u(k) + 1 mm from u_k at every look (in a stable C' it stays
+within g_p of h), it cannot act on u either: h joins p's rank set, and p leaves the conflict when every
+rank does. An object that did not stay clear keeps the rank set the boxes gave. Being finer, the rule
+never blames an object the boxes did not; it is not used with the chain rule below.
+
 The assumption fails where a push passes through an object that barely moves: an object far from S_u
 then moved u through one held at its rank, and the conflict, leaving it out, may rule out a valid
 configuration. The *chain rule* (``Blame(..., chains=True)``) holds at their rank every object
@@ -60,8 +75,9 @@ search uses it only to search again a group whose candidates ran out with none v
 from __future__ import annotations
 
 import functools
+import itertools
 import operator
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from typing import Literal
 
@@ -69,6 +85,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from physics_mapper.model.extents import body_box, meets_box, stable_growth
+from physics_mapper.model.geometry import Pose, rotation_angle, translation_distance
 from physics_mapper.model.hypotheses import RankedHypotheses
 from physics_mapper.model.scene import ObjectShape, SearchParams, object_radius
 from physics_mapper.physics.collision_table import CollisionTable
@@ -121,6 +138,12 @@ class Conflict:
             tuple(assignment for assignment, _ in moved), self.kind, self.region, tuple(ranks for _, ranks in moved)
         )
 
+
+#: A callable: metres between the bodies of two objects (positions in a group) at two poses, at most a cap
+#: (:meth:`~physics_mapper.physics.checker.PhysicsChecker.clearance`).
+Clearance = Callable[[int, Pose, int, Pose, float], float]
+#: Metres beyond their travels two bodies must lie apart for the clearance rule to call them apart.
+CLEARANCE_MARGIN = 0.001
 
 #: Conflicts one group's search keeps at most (a bit per conflict and hypothesis: 625 kB for 50
 #: objects of 10 hypotheses); later ones still direct the expansion of the candidate they came from.
@@ -261,8 +284,9 @@ def collision_conflicts(
 class Blame:
     """The blame rule (module docstring) for one group: its objects' stable envelopes.
 
-    The envelopes, every hypothesis's body box grown by g_p (metres), are made on first use. With
-    ``chains``, the *chain rule*: the objects held at their rank are every object connected to the one
+    The envelopes, every hypothesis's body box grown by g_p (metres), are made on first use. With a
+    ``clearance`` (metres between two objects' bodies at given poses), the *clearance rule* widens what the
+    boxes blame. With ``chains``, the *chain rule*: the objects held at their rank are every object connected to the one
     that moved by swept boxes that meet, not only those whose swept box meets its own (module docstring).
     """
 
@@ -272,14 +296,16 @@ class Blame:
         hypotheses: Sequence[RankedHypotheses],
         params: SearchParams,
         chains: bool = False,
+        clearance: Clearance | None = None,
     ) -> None:
         self.params = params
         self.chains = chains
+        self.clearance = clearance
         self.shapes = tuple(shapes)
         self.hypotheses = tuple(hypotheses)
         self.threshold = params.jitter_threshold
-        radii = [object_radius(shape) for shape in self.shapes]
-        self.growth = tuple(stable_growth(r, params.jitter_threshold, params.angular_weight) for r in radii)
+        self.radii = tuple(object_radius(shape) for shape in self.shapes)
+        self.growth = tuple(stable_growth(r, params.jitter_threshold, params.angular_weight) for r in self.radii)
         self._boxes: tuple[tuple[FloatArray, FloatArray], ...] | None = None
         self._envelopes: tuple[tuple[FloatArray, FloatArray], ...] | None = None
         # Every object's envelopes stacked (sum of M x 3 corners) and the position each belongs to.
@@ -287,7 +313,7 @@ class Blame:
 
     def chained(self) -> Blame:
         """The same group's chain rule (its envelopes made once for both)."""
-        blame = Blame(self.shapes, self.hypotheses, self.params, chains=True)
+        blame = Blame(self.shapes, self.hypotheses, self.params, chains=True, clearance=self.clearance)
         blame._boxes, blame._envelopes, blame._stacked = self._boxes, self._envelopes, self._stacked
         return blame
 
@@ -332,6 +358,8 @@ class Blame:
                 (float(high[u][0]), float(high[u][1]), float(high[u][2])),
             )
             blamed = self._blamed(u, code, low, high)
+            if self.clearance is not None and not self.chains and settling.path is not None:
+                blamed = self._cleared(u, code, settling.path, blamed)
             found.append(Conflict(tuple((p, code[p]) for p in blamed), "unstable", region, tuple(blamed.values())))
         return sorted(found, key=lambda conflict: len(conflict.assignments))
 
@@ -355,6 +383,55 @@ class Blame:
                 in_way = reaching[owners == p]  # by rank
                 blamed[p] = frozenset(rank for rank in range(1, len(in_way) + 1) if not in_way[rank - 1]) | {code[p]}
         return blamed
+
+    def _cleared(
+        self, moved: int, code: Sequence[int], path: tuple[tuple[Pose, ...], ...], blamed: dict[int, frozenset[int]]
+    ) -> dict[int, frozenset[int]]:
+        """The blamed objects' rank sets widened by the clearance rule (module docstring), ``path`` the
+        settling's poses at its looks: an object that stayed clear of the one that moved, at each rank that
+        stays clear of it too; one clear at every rank leaves the conflict."""
+        u = moved
+        u_path = [poses[u] for poses in path]
+        u_steps = self._steps(u, u_path)
+        cleared: dict[int, frozenset[int]] = {}
+        for p, ranks in blamed.items():
+            ranked = self.hypotheses[p]
+            p_path = [poses[p] for poses in path]
+            if p == u or not self._apart(
+                p, p_path, u, u_path, list(map(operator.add, u_steps, self._steps(p, p_path)))
+            ):
+                cleared[p] = ranks
+                continue
+            reach = [self.growth[p] + step for step in u_steps]
+            widened = ranks | {
+                rank
+                for rank in range(1, len(ranked) + 1)
+                if rank not in ranks
+                and (ranked.is_absent(rank) or self._apart(p, [ranked.pose(rank)] * len(u_path), u, u_path, reach))
+            }
+            if len(widened) < len(ranked):
+                cleared[p] = widened
+        return cleared
+
+    def _steps(self, p: int, poses: Sequence[Pose]) -> list[float]:
+        """How far (m) any point of object ``p`` moved from each look to the next (``poses``: its pose at each
+        look): the translation plus its bounding radius times the angle turned; 0 after the last look."""
+        radius = self.radii[p]
+        steps = [
+            translation_distance(a, b) + radius * rotation_angle(a.orientation, b.orientation)
+            for a, b in itertools.pairwise(poses)
+        ]
+        return [*steps, 0.0]
+
+    def _apart(self, p: int, p_path: Sequence[Pose], u: int, u_path: Sequence[Pose], gaps: Sequence[float]) -> bool:
+        """Whether object ``p`` (at ``p_path``'s poses) and ``u`` (at ``u_path``'s) lie more than ``gaps`` (+ the
+        margin) apart at every look."""
+        assert self.clearance is not None
+        for p_pose, u_pose, gap in zip(p_path, u_path, gaps, strict=True):
+            cap = gap + CLEARANCE_MARGIN
+            if self.clearance(p, p_pose, u, u_pose, cap) < cap:
+                return False
+        return True
 
     @staticmethod
     def _chain(moved: int, low: FloatArray, high: FloatArray) -> NDArray[np.bool_]:

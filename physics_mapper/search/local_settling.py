@@ -38,6 +38,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from physics_mapper.model.extents import FloatArray, meets_boxes
+from physics_mapper.model.geometry import Pose
 from physics_mapper.model.scene import Mesh
 from physics_mapper.physics.settling import PositionRange, Settling
 from physics_mapper.search.conflicts import Blame
@@ -145,7 +146,21 @@ class LocalSettling:
             tuple(extent),
             local.solver_iterations,
             tuple(plan.simulated[index] for index in local.beyond),
+            None if local.path is None else _whole_path(local.path, start, plan.simulated),
         )
+
+
+def _whole_path(
+    path: tuple[tuple[Pose, ...], ...], start: list[Pose], simulated: Sequence[int]
+) -> tuple[tuple[Pose, ...], ...]:
+    """A local settling's poses at each look as the whole group's: objects not simulated stay at ``start``."""
+    whole = []
+    for poses in path:
+        look = list(start)
+        for index, position in enumerate(simulated):
+            look[position] = poses[index]
+        whole.append(tuple(look))
+    return tuple(whole)
 
 
 def _box(box: tuple[FloatArray, FloatArray]) -> PositionRange:

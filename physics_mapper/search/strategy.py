@@ -21,6 +21,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Generic, Protocol, cast
 
+from physics_mapper.model.geometry import Pose
 from physics_mapper.model.hypotheses import RankedHypotheses
 from physics_mapper.model.limits import MAX_SEARCHED_HYPOTHESES
 from physics_mapper.model.scene import SearchParams, Strategy
@@ -29,7 +30,7 @@ from physics_mapper.physics.collision_table import CollisionTable
 from physics_mapper.physics.refine import load_solver
 from physics_mapper.search.best_first import BestFirst, Bound, G, R, Rule1Check, Search, Trace, resumable, weight_table
 from physics_mapper.search.conflict_directed import ConflictCarryOver, ConflictDirectedCandidates, ConflictGroup
-from physics_mapper.search.conflicts import Blame
+from physics_mapper.search.conflicts import Blame, Clearance
 from physics_mapper.search.grouped import CarryOver, GroupBuilder, GroupedSearch, GroupSpec, NothingCarried
 from physics_mapper.search.local_settling import LocalSettling
 from physics_mapper.search.paper_queue import PaperQueue
@@ -85,7 +86,8 @@ def conflict_group(spec: GroupSpec) -> ConflictGroup:
     object still moving)."""
     checker, params, objects, guard, link = spec.checker, spec.params, spec.objects, spec.guard, spec.link
     hypotheses = tuple(spec.hypotheses[i] for i in objects)
-    blame = Blame([checker.scene.objects[i].shape for i in objects], hypotheses, params)
+    shapes = [checker.scene.objects[i].shape for i in objects]
+    blame = Blame(shapes, hypotheses, params, clearance=_clearance_in(checker, objects))
     bound = Bound.of(params, weight_table(hypotheses))
     candidates = ConflictDirectedCandidates(
         checker,
@@ -103,6 +105,15 @@ def conflict_group(spec: GroupSpec) -> ConflictGroup:
     confirm = MemoisedSettling(spec.memo, settling)
     rule2 = TrialSettling(checker, objects, params, LocalSettling(blame), confirm, observers=[guard.settled])
     return _group_core(spec, candidates, rule2, bound)
+
+
+def _clearance_in(checker: PhysicsChecker, objects: Sequence[int]) -> Clearance:
+    """The checker's clearance between two objects given by their positions in a group of ``objects``."""
+
+    def clearance(first: int, first_pose: Pose, second: int, second_pose: Pose, cap: float) -> float:
+        return checker.clearance(objects[first], first_pose, objects[second], second_pose, cap)
+
+    return clearance
 
 
 def _group_core(spec: GroupSpec, candidates: G, rule2: R, bound: Bound) -> BestFirst[G, R]:

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import itertools
 import json
+import math
 import random
 from dataclasses import replace
 from pathlib import Path
@@ -22,7 +23,7 @@ from mesh_builders import box_mesh, floor_scene_dict, load_inline, mesh_object, 
 
 from physics_mapper.model.geometry import Pose
 from physics_mapper.model.hypotheses import Hypothesis, RankedHypotheses
-from physics_mapper.model.scene import Bound, Box, Mesh, SearchParams
+from physics_mapper.model.scene import Bound, Box, Mesh, ObjectModel, SearchParams
 from physics_mapper.physics.checker import PhysicsChecker
 from physics_mapper.physics.settling import (
     CLOCK_CHECK_STEPS,
@@ -553,6 +554,35 @@ def test_a_settling_stopped_as_unstable_blames_only_the_objects_it_stopped_for()
     blame = Blame([c.shape for c in cubes], hypotheses, params)
     assert [c.assignments for c in blame.conflicts((1, 1), stopped)] == [((0, 1),)]
     assert [c.assignments for c in blame.conflicts((1, 1), ran_out)] == [((0, 1),), ((1, 1),)]
+
+
+def test_a_neighbour_that_stayed_clear_of_a_fall_leaves_the_conflict_at_every_rank_clear_of_it() -> None:
+    """A bar turned 45 degrees about z falls 3 cm beside a cube standing in a corner of the bar's box, 9 cm
+    from its body. The boxes blame the cube at its rank; the clearance rule lets through each rank of the
+    cube clear of the fall (rank 2, 9 cm off) and not one 4 mm from the bar (rank 3). Every configuration
+    the widened conflict covers is unstable by a full settling."""
+    bar = ObjectModel("bar", Box((0.3, 0.02, 0.02)), mass=0.2)
+    scene = floor_scene(bar, cube("cube"))
+    params = scene.search
+    turned = Pose((0.0, 0.0, 0.04), (0.0, 0.0, math.sin(math.pi / 8), math.cos(math.pi / 8)))
+    cube_poses = [unrotated(0.12, -0.12, 0.05), unrotated(0.13, -0.11, 0.05), unrotated(0.07, -0.05, 0.05)]
+    hypotheses = [ranked_poses([turned], [1.0]), ranked_poses(cube_poses, [0.5, 0.3, 0.2])]
+    shapes = [model.shape for model in scene.objects]
+    with PhysicsChecker(scene) as checker:
+        settling = checker.settle(
+            [turned, cube_poses[0]],
+            params.settle_time,
+            params.angular_weight,
+            early_exit=early_exit_rule(params, False, moving=True),
+            track_reach=True,
+        )
+        boxes = Blame(shapes, hypotheses, params).conflicts((1, 1), settling)
+        cleared = Blame(shapes, hypotheses, params, clearance=checker.clearance).conflicts((1, 1), settling)
+        assert [(c.assignments, c.ranks) for c in boxes] == [(((0, 1), (1, 1)), (frozenset({1}), frozenset({1})))]
+        assert [(c.assignments, c.ranks) for c in cleared] == [(((0, 1), (1, 1)), (frozenset({1}), frozenset({1, 2})))]
+        for rank in cleared[0].ranks[1]:
+            full = checker.settle([turned, cube_poses[rank - 1]], params.settle_time, params.angular_weight)
+            assert not full.is_stable(params.jitter_threshold)
 
 
 def test_an_early_exit_counts_each_object_s_looks_beyond_on_its_own() -> None:
