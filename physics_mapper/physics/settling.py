@@ -101,8 +101,9 @@ REST_SHARE = 0.05
 #: How many jitter thresholds from its start an object's position must be, moving or not, at
 #: :data:`MOVING_BEYOND_LOOKS` consecutive looks, to end a ``moving`` settling as unstable: a body falling
 #: or sliding that far does not come back within the threshold (measured on the crowded suite). Its position
-#: alone, not J_i: a body rocking in place turns and comes back (a lego brick on another's studs tipped
-#: 0.36 rad, J_i 4.5 cm at two looks, its position 9 mm, and came to rest at J_i 1.1 cm).
+#: (or its turn, :data:`TURNING_BEYOND`), not J_i: a body rocking in place turns and comes back (a lego brick
+#: on another's studs tipped 0.36 rad, J_i 4.5 cm at two looks, its position 9 mm, and came to rest at J_i
+#: 1.1 cm).
 MOVING_BEYOND_SHARE = 2.0
 #: Radians an object must have turned from its start, moving or not, at :data:`MOVING_BEYOND_LOOKS`
 #: consecutive looks, to end a ``moving`` settling as unstable: it topples rather than rocks (the lego brick
