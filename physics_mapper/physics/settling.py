@@ -156,11 +156,10 @@ class Settling:
     """Rule 2 measurement: poses after ``settle_time`` and each object's jitter J_i.
 
     ``stopped`` says why the settling ended before ``settle_time`` (None: it ran to the end);
-    ``steps`` of ``steps_total`` :data:`TIME_STEP` steps were simulated. ``reach``, when the
-    settling was asked to track it, is each object's :data:`PositionRange` over its start and every
-    look at the world (every :data:`CLOCK_CHECK_STEPS` steps, and the end); ``extent`` the smallest
-    box holding the object's body (Bullet's axis-aligned bounding box) at those moments, ``path`` every
-    object's poses at them (the start first, the end last). ``beyond``: for a
+    ``steps`` of ``steps_total`` :data:`TIME_STEP` steps were simulated. When the settling was asked to
+    track where objects went, ``path`` holds every object's poses at its start and every look at the world
+    (every :data:`CLOCK_CHECK_STEPS` steps, and the end), and ``extent`` each object's smallest box holding
+    its body (Bullet's axis-aligned bounding box) at those moments. ``beyond``: for a
     settling stopped ``beyond_threshold``, the objects (indices into ``jitters``) that were beyond at the
     early exit's ``beyond_looks`` last looks: the ones shown unstable. Another object's J_i beyond the
     threshold at that moment may be a passing swing (a part rocking as a neighbour falls) that would
@@ -172,7 +171,6 @@ class Settling:
     stopped: SettleStop | None = None
     steps: int = 0
     steps_total: int = 0
-    reach: tuple[PositionRange, ...] | None = None
     extent: tuple[PositionRange, ...] | None = None
     #: Bullet solver iterations it ran with when fewer than Rule 2's (None: Rule 2's, ``SOLVER_ITERATIONS``).
     solver_iterations: int | None = None
@@ -205,7 +203,7 @@ class PartialSettling:
     ``fixed`` are objects held where they are (scene index, pose), with the consecutive looks so far
     with every object at rest (``rest_checks``) and, per object, with it beyond (``beyond_checks``, empty
     before the first look), the last looks' poses (``recent``: step, poses; for ``wobble_rate``), and the
-    ``reach``, ``extent`` and ``path`` so far (None: not tracked; an extent not begun).
+    ``extent`` and ``path`` so far (None: not tracked; an extent not begun).
     """
 
     poses: tuple[Pose, ...]
@@ -220,25 +218,13 @@ class PartialSettling:
     rest_checks: int = 0
     beyond_checks: tuple[int, ...] = ()
     recent: tuple[tuple[int, tuple[Pose, ...]], ...] = ()
-    reach: tuple[PositionRange, ...] | None = None
     extent: tuple[PositionRange, ...] | None = None
     path: tuple[tuple[Pose, ...], ...] | None = None
 
     def restarted(self) -> PartialSettling:
         """The same settling, not yet begun."""
-        start, path = (None, None) if self.reach is None else (_start_reach(self.poses), (self.poses,))
-        return replace(
-            self, steps_done=0, rest_checks=0, beyond_checks=(), recent=(), reach=start, extent=None, path=path
-        )
-
-
-def _start_reach(poses: Sequence[Pose]) -> tuple[PositionRange, ...]:
-    return tuple((pose.position, pose.position) for pose in poses)
-
-
-def _widened(reach: tuple[PositionRange, ...], poses: Sequence[Pose]) -> tuple[PositionRange, ...]:
-    """Each range grown to hold the matching pose's position."""
-    return _grown(reach, [(pose.position, pose.position) for pose in poses])
+        path = None if self.path is None else (self.poses,)
+        return replace(self, steps_done=0, rest_checks=0, beyond_checks=(), recent=(), extent=None, path=path)
 
 
 def _grown(ranges: tuple[PositionRange, ...], boxes: Sequence[PositionRange]) -> tuple[PositionRange, ...]:
@@ -285,8 +271,8 @@ def _moved_beyond(rule: EarlyExit, start: Pose, now: Pose) -> bool:
 
 class SettleOptions(TypedDict, total=False):
     """Keyword options of :meth:`PhysicsChecker.settle` (see there): which objects settle (scene
-    indices; the others stay parked), a speed cap (m/s), an early exit, whether to record reach,
-    objects held fixed at given poses (scene index, pose) while the others settle, and the solver's
+    indices; the others stay parked), a speed cap (m/s), an early exit, whether to record where objects
+    went, objects held fixed at given poses (scene index, pose) while the others settle, and the solver's
     iterations per step (None: :data:`~physics_mapper.physics.world.SOLVER_ITERATIONS`)."""
 
     objects: Sequence[int] | None
@@ -349,8 +335,9 @@ class Settler:
         stay parked. ``max_speed`` (m/s) caps each object's linear speed after every step (within a
         step, gravity adds at most g * TIME_STEP = 0.04 m/s to it). ``early_exit`` may end the
         settling before ``settle_time`` (:class:`EarlyExit`); ``track_reach`` records where each
-        object went (:attr:`Settling.reach`). ``fixed`` (scene index, pose) places further objects that
-        do not move (massless, as parked ones) and are not measured: the others rest against them.
+        object went (:attr:`Settling.path`, :attr:`Settling.extent`). ``fixed`` (scene index, pose) places
+        further objects that do not move (massless, as parked ones) and are not measured: the others rest
+        against them.
         ``solver_iterations`` runs Bullet's constraint solver with that many iterations per step
         instead of Rule 2's :data:`~physics_mapper.physics.world.SOLVER_ITERATIONS` (cheaper, less stiff
         contacts; the world goes back to Rule 2's when the settling returns).
@@ -368,7 +355,6 @@ class Settler:
             early_exit=options.get("early_exit"),
             fixed=fixed,
             solver_iterations=options.get("solver_iterations"),
-            reach=_start_reach(poses) if options.get("track_reach", False) else None,
             path=(tuple(poses),) if options.get("track_reach", False) else None,
         )
         return self._simulate(plan, stop_at)
@@ -417,11 +403,11 @@ class Settler:
         """:meth:`_simulate` with the world's solver iterations as they are."""
         steps_done, steps_total = plan.steps_done, plan.steps_total
         uids = self.world.uids(plan.objects)
-        watched = plan.early_exit is not None or plan.reach is not None
-        rest_checks, beyond_checks, reach, path = plan.rest_checks, plan.beyond_checks, plan.reach, plan.path
+        watched = plan.early_exit is not None or plan.path is not None
+        rest_checks, beyond_checks, path = plan.rest_checks, plan.beyond_checks, plan.path
         extent, recent = plan.extent, plan.recent or ((0, plan.poses),)
         iterations = plan.solver_iterations
-        if reach is not None and extent is None:
+        if path is not None and extent is None:
             extent = tuple(self.world.extents(uids))
         while steps_done < steps_total:
             batch_end = min(steps_done + CLOCK_CHECK_STEPS, steps_total)
@@ -432,9 +418,8 @@ class Settler:
             steps_done = batch_end
             if watched and steps_done < steps_total:
                 poses = self.world.poses(plan.objects)
-                if reach is not None and extent is not None:
-                    reach, extent = _widened(reach, poses), _grown(extent, self.world.extents(uids))
-                    path = None if path is None else (*path, poses)
+                if path is not None and extent is not None:
+                    path, extent = (*path, poses), _grown(extent, self.world.extents(uids))
                 if plan.early_exit is not None:
                     jitters = self._jitters(plan.poses, poses, plan.angular_weight)
                     at_rest = self._at_rest(
@@ -451,16 +436,13 @@ class Settler:
                             "beyond_threshold",
                             steps_done,
                             steps_total,
-                            reach,
                             extent,
                             iterations,
                             shown,
                             path,
                         )
                     if rest_checks >= REST_CHECKS:
-                        return Settling(
-                            poses, jitters, "rest", steps_done, steps_total, reach, extent, iterations, path=path
-                        )
+                        return Settling(poses, jitters, "rest", steps_done, steps_total, extent, iterations, path=path)
             if stop_at is not None and steps_done < steps_total and time.monotonic() >= stop_at:
                 self.world.keep_simulation()
                 self._interrupted = replace(
@@ -469,18 +451,16 @@ class Settler:
                     rest_checks=rest_checks,
                     beyond_checks=beyond_checks,
                     recent=recent,
-                    reach=reach,
                     extent=extent,
                     path=path,
                 )
                 self._interrupted_entries = self.world.entries
                 return self._interrupted
         settled = self.world.poses(plan.objects)
-        if reach is not None and extent is not None:
-            reach, extent = _widened(reach, settled), _grown(extent, self.world.extents(uids))
-            path = None if path is None else (*path, settled)
+        if path is not None and extent is not None:
+            path, extent = (*path, settled), _grown(extent, self.world.extents(uids))
         jitters = self._jitters(plan.poses, settled, plan.angular_weight)
-        return Settling(settled, jitters, None, steps_done, steps_total, reach, extent, iterations, path=path)
+        return Settling(settled, jitters, None, steps_done, steps_total, extent, iterations, path=path)
 
     def _forget_interrupted(self) -> None:
         self.world.forget_kept()

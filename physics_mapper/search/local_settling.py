@@ -128,21 +128,19 @@ class LocalSettling:
             return local
         start = [ranked.pose(rank) for ranked, rank in zip(self.blame.hypotheses, code, strict=True)]
         settled, jitters = list(start), [0.0] * len(start)
-        reach = [(pose.position, pose.position) for pose in start]
         boxes = self.blame.boxes
         extent = [_box((boxes[p][0][rank - 1], boxes[p][1][rank - 1])) for p, rank in enumerate(code)]
         for index, position in enumerate(plan.simulated):
             settled[position] = local.settled_poses[index]
             jitters[position] = local.jitters[index]
-            if local.reach is not None and local.extent is not None:
-                reach[position], extent[position] = local.reach[index], local.extent[index]
+            if local.extent is not None:
+                extent[position] = local.extent[index]
         return Settling(
             tuple(settled),
             tuple(jitters),
             local.stopped,
             local.steps,
             local.steps_total,
-            tuple(reach),
             tuple(extent),
             local.solver_iterations,
             tuple(plan.simulated[index] for index in local.beyond),
