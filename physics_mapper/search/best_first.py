@@ -46,7 +46,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import replace
 from operator import getitem
 from typing import Generic, NamedTuple, Protocol, TypeVar
@@ -92,6 +92,13 @@ def weight_table(hypotheses: Sequence[RankedHypotheses]) -> WeightTable:
 def code_probability(weights: WeightTable, code: Code) -> float:
     """p(C): the chosen weights multiplied in object order (every part multiplies them so: the same number)."""
     return math.prod(map(getitem, weights, code))
+
+
+def parents(code: Code) -> Iterator[Code]:
+    """The configurations ``code`` is a child of in Algorithm 1 (one object one rank better), in object order."""
+    for position, rank in enumerate(code):
+        if rank > 1:
+            yield (*code[:position], rank - 1, *code[position + 1 :])
 
 
 class QueueItem(NamedTuple):

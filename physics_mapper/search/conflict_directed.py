@@ -53,6 +53,7 @@ from physics_mapper.search.best_first import (
     NamedConflict,
     QueueItem,
     Rule1Verdict,
+    parents,
     tie_key,
     weight_table,
 )
@@ -197,14 +198,7 @@ class ConflictDirectedCandidates:
         if found is None:
             return None
         code, probability = found
-        parent = next(
-            (
-                parent
-                for position, rank in enumerate(code)
-                if rank > 1 and (parent := (*code[:position], rank - 1, *code[position + 1 :])) in self._expanded
-            ),
-            None,
-        )
+        parent = next((parent for parent in parents(code) if parent in self._expanded), None)
         return QueueItem(-tie_key(probability), code, probability, parent)
 
     def put_back(self, item: QueueItem) -> None:

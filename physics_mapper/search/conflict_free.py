@@ -54,7 +54,7 @@ import time
 from collections.abc import Callable, Sequence
 from typing import NamedTuple
 
-from physics_mapper.search.best_first import code_probability, tie_key
+from physics_mapper.search.best_first import code_probability, parents, tie_key
 from physics_mapper.search.conflicts import ConflictStore, bits_of
 from physics_mapper.search.results import Code
 
@@ -322,12 +322,7 @@ class ConflictFreeCandidates:
         code = candidate.code
         if all(rank == 1 for rank in code):
             return True
-        for position, rank in enumerate(code):
-            if rank > 1:
-                parent = (*code[:position], rank - 1, *code[position + 1 :])
-                if not self.is_bounded(code_probability(self._table, parent)):
-                    return True
-        return False
+        return any(not self.is_bounded(code_probability(self._table, parent)) for parent in parents(code))
 
     def _may_have_parent_above_bound(self, region: _Region) -> bool:
         """Whether some configuration of ``region`` may have a parent above the bound (or none at all): its
