@@ -240,33 +240,42 @@ def _grown(ranges: tuple[PositionRange, ...], boxes: Sequence[PositionRange]) ->
     return tuple(grown)
 
 
+#: How far an object went from its start: (metres its position moved, radians it turned).
+Move = tuple[float, float]
+
+
+def _moves(start: Sequence[Pose], now: Sequence[Pose]) -> list[Move]:
+    """Each object's :data:`Move` from ``start`` to ``now``."""
+    return [
+        (translation_distance(a, b), rotation_angle(a.orientation, b.orientation))
+        for a, b in zip(start, now, strict=True)
+    ]
+
+
+def _jitters(moves: Sequence[Move], angular_weight: float) -> tuple[float, ...]:
+    """Each object's J_i from its move (:func:`~physics_mapper.model.geometry.pose_displacement`, bit for bit)."""
+    return tuple(distance + angular_weight * angle for distance, angle in moves)
+
+
 def _beyond_checks(
-    checks: tuple[int, ...],
-    rule: EarlyExit,
-    at_rest: Sequence[bool],
-    jitters: Sequence[float],
-    start: Sequence[Pose],
-    now: Sequence[Pose],
+    checks: tuple[int, ...], rule: EarlyExit, at_rest: Sequence[bool], jitters: Sequence[float], moves: Sequence[Move]
 ) -> tuple[int, ...]:
     """Per object, its consecutive looks beyond after this one (``checks``: before it, empty before the first):
-    at rest with J_i beyond ``rule.jitter_threshold``, or anyhow its position from ``start`` to ``now`` beyond
-    ``rule.moving_beyond`` or its turn beyond ``rule.turning_beyond``."""
+    at rest with J_i beyond ``rule.jitter_threshold``, or anyhow its position moved beyond ``rule.moving_beyond``
+    or turned beyond ``rule.turning_beyond``."""
     before = checks or (0,) * len(jitters)
     return tuple(
-        looks + 1 if (resting and _beyond(rule.jitter_threshold, jitter)) or _moved_beyond(rule, a, b) else 0
-        for looks, resting, jitter, a, b in zip(before, at_rest, jitters, start, now, strict=True)
+        looks + 1
+        if (resting and _beyond(rule.jitter_threshold, jitter))
+        or _beyond(rule.moving_beyond, distance)
+        or _beyond(rule.turning_beyond, angle)
+        else 0
+        for looks, resting, jitter, (distance, angle) in zip(before, at_rest, jitters, moves, strict=True)
     )
 
 
 def _beyond(bound: float | None, value: float) -> bool:
     return bound is not None and value > bound
-
-
-def _moved_beyond(rule: EarlyExit, start: Pose, now: Pose) -> bool:
-    """Whether an object's pose ``now`` is beyond the rule's ``moving_beyond`` or ``turning_beyond`` from ``start``."""
-    return _beyond(rule.moving_beyond, translation_distance(start, now)) or _beyond(
-        rule.turning_beyond, rotation_angle(start.orientation, now.orientation)
-    )
 
 
 class SettleOptions(TypedDict, total=False):
@@ -421,12 +430,13 @@ class Settler:
                 if path is not None and extent is not None:
                     path, extent = (*path, poses), _grown(extent, self.world.extents(uids))
                 if plan.early_exit is not None:
-                    jitters = self._jitters(plan.poses, poses, plan.angular_weight)
+                    moves = _moves(plan.poses, poses)
+                    jitters = _jitters(moves, plan.angular_weight)
                     at_rest = self._at_rest(
                         uids, plan.angular_weight, plan.early_exit, recent[0], poses, steps_done, steps_total
                     )
                     recent = (*recent, (steps_done, poses))[-REST_CHECKS:]
-                    beyond_checks = _beyond_checks(beyond_checks, plan.early_exit, at_rest, jitters, plan.poses, poses)
+                    beyond_checks = _beyond_checks(beyond_checks, plan.early_exit, at_rest, jitters, moves)
                     rest_checks = rest_checks + 1 if all(at_rest) else 0
                     shown = tuple(i for i, looks in enumerate(beyond_checks) if looks >= plan.early_exit.beyond_looks)
                     if shown:
@@ -459,16 +469,12 @@ class Settler:
         settled = self.world.poses(plan.objects)
         if path is not None and extent is not None:
             path, extent = (*path, settled), _grown(extent, self.world.extents(uids))
-        jitters = self._jitters(plan.poses, settled, plan.angular_weight)
+        jitters = _jitters(_moves(plan.poses, settled), plan.angular_weight)
         return Settling(settled, jitters, None, steps_done, steps_total, extent, iterations, path=path)
 
     def _forget_interrupted(self) -> None:
         self.world.forget_kept()
         self._interrupted = None
-
-    @staticmethod
-    def _jitters(start: Sequence[Pose], now: Sequence[Pose], angular_weight: float) -> tuple[float, ...]:
-        return tuple(pose_displacement(a, b, angular_weight) for a, b in zip(start, now, strict=True))
 
     def _at_rest(
         self,
