@@ -85,7 +85,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from physics_mapper.model.extents import body_box, meets_box, stable_growth
-from physics_mapper.model.geometry import Pose, rotation_angle, translation_distance
+from physics_mapper.model.geometry import Pose, pose_displacement
 from physics_mapper.model.hypotheses import RankedHypotheses
 from physics_mapper.model.scene import ObjectShape, SearchParams, object_radius
 from physics_mapper.physics.collision_table import CollisionTable
@@ -416,12 +416,8 @@ class Blame:
     def _steps(self, p: int, poses: Sequence[Pose]) -> list[float]:
         """How far (m) any point of object ``p`` moved from each look to the next (``poses``: its pose at each
         look): the translation plus its bounding radius times the angle turned; 0 after the last look."""
-        radius = self.radii[p]
-        steps = [
-            translation_distance(a, b) + radius * rotation_angle(a.orientation, b.orientation)
-            for a, b in itertools.pairwise(poses)
-        ]
-        return [*steps, 0.0]
+        # pose_displacement weighs the angle by the radius: a point at that distance turns that far.
+        return [*(pose_displacement(a, b, self.radii[p]) for a, b in itertools.pairwise(poses)), 0.0]
 
     def _apart(self, p: int, p_path: Sequence[Pose], u: int, u_path: Sequence[Pose], gaps: Sequence[float]) -> bool:
         """Whether object ``p`` (at ``p_path``'s poses) and ``u`` (at ``u_path``'s) lie more than ``gaps`` (+ the
