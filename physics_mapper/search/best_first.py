@@ -58,7 +58,13 @@ from physics_mapper.physics.checker import PhysicsChecker
 from physics_mapper.physics.collision import Collision
 from physics_mapper.physics.refine import RefinedMap, Refinement, refinement_start
 from physics_mapper.physics.settling import PartialSettling, Settling, early_exit_rule
-from physics_mapper.physics.support import leave_out_displaced, moved_away, put_back_supports
+from physics_mapper.physics.support import (
+    TOUCHING,
+    leave_out_displaced,
+    moved_away,
+    put_back_supports,
+    resting_pairs,
+)
 from physics_mapper.physics.world import TIME_STEP
 from physics_mapper.search.results import (
     Candidate,
@@ -451,8 +457,10 @@ class BestFirst(Generic[G, R]):
         pose, where they were seen (J_i from their hypothesis)."""
         params, scene = self.params, self.checker.scene
         moved = moved_away(shapes, refined.start_poses, refined.settled_poses)
+        near = self.checker.proximities(refined.settled_poses, TOUCHING, self.objects) if moved else ()
+        resting = resting_pairs(near, self.objects)
         code = leave_out_displaced(
-            self._refined_root, self.hypotheses, shapes, moved, refined.settled_poses, params.jitter_threshold
+            self._refined_root, self.hypotheses, shapes, moved, refined.settled_poses, resting, params.jitter_threshold
         )
         poses, jitters = list(refined.settled_poses), list(refined.jitters)
         for i in moved:

@@ -2,11 +2,22 @@
 
 from __future__ import annotations
 
+import math
+
 from core_builders import CUBE_SIZE, ON_FLOOR, cube, floor_scene, ranked, unrotated
 
-from physics_mapper.model.geometry import Pose
+from physics_mapper.model.geometry import Pose, make_pose
 from physics_mapper.model.hypotheses import Hypothesis, RankedHypotheses, absent_hypothesis
-from physics_mapper.physics.support import holding_up, leave_out_displaced, moved_away, put_back_supports
+from physics_mapper.model.scene import Scene
+from physics_mapper.physics.checker import PhysicsChecker
+from physics_mapper.physics.support import (
+    TOUCHING,
+    holding_up,
+    leave_out_displaced,
+    moved_away,
+    put_back_supports,
+    resting_pairs,
+)
 
 #: The jitter threshold of the tests, metres.
 TAU = 0.02
@@ -121,7 +132,49 @@ def test_what_the_refinement_moved_away_from_where_it_was_seen_is_left_out_if_it
         may_be_absent(3, start[3]),
         ranked([start[4]], [1]),
     ]
-    shapes = [o.shape for o in floor_scene(*(cube(f"c{i}") for i in range(len(start)))).objects]
+    scene = floor_scene(*(cube(f"c{i}") for i in range(len(start))))
+    shapes = [o.shape for o in scene.objects]
     moved = moved_away(shapes, start, settled)
     assert moved == {0, 1, 3, 4}  # all but the one estimated 3 cm high
-    assert leave_out_displaced((1, 1, 1, 1, 1), hypotheses, shapes, moved, settled, TAU) == (2, 1, 1, 1, 1)
+    resting = at_rest(scene, settled)
+    assert resting == {(3, 4)}
+    assert leave_out_displaced((1, 1, 1, 1, 1), hypotheses, shapes, moved, settled, resting, TAU) == (2, 1, 1, 1, 1)
+
+
+def at_rest(scene: Scene, poses: list[Pose]) -> frozenset[tuple[int, int]]:
+    """The (below, above) pairs of ``scene``'s objects resting on each other at ``poses``, from Bullet's closest
+    points."""
+    objects = tuple(range(len(poses)))
+    with PhysicsChecker(scene) as checker:
+        return resting_pairs(checker.proximities(poses, TOUCHING, objects), objects)
+
+
+#: A cube turned 45 degrees about y standing on one edge beside a stack, its opposite edge 0.5 mm from the
+#: bottom cube's side: it leans on the stack, the stack does not rest on it.
+LEANING = make_pose(
+    (CUBE_SIZE / 2 + CUBE_SIZE / math.sqrt(2) + 0.0005, 0.0, CUBE_SIZE / math.sqrt(2)),
+    (0.0, math.sin(math.pi / 8), 0.0, math.cos(math.pi / 8)),
+)
+
+
+def test_what_rests_on_what_is_told_by_the_contact_normal_not_by_touching() -> None:
+    """A stack of two cubes and a tilted cube leaning against the bottom one: the top cube rests on the bottom
+    one; the leaning cube touches the bottom one along a level normal and holds nothing up."""
+    poses = [unrotated(0.0, 0.0, ON_FLOOR), unrotated(0.0, 0.0, ON_CUBE), LEANING]
+    scene = floor_scene(*(cube(f"c{i}") for i in range(len(poses))))
+    with PhysicsChecker(scene) as checker:
+        near = checker.proximities(poses, TOUCHING, (0, 1, 2))
+    assert {(p.first, p.second) for p in near} >= {(0, 1), (0, 2)}  # the leaning cube touches the stack
+    assert resting_pairs(near, (0, 1, 2)) == {(0, 1)}
+
+
+def test_an_object_the_boxes_put_under_another_is_left_out_unless_the_other_rests_on_it() -> None:
+    """A cube that fell a layer and may be absent, under a cube of the map by their boxes: kept only where the
+    bodies say the upper one rests on it."""
+    start = [unrotated(0.0, 0.0, ON_CUBE), unrotated(0.0, 0.0, ON_CUBE + CUBE_SIZE)]
+    settled = [unrotated(0.0, 0.0, ON_FLOOR), unrotated(0.0, 0.0, ON_CUBE)]
+    hypotheses = [may_be_absent(0, start[0]), ranked([start[1]], [1])]
+    shapes = [o.shape for o in floor_scene(cube("c0"), cube("c1")).objects]
+    assert holding_up(settled, shapes, TAU) == (0,)
+    assert leave_out_displaced((1, 1), hypotheses, shapes, {0}, settled, {(0, 1)}, TAU) == (1, 1)
+    assert leave_out_displaced((1, 1), hypotheses, shapes, {0}, settled, set(), TAU) == (2, 1)
