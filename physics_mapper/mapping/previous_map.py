@@ -25,6 +25,15 @@ it passed, the search runs without its ``fallback``: a fallback map (the refined
 collision-free configuration) would only stand in for a valid map that exists, and making it takes the
 search's time (the refined root of 24 cylinders in two layers took most of a 0.2 s tick).
 
+Where no valid map is remembered (the first ticks of a bin) and the scene's fallback is ``refine``, the
+tick's own refined map guides the check instead (:func:`refined_map_first`): the search runs until it has
+made its map (the refined map comes first, so a tick keeps its map), and where that is the refined map, the
+configuration nearest where it rests the objects is checked with the time left (the objects it leaves out
+are new), then the search goes on (its own valid answer stands). The refined map's objects rest overlapping
+nothing, so the hypotheses nearest them are worth one check: in 24 cylinders in two layers searched 0.1 s a
+tick, whose refined map took most of each tick, no tick had a valid map; now 14 of 30 do (BENCHMARKS.md,
+"Bins of identical objects").
+
 Such a map is no verdict on the objects it leaves out
 (:func:`~physics_mapper.mapping.existence.left_out_by_physics`): its repairs are greedy (a new object
 that fell may have fallen for a neighbour's rank), so a track it leaves out goes on and the next
@@ -58,6 +67,9 @@ NEAR = 0.02
 
 #: Settlings one check may make: the first, and again after leaving out new objects that fell.
 CHECK_SETTLINGS = 3
+#: Slices of a tick's time in which a search runs until its refined map is made (each ends at a step: a
+#: settling the slice interrupts goes on in the next, losing nothing).
+MAP_SLICES = 20
 
 
 def previous_map_code(
@@ -181,8 +193,51 @@ def search_with_previous_map(
         check = check_previous_map(checker, hypotheses, code, new, params, stop_at)
     passed = check is not None and check.settling is not None
     search = make_search(checker, hypotheses, replace(params, fallback="none") if passed else params, previous)
-    remaining = None if budget is None else max(0.0, budget - (time.monotonic() - started))
+    stop_at = None if budget is None else started + budget
+    if code is None and params.fallback == "refine" and not resumed and not waiting:
+        result, check = refined_map_first(search, checker, hypotheses, params, stop_at)
+        return search, with_previous_map(result, check), check
+    remaining = None if stop_at is None else max(0.0, stop_at - time.monotonic())
     return search, with_previous_map(search.run(remaining), check), check
+
+
+def refined_map_first(
+    search: Search,
+    checker: PhysicsChecker,
+    hypotheses: tuple[RankedHypotheses, ...],
+    params: SearchParams,
+    stop_at: float | None,
+) -> tuple[SearchResult, PreviousMapCheck | None]:
+    """Where no valid map is remembered: run ``search`` until it has a map (its refined map, made first, or a
+    valid configuration), then, if that is the refined map, check the configuration nearest where it rests the
+    objects (module docstring) with the time left before ``stop_at``, and search on (its own valid answer
+    stands). Returns the search's result and the check (None: none was made)."""
+    result = _run_until_map(search, stop_at)
+    if result.valid or result.fallback != "refine" or result.code is None or result.settled_poses is None:
+        return result, None
+    if stop_at is not None and time.monotonic() >= stop_at:
+        return result, None
+    names = checker.scene.object_names
+    chosen = zip(names, hypotheses, result.code, result.settled_poses, strict=True)
+    rests = {name: pose for name, ranked, rank, pose in chosen if not ranked.is_absent(rank)}
+    start = previous_map_code(names, hypotheses, rests)
+    assert start is not None
+    new = [i for i, name in enumerate(names) if name not in rests]
+    check = check_previous_map(checker, hypotheses, start, new, params, stop_at)
+    result = search.run(None if stop_at is None else max(0.0, stop_at - time.monotonic()))
+    return result, check
+
+
+def _run_until_map(search: Search, stop_at: float | None) -> SearchResult:
+    """``search`` run in :data:`MAP_SLICES` slices of the time to ``stop_at`` (to its end where None) until its
+    result holds a map: a valid configuration or a fallback's."""
+    if stop_at is None:
+        return search.run(None)
+    piece = max(0.0, stop_at - time.monotonic()) / MAP_SLICES
+    while True:
+        result = search.run(piece)
+        if result.valid or result.fallback is not None or search.done or time.monotonic() >= stop_at:
+            return result
 
 
 def settling_goes_on(previous: Search, hypotheses: Sequence[RankedHypotheses]) -> bool:

@@ -4,8 +4,10 @@ the tick's map only where the search finds no valid one of its own (real pybulle
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import replace
 from typing import Any
 
+import pytest
 from detection_builders import array, detection, result
 
 from physics_mapper.mapping.inputs import InputSettings, check_poses, check_weights
@@ -16,6 +18,7 @@ from physics_mapper.model.hypotheses import Hypothesis, RankedHypotheses, absent
 from physics_mapper.model.scene import SearchParams
 from physics_mapper.model.scene_files import scene_from_dict
 from physics_mapper.physics.checker import PhysicsChecker
+from physics_mapper.search.results import SearchResult
 from physics_mapper.search.strategy import make_search, searchable
 
 BOX = {"shape": "box", "size": [0.1, 0.1, 0.1], "mass": 0.2}
@@ -89,6 +92,30 @@ def test_the_search_s_own_valid_answer_stands() -> None:
 def test_a_previous_map_the_new_hypotheses_cannot_hold_is_not_used() -> None:
     result = stack_then([FLOATING], ROOT_ONLY).result  # b's only pose floats: nothing near where it rested
     assert result is not None and not result.valid and not result.previous_map
+
+
+def test_where_no_valid_map_is_remembered_the_configuration_nearest_the_refined_map_is_checked() -> None:
+    """The first tick: a's pose is good, b's best floats 4 cm above a and its second rests on a; the search checks
+    the root alone (unstable). Its refined map rests b on a, so the configuration nearest it (b's second pose) is
+    checked next, and is the tick's map, valid. Without a refined map (``fallback: none``) nothing is checked;
+    a search that finds the same configuration valid itself gives its own answer."""
+
+    def first_tick(params: SearchParams) -> SearchResult:
+        mapper = Mapper(STACK)
+        feed_poses(mapper, "a", [BOTTOM], 0.0)
+        feed_poses(mapper, "b", [FLOATING, TOP], 0.0)
+        result = mapper.tick(0.1, MapperSettings(params, INPUTS, rate_hz=0.1)).result
+        assert result is not None
+        return result
+
+    result = first_tick(replace(ROOT_ONLY, fallback="refine"))
+    assert result.stats.visited == 1 and result.trace[0].outcome == "unstable"
+    assert result.valid and result.previous_map and result.code == (1, 2) and result.fallback is None
+    assert result.settled_poses is not None and result.settled_poses[1].position == pytest.approx(TOP, abs=0.005)
+    result = first_tick(ROOT_ONLY)
+    assert not result.valid and not result.previous_map and result.code is None  # no map
+    result = first_tick(replace(GENEROUS, fallback="refine"))
+    assert result.valid and not result.previous_map and result.code == (1, 2)
 
 
 def box_detection(*positions: Sequence[float]) -> Any:
