@@ -62,6 +62,7 @@ from physics_mapper.physics.support import (
     TOUCHING,
     leave_out_displaced,
     moved_away,
+    present_where_likelier,
     put_back_supports,
     resting_pairs,
 )
@@ -433,9 +434,10 @@ class BestFirst(Generic[G, R]):
         scene = self.checker.scene
         shapes = [scene.objects[i].shape for i in self.objects]
         if self._refinement is None:
-            root = put_back_supports(
-                self.candidates.live_root, self.hypotheses, shapes, scene.static, params.jitter_threshold
-            )
+            positions = {scene.objects[i].name: p for p, i in enumerate(self.objects)}
+            ruled_out = {(positions[r.object], r.rank) for r in self.candidates.ruled_out if r.object in positions}
+            live = present_where_likelier(self.candidates.live_root, self.hypotheses, shapes, ruled_out)
+            root = put_back_supports(live, self.hypotheses, shapes, scene.static, params.jitter_threshold)
             self._refined_root = root
             start = [
                 refinement_start(h, params.refine_mean_radius) if rank == 1 else h.pose(rank)

@@ -257,3 +257,25 @@ def test_the_refined_map_holds_nothing_where_it_moved_away_from_where_it_was_see
     if top == "confirmed instance":
         assert result.settled_poses[1] == result.refinement.depenetrated_poses[1]
         assert result.settled_poses[1].position[2] > ON_FLOOR + CUBE_SIZE - 0.025
+
+
+def test_the_refined_map_holds_an_object_more_likely_there_than_not_though_absent_ranks_first() -> None:
+    """Nothing is valid (a cube 2 cm into the floor, its only pose); a second cube 5 mm beside it (one group)
+    may be absent, weight 0.25, and its four poses share 0.75: absent ranks first, yet the refined map holds
+    it, at its first pose. With absent at 0.6 it stays out."""
+    on_floor = [unrotated(CUBE_SIZE + 0.005 + 0.002 * k, 0.0, ON_FLOOR) for k in range(4)]
+
+    def refined_code(absent: float) -> tuple[int, ...] | None:
+        present = [Hypothesis(pose, (1.0 - absent) / 4) for pose in on_floor]
+        hypotheses = [
+            ranked([unrotated(0.0, 0.0, ON_FLOOR - 0.02)], [1]),
+            RankedHypotheses.from_weighted([*present, absent_hypothesis(1, absent)]),
+        ]
+        assert hypotheses[1].is_absent(1)
+        with PhysicsChecker(floor_scene(cube("sunk"), cube("maybe"))) as checker:
+            result = make_search(checker, hypotheses, SearchParams(fallback="refine")).run(None)
+        assert not result.valid and result.fallback == "refine"
+        return result.code
+
+    assert refined_code(0.25) == (1, 2)
+    assert refined_code(0.6) == (1, 1)
