@@ -427,9 +427,10 @@ class BestFirst(Generic[G, R]):
         """Make (or go on making) the refined map of the live root (the generator's
         :attr:`~CandidateGenerator.live_root`: each object at its most probable rank nothing ruled out
         alone, so a detection inside a wall or in free fall is left out where it may be absent), with the
-        objects it leaves out put back where another rests on them (:func:`put_back_supports`), and those it
-        then moves farther than half their size left out where they may be absent and hold nothing up
-        (:func:`leave_out_displaced`); False if ``stop_at`` came first."""
+        objects it leaves out though more likely there than not started at their most probable pose
+        (:func:`present_where_likelier`) and those put back where another rests on them
+        (:func:`put_back_supports`), and those it then moves farther than half their size left out where they
+        may be absent and hold nothing up (:func:`leave_out_displaced`); False if ``stop_at`` came first."""
         params = self.params
         scene = self.checker.scene
         shapes = [scene.objects[i].shape for i in self.objects]
