@@ -119,7 +119,7 @@ def check_previous_map(
     with at most :data:`CHECK_SETTLINGS` settlings in all."""
     code = list(start)
     names = checker.scene.object_names
-    droppable = {i for i in new if _absent_rank(hypotheses[i]) is not None and not hypotheses[i].is_absent(code[i])}
+    droppable = {i for i in new if hypotheses[i].absent_rank() is not None and not hypotheses[i].is_absent(code[i])}
     early_exit = early_exit_rule(params, complete=False, moving=True)
     for _ in range(CHECK_SETTLINGS):
         poses = _poses(hypotheses, code)
@@ -143,16 +143,12 @@ def check_previous_map(
     return PreviousMapCheck(hypotheses, start, tuple(code), None)
 
 
-def _absent_rank(ranked: RankedHypotheses) -> int | None:
-    return next((rank for rank in range(1, len(ranked) + 1) if ranked.is_absent(rank)), None)
-
-
 def _left_out(
     hypotheses: tuple[RankedHypotheses, ...], code: list[int], culprits: set[int], droppable: set[int]
 ) -> None:
     """Put ``culprits`` at their *absent* ranks in ``code`` (no longer ``droppable``)."""
     for i in culprits:
-        absent = _absent_rank(hypotheses[i])
+        absent = hypotheses[i].absent_rank()
         assert absent is not None  # droppable objects have one
         code[i] = absent
         droppable.discard(i)
