@@ -99,7 +99,7 @@ def present_where_likelier(
             continue
         first = np.asarray(ranked.pose(live[0]).position)
         spread = max(float(np.linalg.norm(np.asarray(ranked.pose(r).position) - first)) for r in live)
-        if spread <= 0.5 * float(np.max(shape_extents(shapes[i]))):
+        if spread <= half_size(shapes[i]):
             ranks[i] = live[0]
     return tuple(ranks)
 
@@ -158,8 +158,14 @@ def moved_away(shapes: Sequence[ObjectShape], start: Sequence[Pose], settled: Se
     return frozenset(
         i
         for i, shape in enumerate(shapes)
-        if np.linalg.norm(np.subtract(settled[i].position, start[i].position)) > 0.5 * np.max(shape_extents(shape))
+        if np.linalg.norm(np.subtract(settled[i].position, start[i].position)) > half_size(shape)
     )
+
+
+def half_size(shape: ObjectShape) -> float:
+    """Half the largest extent (m) of ``shape``'s box: how far an object's poses may lie from where it was seen
+    and still stand for it there (module docstring)."""
+    return 0.5 * float(np.max(shape_extents(shape)))
 
 
 def resting_pairs(proximities: Iterable[Proximity], objects: Sequence[int]) -> frozenset[tuple[int, int]]:

@@ -460,7 +460,9 @@ class BestFirst(Generic[G, R]):
         pose, where they were seen (J_i from their hypothesis)."""
         params, scene = self.params, self.checker.scene
         moved = moved_away(shapes, refined.start_poses, refined.settled_poses)
-        near = self.checker.proximities(refined.settled_poses, TOUCHING, self.objects) if moved else ()
+        # Only an object that moved away and may be absent is ever left out: the others need no contacts.
+        droppable = any(self.hypotheses[i].absent_rank() is not None for i in moved)
+        near = self.checker.proximities(refined.settled_poses, TOUCHING, self.objects) if droppable else ()
         resting = resting_pairs(near, self.objects)
         code = leave_out_displaced(
             self._refined_root, self.hypotheses, shapes, moved, refined.settled_poses, resting, params.jitter_threshold
