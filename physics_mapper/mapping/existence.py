@@ -8,6 +8,18 @@ the map of the previous ticks (:class:`MapMemory`):
   more, *absent*, with the weight w the association gives it
   (:meth:`~physics_mapper.mapping.association.InstanceTracks.absent_weight`); its other
   hypotheses are scaled by 1 - w.
+- **Held**: an object with fresh hypotheses that the last valid map held, one of whose fresh poses lies
+  within :data:`~physics_mapper.mapping.previous_map.NEAR` of where it came to rest in that map, gets one
+  more, *held*, at that rest pose, weighing :data:`HELD_SHARE` of its lightest hypothesis: it ranks last.
+  It is the previous map's check's alone: the search ranks this tick's inputs (a configuration at rest
+  where it rested would have the least jitter and win over every fresh valid one, and the map would stay
+  where it first became valid). An estimator's poses scatter a
+  few millimetres around the truth from frame to frame, and a lego part stands on the studs under it
+  only within a millimetre or two: in a bin standing still, a tick whose poses each miss by that much
+  has no valid configuration of them, yet the map of the last tick still agrees with them. The previous
+  map's check (:mod:`~physics_mapper.mapping.previous_map`) puts an object that breaks a rule there, and
+  the objects around it, at their held poses. A map that holds an object at its held pose leaves the
+  remembered pose as it was: settled again every tick, a map at rest would creep.
 - **Silent** (its newest hypotheses older than ``max_age``, or its track ended): if the last valid
   map held it, its pose there is kept as one hypothesis beside *absent*, whose weight grows with the
   silence s (seconds since it fell silent): w_absent = 1 - exp(-s / max_age) / 2. From s = 0
@@ -30,6 +42,7 @@ from typing import NamedTuple
 
 from physics_mapper.mapping.association import InstanceTracks
 from physics_mapper.mapping.inputs import InputSnapshot
+from physics_mapper.mapping.previous_map import NEAR
 from physics_mapper.model.geometry import Pose
 from physics_mapper.model.hypotheses import Hypothesis, RankedHypotheses, absent_hypothesis
 from physics_mapper.model.scene import Scene
@@ -42,10 +55,24 @@ def silent_absent_weight(silence: float, max_age: float) -> float:
     return 1.0 - 0.5 * math.exp(-max(0.0, silence) / max_age)
 
 
+#: The weight of an object's *held* hypothesis, as a share of its lightest hypothesis's (module docstring).
+HELD_SHARE = 0.5
+
+
 def with_absent(ranked: RankedHypotheses, index: int, weight: float) -> RankedHypotheses:
     """``ranked`` scaled by 1 - ``weight``, plus object ``index``'s *absent* of ``weight``, ranked."""
     scaled = [Hypothesis(h.pose, h.weight * (1.0 - weight)) for h in ranked.hypotheses]
     return RankedHypotheses.from_weighted([*scaled, absent_hypothesis(index, weight)])
+
+
+def with_held(ranked: RankedHypotheses, rested: Pose) -> RankedHypotheses:
+    """``ranked`` plus a *held* hypothesis at ``rested`` (where the object rested in the last valid map) weighing
+    :data:`HELD_SHARE` of its lightest hypothesis, ranked last; ``ranked`` itself where no pose of it lies
+    within :data:`~physics_mapper.mapping.previous_map.NEAR` metres of ``rested``."""
+    if not any(math.dist(ranked.pose(rank).position, rested.position) <= NEAR for rank in ranked.pose_ranks()):
+        return ranked
+    lightest = min(hypothesis.weight for hypothesis in ranked.hypotheses)
+    return RankedHypotheses.from_weighted([*ranked.hypotheses, Hypothesis(rested, HELD_SHARE * lightest, held=True)])
 
 
 @dataclass
@@ -62,7 +89,8 @@ class MapMemory:
 
         An invalid map (a fallback's, or a search's best so far that failed a rule) is not remembered:
         its poses may lie inside a wall or another object, and kept as a silent object's only pose
-        beside *absent* they would feed that conflict to every later search."""
+        beside *absent* they would feed that conflict to every later search. An object the map holds at its
+        *held* rank keeps the pose remembered (module docstring)."""
         if not result.valid or result.code is None or result.poses is None or result.settled_poses is None:
             return
         chosen = zip(names, hypotheses, result.code, result.poses, result.settled_poses, strict=True)
@@ -70,7 +98,7 @@ class MapMemory:
             if ranked.is_absent(rank):
                 self.poses.pop(name, None)
                 self.settled.pop(name, None)
-            else:
+            elif not ranked.hypotheses[rank - 1].held:
                 self.poses[name] = pose
                 self.settled[name] = settled
 
@@ -93,7 +121,9 @@ def searched_hypotheses(
         if status.hypotheses is not None:
             memory.silent_since.pop(name, None)
             weight = absent_weight(name)
-            searched.append(status.hypotheses if weight is None else with_absent(status.hypotheses, index, weight))
+            ranked = status.hypotheses if weight is None else with_absent(status.hypotheses, index, weight)
+            rested = memory.settled.get(name)
+            searched.append(ranked if rested is None else with_held(ranked, rested))
             continue
         since = memory.silent_since.setdefault(name, now)
         last = memory.poses.get(name)
@@ -149,9 +179,10 @@ def _ruled_out_alone(
             ruled.setdefault(ruling.object, set()).add(ruling.rank)
     left_out = []
     for index, (name, ranked) in enumerate(zip(names, hypotheses, strict=True)):
-        present = set(ranked.pose_ranks())
-        held = result.code is not None and result.code[index] in present
-        if len(present) < len(ranked) and present <= ruled.get(name, set()) and not held:
+        searched = ranked.without_held()  # the search's ranks
+        present = set(searched.pose_ranks())
+        in_map = result.code is not None and not ranked.is_absent(result.code[index])
+        if len(present) < len(searched) and present <= ruled.get(name, set()) and not in_map:
             left_out.append(name)
     return tuple(left_out)
 
@@ -177,7 +208,7 @@ def twins(
             ranks.setdefault(ruling.object, set()).add(ruling.rank)
     found = []
     for name, ranked in zip(names, hypotheses, strict=True):
-        poses = set(ranked.pose_ranks())
+        poses = set(ranked.without_held().pose_ranks())  # the search's ranks
         if len(others.get(name, ())) != 1 or not poses or not poses <= ranks[name]:
             continue
         (twin,) = others[name]

@@ -24,11 +24,14 @@ PARKING_SPACING = 1000.0
 @dataclass(frozen=True)
 class Hypothesis:
     """One pose hypothesis and its (unnormalised or normalised) weight; ``absent``: the object is not
-    in the world (its pose is then its parking spot, :func:`parking_pose`)."""
+    in the world (its pose is then its parking spot, :func:`parking_pose`); ``held``: the pose is where the
+    object rested in the last valid map, not one this tick's inputs gave
+    (:mod:`~physics_mapper.mapping.existence`)."""
 
     pose: Pose
     weight: float
     absent: bool = False
+    held: bool = False
 
 
 def parking_pose(index: int) -> Pose:
@@ -86,7 +89,7 @@ class RankedHypotheses:
             raise ValueError(problem)
         ranked = sorted(hypotheses, key=lambda h: -h.weight)[:keep_at_most]
         total = sum(h.weight for h in ranked)
-        return cls(tuple(Hypothesis(h.pose, h.weight / total, h.absent) for h in ranked))
+        return cls(tuple(Hypothesis(h.pose, h.weight / total, h.absent, h.held) for h in ranked))
 
     def __len__(self) -> int:
         return len(self.hypotheses)
@@ -112,6 +115,17 @@ class RankedHypotheses:
     def absent_rank(self) -> int | None:
         """The 1-based rank of the *absent* hypothesis (None without one)."""
         return next((rank for rank, h in enumerate(self.hypotheses, start=1) if h.absent), None)
+
+    def held_rank(self) -> int | None:
+        """The 1-based rank of the *held* hypothesis (None without one)."""
+        return next((rank for rank, h in enumerate(self.hypotheses, start=1) if h.held), None)
+
+    def without_held(self) -> RankedHypotheses:
+        """These hypotheses without the *held* one, renormalised (``self`` without one): the others keep their
+        ranks, since a held hypothesis ranks last (:func:`~physics_mapper.mapping.existence.with_held`)."""
+        if self.held_rank() is None:
+            return self
+        return RankedHypotheses.from_weighted([h for h in self.hypotheses if not h.held])
 
     def pose_ranks(self) -> tuple[int, ...]:
         """The 1-based ranks of the hypotheses that are poses (not *absent*), ascending."""

@@ -59,7 +59,7 @@ from collections.abc import Collection, Iterable, Sequence
 import numpy as np
 from numpy.typing import NDArray
 
-from physics_mapper.model.extents import FloatArray, body_box, may_overlap_static, shape_extents
+from physics_mapper.model.extents import FloatArray, body_box, may_overlap_static, meets_box, shape_extents
 from physics_mapper.model.geometry import Pose
 from physics_mapper.model.hypotheses import RankedHypotheses
 from physics_mapper.model.scene import ObjectShape, Plane, StaticBody
@@ -150,6 +150,18 @@ def holding_up(poses: Sequence[Pose | None], shapes: Sequence[ObjectShape], jitt
     np.fill_diagonal(holds, False)
     indices = list(boxes)
     return tuple(indices[k] for k in np.flatnonzero(holds.any(axis=1)))
+
+
+def within_reach(
+    poses: Sequence[Pose], shapes: Sequence[ObjectShape], objects: Collection[int], margin: float
+) -> frozenset[int]:
+    """``objects`` and every object (index into ``poses`` and ``shapes``) whose body box comes within ``margin``
+    metres of one of theirs: what they may have leant on, or pushed, while moving that far."""
+    lows, highs = _corners([body_box(shape, pose) for shape, pose in zip(shapes, poses, strict=True)])
+    reached = set(objects)
+    for i in objects:
+        reached.update(np.flatnonzero(meets_box(lows, highs, lows[i] - margin, highs[i] + margin)).tolist())
+    return frozenset(reached)
 
 
 def moved_away(shapes: Sequence[ObjectShape], start: Sequence[Pose], settled: Sequence[Pose]) -> frozenset[int]:

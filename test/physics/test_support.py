@@ -18,6 +18,7 @@ from physics_mapper.physics.support import (
     present_where_likelier,
     put_back_supports,
     resting_pairs,
+    within_reach,
 )
 
 #: The jitter threshold of the tests, metres.
@@ -106,6 +107,21 @@ def test_the_objects_holding_others_up_are_those_under_another_within_the_jitter
     assert holding_up(poses, [o.shape for o in scene.objects], TAU) == (0,)
     poses[3] = unrotated(0.3, 0.0, ON_FLOOR)
     assert holding_up(poses, [o.shape for o in scene.objects], TAU) == (0, 3)
+
+
+def test_within_reach_are_the_objects_whose_boxes_come_within_the_margin() -> None:
+    """A stack of two, a cube 1 cm beside the bottom one and one 5 cm beside that: what the top cube touches
+    is the bottom cube; within 1 cm, the cube beside it too; within 5 cm, all four."""
+    poses = [
+        unrotated(0.0, 0.0, ON_FLOOR),
+        unrotated(0.0, 0.0, ON_CUBE),
+        unrotated(CUBE_SIZE + 0.01, 0.0, ON_FLOOR),
+        unrotated(2 * CUBE_SIZE + 0.06, 0.0, ON_FLOOR),
+    ]
+    shapes = [o.shape for o in floor_scene(*(cube(f"c{i}") for i in range(len(poses)))).objects]
+    assert within_reach(poses, shapes, {1}, TOUCHING) == {0, 1}
+    assert within_reach(poses, shapes, {1}, 0.0101) == {0, 1, 2}
+    assert within_reach(poses, shapes, {1, 2}, 0.0501) == {0, 1, 2, 3}
 
 
 def test_what_the_refinement_moved_away_from_where_it_was_seen_is_left_out_if_it_may_be_absent() -> None:
