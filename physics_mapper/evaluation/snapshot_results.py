@@ -11,7 +11,7 @@ object's top hypothesis), the chosen hypotheses and their settled poses.
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -29,6 +29,7 @@ from physics_mapper.evaluation.identity import identity_metrics, identity_text, 
 from physics_mapper.evaluation.scoring import position_errors, rank_one_poses
 from physics_mapper.evaluation.snapshots import BagSnapshot, bag_snapshots
 from physics_mapper.mapping.association import AssociationSettings
+from physics_mapper.mapping.existence import with_held
 from physics_mapper.mapping.previous_map import PreviousMapCheck, search_with_previous_map
 from physics_mapper.mapping.topics import MAP_TOPIC_QOS, RECORDED_CONFIGURATION_TOPIC, RECORDED_SETTLED_TOPIC
 from physics_mapper.model.geometry import Pose, is_same_pose
@@ -173,20 +174,41 @@ def recorded_results(snapshots: Sequence[BagSnapshot], output: Bag, scene: Scene
 
     Stamps are compared exactly (the node carries them as integer nanoseconds). A configuration
     that is not made of the snapshot's hypotheses (the node ticked halfway through a burst and
-    never again before the next one) counts as no configuration.
+    never again before the next one) counts as no configuration. An instance the node's previous-map
+    check put where an earlier map of the node's rested it (its *held* hypothesis,
+    :mod:`~physics_mapper.mapping.existence`) has that pose as its held hypothesis in the result's snapshot.
     """
     count = len(scene.objects)
     chosen = _last_by_stamp(output, RECORDED_CONFIGURATION_TOPIC, count)
     settled = _last_by_stamp(output, RECORDED_SETTLED_TOPIC, count)
+    rested: list[set[Pose]] = [set() for _ in range(count)]  # per object, where the maps so far rested it
+    earlier = iter(sorted(settled.items()))
+    following = next(earlier, None)
     results = []
     for snapshot in snapshots:
+        while following is not None and following[0] < snapshot.stamp_ns:
+            for rests, pose in zip(rested, following[1], strict=True):
+                rests.add(pose)
+            following = next(earlier, None)
         poses = chosen.get(snapshot.stamp_ns)
+        if poses is not None:
+            snapshot = _with_held(snapshot, poses, rested)
         code = None if poses is None else code_of(poses, snapshot.hypotheses)
         if code is None:
             results.append(SnapshotResult(snapshot, None, None, None))
         else:
             results.append(SnapshotResult(snapshot, code, poses, settled.get(snapshot.stamp_ns)))
     return results
+
+
+def _with_held(snapshot: BagSnapshot, poses: Sequence[Pose], rested: Sequence[set[Pose]]) -> BagSnapshot:
+    """``snapshot`` where each object whose pose of ``poses`` is none of its hypotheses but one of ``rested``
+    (where the node's maps rested it before) has that pose as its held hypothesis."""
+    hypotheses = list(snapshot.hypotheses)
+    for index, (pose, ranked) in enumerate(zip(poses, snapshot.hypotheses, strict=True)):
+        if pose in rested[index] and code_of([pose], [ranked]) is None:
+            hypotheses[index] = with_held(ranked.without_held(), pose)
+    return replace(snapshot, hypotheses=tuple(hypotheses))
 
 
 #: The estimates scored against ground truth: ``top``, every object's most likely hypothesis (the paper's

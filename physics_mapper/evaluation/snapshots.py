@@ -179,7 +179,7 @@ def bag_snapshots(
         snapshot = tracker.snapshot(now, settings)
         hypotheses = snapshot.hypotheses
         if tracked and (len(snapshot.missing) < len(scene.objects) or memory.poses):
-            hypotheses = searched_hypotheses(snapshot, memory, instances.absent_weight, now, settings.max_age)
+            hypotheses = searched_hypotheses(snapshot, memory, instances, now, settings.max_age)
         new = not snapshots or hypotheses != snapshots[-1].hypotheses
         if hypotheses is None or snapshot.stamp_ns is None or not new:
             continue

@@ -8,7 +8,8 @@ the map of the previous ticks (:class:`MapMemory`):
   more, *absent*, with the weight w the association gives it
   (:meth:`~physics_mapper.mapping.association.InstanceTracks.absent_weight`); its other
   hypotheses are scaled by 1 - w.
-- **Held**: an object with fresh hypotheses that the last valid map held, one of whose fresh poses lies
+- **Held**: an instance (an object of a tracked class) with fresh hypotheses that the last valid map
+  held, one of whose fresh poses lies
   within :data:`~physics_mapper.mapping.previous_map.NEAR` of where it came to rest in that map, gets one
   more, *held*, at that rest pose, weighing :data:`HELD_SHARE` of its lightest hypothesis: it ranks last.
   It is the previous map's check's alone: the search ranks this tick's inputs (a configuration at rest
@@ -36,7 +37,6 @@ Named objects and confirmed instances of ``count: K`` with fresh hypotheses have
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import NamedTuple
 
@@ -67,12 +67,15 @@ def with_absent(ranked: RankedHypotheses, index: int, weight: float) -> RankedHy
 
 def with_held(ranked: RankedHypotheses, rested: Pose) -> RankedHypotheses:
     """``ranked`` plus a *held* hypothesis at ``rested`` (where the object rested in the last valid map) weighing
-    :data:`HELD_SHARE` of its lightest hypothesis, ranked last; ``ranked`` itself where no pose of it lies
-    within :data:`~physics_mapper.mapping.previous_map.NEAR` metres of ``rested``."""
+    :data:`HELD_SHARE` of its lightest hypothesis (outside the others' sum, which stays 1), ranked last;
+    ``ranked`` itself where no pose of it lies within :data:`~physics_mapper.mapping.previous_map.NEAR`
+    metres of ``rested``."""
     if not any(math.dist(ranked.pose(rank).position, rested.position) <= NEAR for rank in ranked.pose_ranks()):
         return ranked
     lightest = min(hypothesis.weight for hypothesis in ranked.hypotheses)
-    return RankedHypotheses.from_weighted([*ranked.hypotheses, Hypothesis(rested, HELD_SHARE * lightest, held=True)])
+    # Appended, not renormalised: the search's hypotheses (without it) stay bit for bit the inputs', so a
+    # search with unchanged inputs still resumes.
+    return RankedHypotheses((*ranked.hypotheses, Hypothesis(rested, HELD_SHARE * lightest, held=True)))
 
 
 @dataclass
@@ -104,26 +107,21 @@ class MapMemory:
 
 
 def searched_hypotheses(
-    snapshot: InputSnapshot,
-    memory: MapMemory,
-    absent_weight: Callable[[str], float | None],
-    now: float,
-    max_age: float,
+    snapshot: InputSnapshot, memory: MapMemory, tracks: InstanceTracks, now: float, max_age: float
 ) -> tuple[RankedHypotheses, ...]:
     """Every object's hypotheses for this tick's search, by the rules of the module docstring.
 
-    ``absent_weight`` gives an instance's weight of being absent (None: it is there); ``now``
-    and ``max_age`` are seconds.
+    ``tracks`` tell the instances and their weights of being absent; ``now`` and ``max_age`` are seconds.
     """
     searched = []
     for index, status in enumerate(snapshot.objects):
         name = status.name
         if status.hypotheses is not None:
             memory.silent_since.pop(name, None)
-            weight = absent_weight(name)
+            weight = tracks.absent_weight(name)
             ranked = status.hypotheses if weight is None else with_absent(status.hypotheses, index, weight)
             rested = memory.settled.get(name)
-            searched.append(ranked if rested is None else with_held(ranked, rested))
+            searched.append(ranked if rested is None or not tracks.is_instance(name) else with_held(ranked, rested))
             continue
         since = memory.silent_since.setdefault(name, now)
         last = memory.poses.get(name)

@@ -189,9 +189,7 @@ class Mapper:
             instances = tuple(self.tracks.instances_per_class().items())
             tracking = Tracking(births, ends, instances, self.tracks.outside, self.tracks.doubles)
             snapshot = self.inputs.snapshot(now, settings.inputs)
-            hypotheses = searched_hypotheses(
-                snapshot, self.memory, self.tracks.absent_weight, now, settings.inputs.max_age
-            )
+            hypotheses = searched_hypotheses(snapshot, self.memory, self.tracks, now, settings.inputs.max_age)
         names = self.scene.object_names
         waiting = len(snapshot.missing) == len(names) and not self.memory.poses
         if waiting:

@@ -68,7 +68,8 @@ def weights_problem(weights: Sequence[float] | NDArray[np.float64], expected_cou
 
 @dataclass(frozen=True)
 class RankedHypotheses:
-    """An object's hypotheses, weights normalised to sum 1, ranked by decreasing weight.
+    """An object's hypotheses, weights normalised to sum 1 (a *held* one aside: see :meth:`without_held`),
+    ranked by decreasing weight.
 
     Ties keep their input order (a stable sort), so with uniform weights the
     published order is the ranking. Rank r (1-based) is ``hypotheses[r - 1]``.
@@ -121,11 +122,12 @@ class RankedHypotheses:
         return next((rank for rank, h in enumerate(self.hypotheses, start=1) if h.held), None)
 
     def without_held(self) -> RankedHypotheses:
-        """These hypotheses without the *held* one, renormalised (``self`` without one): the others keep their
-        ranks, since a held hypothesis ranks last (:func:`~physics_mapper.mapping.existence.with_held`)."""
+        """These hypotheses without the *held* one (``self`` without one). A held hypothesis ranks last and its
+        weight is not in the others' sum (:func:`~physics_mapper.mapping.existence.with_held`): the others keep
+        their ranks and weights, bit for bit."""
         if self.held_rank() is None:
             return self
-        return RankedHypotheses.from_weighted([h for h in self.hypotheses if not h.held])
+        return RankedHypotheses(tuple(h for h in self.hypotheses if not h.held))
 
     def pose_ranks(self) -> tuple[int, ...]:
         """The 1-based ranks of the hypotheses that are poses (not *absent*), ascending."""

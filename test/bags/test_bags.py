@@ -24,15 +24,15 @@ from physics_mapper.bags.storage import TYPESTORE as BAG_TYPES  # Jazzy's types 
 from physics_mapper.bags.storage import BagError, BagWriter, read_bag
 from physics_mapper.cli import main
 from physics_mapper.evaluation.scoring import position_errors, rank_one_poses
-from physics_mapper.evaluation.snapshot_results import recorded_results
-from physics_mapper.evaluation.snapshots import bag_snapshots, input_topics
+from physics_mapper.evaluation.snapshot_results import SnapshotResult, recorded_results, write_results
+from physics_mapper.evaluation.snapshots import BagSnapshot, bag_snapshots, input_topics
 from physics_mapper.experiments.common import ExperimentOptions
 from physics_mapper.experiments.tracking import track_and_search
 from physics_mapper.mapping.topics import RECORDED_CONFIGURATION_TOPIC
 from physics_mapper.model.errors import EXIT_BAD_INPUT
 from physics_mapper.model.geometry import make_pose
 from physics_mapper.model.hypotheses import Hypothesis, RankedHypotheses
-from physics_mapper.model.scene_files import load_scene
+from physics_mapper.model.scene_files import load_scene, scene_from_dict
 from physics_mapper.perception.particle_filter import TrackerSettings
 
 TYPESTORE = get_typestore(Stores.ROS2_JAZZY)
@@ -41,6 +41,9 @@ WEIGHTS = "std_msgs/msg/Float64MultiArray"
 PYRAMID = ("cube_left", "cube_right", "cube_top")
 RUNS, ITERATIONS, TOP_M = 2, 3, 3
 DATA = REPO / "test" / "data"
+FLOOR = {"name": "floor", "shape": "plane"}
+#: A 10 cm box on the floor.
+ON_FLOOR_POSE = make_pose((0.0, 0.0, 0.05))
 
 
 @dataclass(frozen=True)
@@ -637,6 +640,30 @@ def test_undecodable_recorded_output_names_the_bag_and_topic(tmp_path: Path) -> 
     assert str(raised.value).startswith(
         f"{tmp_path / 'out'}: {RECORDED_CONFIGURATION_TOPIC} at 42 ns: a {POSE_ARRAY} message"
     )
+
+
+def test_a_recorded_pose_where_an_earlier_map_rested_an_instance_is_its_held_hypothesis(tmp_path: Path) -> None:
+    """A node's previous-map check may put an instance where an earlier map of the node's rested it (its held
+    hypothesis, not one of the bag's): the recorded configuration is still the snapshot's, the pose held."""
+    box = {"shape": "box", "size": [0.1, 0.1, 0.1], "mass": 0.2}
+    scene = scene_from_dict({"objects": [{"name": "box", "count": 2, **box}], "static": [FLOOR]}, "test")
+    seen, rested = make_pose((0.3, 0.0, 0.05)), make_pose((0.3, 0.0, 0.049))  # it rested 1 mm lower
+    hypotheses = tuple(RankedHypotheses.from_weighted([Hypothesis(p, 1.0)]) for p in (ON_FLOOR_POSE, seen))
+    snapshots = [BagSnapshot(1, 10, hypotheses, None), BagSnapshot(2, 20, hypotheses, None)]
+    with BagWriter(tmp_path / "out") as writer:
+        write_results(
+            writer,
+            [
+                SnapshotResult(snapshots[0], (1, 1), (ON_FLOOR_POSE, seen), (ON_FLOOR_POSE, rested)),
+                SnapshotResult(snapshots[1], (1, 2), (ON_FLOOR_POSE, rested), (ON_FLOOR_POSE, rested)),
+            ],
+            "world",
+        )
+    first, second = recorded_results(snapshots, read_bag(tmp_path / "out"), scene)
+    assert first.code == (1, 1) and first.snapshot == snapshots[0]
+    assert second.code == (1, 2) and second.chosen is not None
+    assert second.snapshot.hypotheses[1].held_rank() == 2
+    assert second.snapshot.hypotheses[1].pose(2) == second.chosen[1]
 
 
 def test_generate_draws_each_run_as_the_experiments_do(tmp_path: Path) -> None:

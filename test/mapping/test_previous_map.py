@@ -13,7 +13,7 @@ from detection_builders import array, detection, result
 from physics_mapper.mapping.inputs import InputSettings, check_poses, check_weights
 from physics_mapper.mapping.mapper import Mapper, MapperSettings, TickReport
 from physics_mapper.mapping.previous_map import NEAR, previous_map_code, settling_goes_on
-from physics_mapper.model.geometry import IDENTITY, Pose, Quaternion, quaternion_about_axis
+from physics_mapper.model.geometry import IDENTITY, Pose, quaternion_about_axis
 from physics_mapper.model.hypotheses import Hypothesis, RankedHypotheses, absent_hypothesis
 from physics_mapper.model.scene import SearchParams
 from physics_mapper.model.scene_files import scene_from_dict
@@ -50,16 +50,10 @@ def test_each_object_takes_its_hypothesis_nearest_where_the_last_map_left_it() -
     assert previous_map_code("ab", hypotheses[:2], {}) is None  # no previous map
 
 
-def feed_poses(
-    mapper: Mapper,
-    name: str,
-    positions: Sequence[tuple[float, float, float]],
-    time: float,
-    orientation: Quaternion = IDENTITY,
-) -> None:
-    """Named input: ``positions`` as hypotheses (turned by ``orientation``), weights 0.9, 0.1, ..."""
+def feed_poses(mapper: Mapper, name: str, positions: Sequence[tuple[float, float, float]], time: float) -> None:
+    """Named input: ``positions`` as hypotheses, weights 0.9, 0.1, ..."""
     received = check_poses(
-        [(p, orientation) for p in positions],
+        [(p, (0.0, 0.0, 0.0, 1.0)) for p in positions],
         frame_id="world",
         expected_frame="world",
         workspace=STACK.workspace,
@@ -96,26 +90,33 @@ def test_the_search_s_own_valid_answer_stands() -> None:
 
 
 def test_what_breaks_a_rule_is_put_where_it_rested_with_what_it_touches_and_the_map_stays_valid() -> None:
-    """The last map held a stack; now a's pose is where it rested and b's only pose is tilted 29 degrees on a (its
-    lower edge 1.8 cm into a), its centre where b rested: no configuration of this tick's poses is valid. Each
-    object has one more hypothesis, *held*, where it rested in the last map; the previous map's check puts b and
-    what it overlaps (a) there, and that is the tick's map, valid. The search ranks this tick's poses alone, and
-    the remembered poses stay as they were (settled again each tick, a map at rest would creep)."""
-    mapper = Mapper(STACK)
-    feed_poses(mapper, "a", [BOTTOM], 0.0)
-    feed_poses(mapper, "b", [TOP], 0.0)
-    first = mapper.tick(0.1, MapperSettings(GENEROUS, INPUTS, rate_hz=0.1))
-    assert first.result is not None and first.result.valid
+    """Two confirmed instances, a stack in the last map; now the top one's only result is tilted 29 degrees on
+    the bottom one (its lower edge 1.8 cm into it), centred where it rested: no configuration of this tick's
+    results is valid. Each instance has one more hypothesis, *held*, where it rested in the last map; the
+    previous map's check puts the top box and what it overlaps there, and that is the tick's map, valid. The
+    search ranks this tick's results alone, and the remembered poses stay as they were (settled again each
+    tick, a map at rest would creep). A named object has no held hypothesis: its meaning is unchanged."""
+    scene = scene_from_dict(
+        {"objects": [{"name": "box", "count": 2, **BOX}], "static": [{"name": "floor", "shape": "plane"}]}, "test"
+    )
+    mapper = Mapper(scene)
+    for time in (0.0, 0.2, 0.4):
+        mapper.add_detections(array([box_detection(BOTTOM), box_detection(TOP)]), received=time)
+        first = mapper.tick(time + 0.1, MapperSettings(GENEROUS, INPUTS, rate_hz=0.1))
+        assert first.result is not None and first.result.valid
     remembered = dict(mapper.memory.settled)
-    feed_poses(mapper, "b", [TOP], 0.5, quaternion_about_axis((1.0, 0.0, 0.0), 0.5))
-    report = mapper.tick(0.6, MapperSettings(GENEROUS, INPUTS, rate_hz=0.1))
-    result = report.result
-    assert result is not None and result.stats.finished and result.trace[0].outcome == "collision"
+    tilted = result(TOP, 0.9, orientation=quaternion_about_axis((1.0, 0.0, 0.0), 0.5))
+    mapper.add_detections(array([box_detection(BOTTOM), detection(tilted)]), received=0.8)
+    report = mapper.tick(0.9, MapperSettings(GENEROUS, INPUTS, rate_hz=0.1))
+    found = report.result
+    assert found is not None and found.stats.finished and found.trace[0].outcome == "collision"
     assert [ranked.held_rank() for ranked in report.hypotheses] == [2, 2]
-    assert all(entry.code == (1, 1) for entry in result.trace)  # the search's ranks: this tick's poses
-    assert result.valid and result.previous_map and result.code == (2, 2)
-    assert [ranked.pose(2) for ranked in report.hypotheses] == [remembered["a"], remembered["b"]]
+    assert all(entry.code == (1, 1) for entry in found.trace)  # the search's ranks: this tick's results
+    assert found.valid and found.previous_map and found.code == (2, 2)
+    names = report.snapshot.names
+    assert [ranked.pose(2) for ranked in report.hypotheses] == [remembered[name] for name in names]
     assert mapper.memory.settled == remembered
+    assert all(ranked.held_rank() is None for ranked in stack_then([TOP], GENEROUS).hypotheses)  # named
 
 
 def test_a_previous_map_the_new_hypotheses_cannot_hold_is_not_used() -> None:
