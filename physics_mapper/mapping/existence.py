@@ -9,17 +9,16 @@ the map of the previous ticks (:class:`MapMemory`):
   (:meth:`~physics_mapper.mapping.association.InstanceTracks.absent_weight`); its other
   hypotheses are scaled by 1 - w.
 - **Held**: an instance (an object of a tracked class) with fresh hypotheses that the last valid map
-  held, one of whose fresh poses lies
-  within :data:`~physics_mapper.mapping.previous_map.NEAR` of where it came to rest in that map, gets one
-  more, *held*, at that rest pose, weighing :data:`HELD_SHARE` of its lightest hypothesis: it ranks last.
-  It is the previous map's check's alone: the search ranks this tick's inputs (a configuration at rest
-  where it rested would have the least jitter and win over every fresh valid one, and the map would stay
-  where it first became valid). An estimator's poses scatter a
+  held, one of whose fresh poses lies within :data:`~physics_mapper.mapping.previous_map.NEAR` of where
+  it came to rest in that map, gets one more, *held*, at that rest pose, weighing :data:`HELD_SHARE` of
+  its lightest hypothesis: it ranks last. It is the previous map's check's alone: the search ranks this
+  tick's inputs (a configuration at rest where it rested would have the least jitter and win over every
+  fresh valid one, and the map would stay where it first became valid). An estimator's poses scatter a
   few millimetres around the truth from frame to frame, and a lego part stands on the studs under it
   only within a millimetre or two: in a bin standing still, a tick whose poses each miss by that much
   has no valid configuration of them, yet the map of the last tick still agrees with them. The previous
   map's check (:mod:`~physics_mapper.mapping.previous_map`) puts an object that breaks a rule there, and
-  the objects around it, at their held poses. A map that holds an object at its held pose leaves the
+  the objects it touches, at their held poses. A map that holds an object at its held pose leaves the
   remembered pose as it was: settled again every tick, a map at rest would creep.
 - **Silent** (its newest hypotheses older than ``max_age``, or its track ended): if the last valid
   map held it, its pose there is kept as one hypothesis beside *absent*, whose weight grows with the

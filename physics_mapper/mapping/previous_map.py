@@ -127,10 +127,11 @@ def check_previous_map(
 ) -> PreviousMapCheck:
     """Rule 1 and Rule 2 of configuration ``start`` over every object, settlings stopped at ``stop_at``
     (a ``time.monotonic()`` instant; an unfinished check counts as failed), repaired where it fails (module
-    docstring): an object that breaks a rule, one of the overlapping pair or moved beyond the jitter threshold
-    with the objects within it, is put at its *held* rank where it has one; else one of ``new`` (scene
-    indices the previous map did not hold) that breaks a rule is left out (its *absent* rank, where it has
-    one); then the rest is checked again, with at most :data:`CHECK_SETTLINGS` settlings in all."""
+    docstring): where an object the previous map held breaks a rule (one of the overlapping pair, or moved
+    beyond the jitter threshold), it and the objects it touches are put at their *held* ranks; where only
+    objects of ``new`` (scene indices the previous map did not hold) break it, they are left out (their
+    *absent* ranks, where they have one); then the rest is checked again, with at most
+    :data:`CHECK_SETTLINGS` settlings in all."""
     code = list(start)
     names = checker.scene.object_names
     shapes = [model.shape for model in checker.scene.objects]
