@@ -28,6 +28,10 @@ ended early at rest as the search's are), within half the deadline, and repaired
 - where only new objects broke it, those that may be absent are left out (a new box on the floor stays;
   a false detection in the air or inside the bin's wall goes), or, if none may be, what they touch is
   put where it rested;
+- where an overlapping pair has none of these, one of the two takes its next hypothesis near where it
+  rested (within :data:`NEAR`, nearest first; no settling, only the collision pass again). Where the
+  tick's refined map guides the check (below), the refinement parts two overlapping boxes by moving both,
+  and the hypothesis nearest where one came to rest can be the overlapping one, its next the one beside;
 
 and the rest checked again, with at most :data:`CHECK_SETTLINGS` settlings in all. The search's own answer stands
 whenever it is valid: it is the paper's. Only when the search ends without a valid configuration is a
@@ -93,16 +97,21 @@ def previous_map_code(
     the last valid map held none of ``names``."""
     if not any(name in remembered for name in names):
         return None
-    return tuple(_rank(ranked, remembered.get(name)) for name, ranked in zip(names, hypotheses, strict=True))
+    return tuple(
+        next(iter(_nearby(ranked, remembered.get(name))), 1) for name, ranked in zip(names, hypotheses, strict=True)
+    )
 
 
-def _rank(ranked: RankedHypotheses, remembered: Pose | None) -> int:
-    if remembered is None:
-        return 1
-    present = [rank for rank in ranked.pose_ranks() if rank != ranked.held_rank()]
-    distances = {rank: math.dist(ranked.pose(rank).position, remembered.position) for rank in present}
-    nearest = min(distances, key=distances.__getitem__, default=None)
-    return nearest if nearest is not None and distances[nearest] <= NEAR else 1
+def _nearby(ranked: RankedHypotheses, rested: Pose | None) -> list[int]:
+    """The ranks of this tick's poses of ``ranked`` (not its held one) within :data:`NEAR` metres of ``rested``,
+    nearest first (none where ``rested`` is None)."""
+    if rested is None:
+        return []
+    held = ranked.held_rank()
+    distances = {
+        rank: math.dist(ranked.pose(rank).position, rested.position) for rank in ranked.pose_ranks() if rank != held
+    }
+    return sorted((rank for rank, distance in distances.items() if distance <= NEAR), key=distances.__getitem__)
 
 
 @dataclass(frozen=True)
@@ -124,30 +133,43 @@ def check_previous_map(
     new: Sequence[int],
     params: SearchParams,
     stop_at: float | None,
+    rested: Mapping[str, Pose],
 ) -> PreviousMapCheck:
     """Rule 1 and Rule 2 of configuration ``start`` over every object, settlings stopped at ``stop_at``
     (a ``time.monotonic()`` instant; an unfinished check counts as failed), repaired where it fails (module
     docstring): where an object the previous map held breaks a rule (one of the overlapping pair, or moved
     beyond the jitter threshold), it and the objects it touches are put at their *held* ranks; where only
     objects of ``new`` (scene indices the previous map did not hold) break it, they are left out (their
-    *absent* ranks, where they have one); then the rest is checked again, with at most
-    :data:`CHECK_SETTLINGS` settlings in all."""
+    *absent* ranks, where they have one); where neither changes an overlapping pair, one of the two takes its
+    next pose near where ``rested`` has it (object name -> where it rested); then the rest is checked again,
+    with at most :data:`CHECK_SETTLINGS` settlings in all, none begun that would not end before ``stop_at`` if
+    it took as long as the longest so far (the time is the search's then: its fallback map may need it)."""
     code = list(start)
     names = checker.scene.object_names
     shapes = [model.shape for model in checker.scene.objects]
     droppable = {i for i in new if hypotheses[i].absent_rank() is not None and not hypotheses[i].is_absent(code[i])}
     holdable = {i: rank for i, ranked in enumerate(hypotheses) if (rank := ranked.held_rank()) not in (None, code[i])}
+    nearer = {
+        i: [r for r in _nearby(ranked, rested.get(name)) if r != code[i]]
+        for i, (name, ranked) in enumerate(zip(names, hypotheses, strict=True))
+    }
     early_exit = early_exit_rule(params, complete=False, moving=True)
+    longest = 0.0  # seconds, the longest settling so far
     for _ in range(CHECK_SETTLINGS):
+        if stop_at is not None and time.monotonic() + longest > stop_at:
+            break  # a settling that would not end in time only takes the search's
         poses = _poses(hypotheses, code)
         collision = checker.find_collision(poses, params.penetration_threshold)
         while collision is not None:
             pair = {names.index(body) for body in collision.pair if body in names}
-            if not _repaired(hypotheses, code, pair, pair, new, droppable, holdable):
+            repaired = _repaired(hypotheses, code, pair, pair, new, droppable, holdable)
+            if not repaired and not _nearer(code, pair, nearer):
                 return PreviousMapCheck(hypotheses, start, tuple(code), None)
             poses = _poses(hypotheses, code)
             collision = checker.find_collision(poses, params.penetration_threshold)
+        started = time.monotonic()
         outcome = checker.settle(poses, params.settle_time, params.angular_weight, stop_at, early_exit=early_exit)
+        longest = max(longest, time.monotonic() - started)
         if not isinstance(outcome, Settling):
             break
         if outcome.is_stable(params.jitter_threshold):
@@ -174,6 +196,16 @@ def _repaired(
     if culprits - set(new):
         return _held(code, reached, holdable) or _left_out(hypotheses, code, culprits & droppable, droppable)
     return _left_out(hypotheses, code, culprits & droppable, droppable) or _held(code, reached, holdable)
+
+
+def _nearer(code: list[int], pair: Collection[int], nearer: dict[int, list[int]]) -> bool:
+    """Move the first object of an overlapping ``pair`` that has one left to its next pose near where it rested
+    (``nearer``: per object, those poses not tried yet, nearest first); whether one moved."""
+    for i in sorted(pair):
+        if nearer[i]:
+            code[i] = nearer[i].pop(0)
+            return True
+    return False
 
 
 def _held(code: list[int], culprits: Collection[int], holdable: dict[int, int]) -> bool:
@@ -231,7 +263,7 @@ def search_with_previous_map(
     if check is None and code is not None and not resumed and not waiting:
         stop_at = None if budget is None else started + budget / 2.0
         new = [i for i, name in enumerate(names) if name not in remembered]
-        check = check_previous_map(checker, hypotheses, code, new, params, stop_at)
+        check = check_previous_map(checker, hypotheses, code, new, params, stop_at, remembered)
     passed = check is not None and check.settling is not None
     search = make_search(checker, searched, replace(params, fallback="none") if passed else params, previous)
     stop_at = None if budget is None else started + budget
@@ -264,7 +296,7 @@ def refined_map_first(
     start = previous_map_code(names, hypotheses, rests)
     assert start is not None
     new = [i for i, name in enumerate(names) if name not in rests]
-    check = check_previous_map(checker, hypotheses, start, new, params, stop_at)
+    check = check_previous_map(checker, hypotheses, start, new, params, stop_at, rests)
     result = search.run(None if stop_at is None else max(0.0, stop_at - time.monotonic()))
     return result, check
 

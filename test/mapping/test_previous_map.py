@@ -148,6 +148,22 @@ def test_where_no_valid_map_is_remembered_the_configuration_nearest_the_refined_
     assert result.valid and not result.previous_map and result.code == (1, 2)
 
 
+def test_where_the_nearest_poses_overlap_the_check_takes_the_next_nearest() -> None:
+    """The first tick: two boxes in a row, b's best pose 1.5 cm into a and its second 6 mm beside it. The search
+    checks the root alone (an overlap); the refinement parts the two by moving both, so b's pose nearest where it
+    rests is the overlapping one. The check then takes b's next pose near its rest, and that is the map, valid."""
+    row = scene_from_dict(
+        {"objects": [{"name": "a", **BOX}, {"name": "b", **BOX}], "static": [{"name": "floor", "shape": "plane"}]},
+        "test",
+    )
+    mapper = Mapper(row)
+    feed_poses(mapper, "a", [BOTTOM], 0.0)
+    feed_poses(mapper, "b", [(0.085, 0.0, 0.05), (0.106, 0.0, 0.05)], 0.0)
+    result = mapper.tick(0.1, MapperSettings(replace(ROOT_ONLY, fallback="refine"), INPUTS, rate_hz=0.1)).result
+    assert result is not None and result.stats.visited == 1 and result.trace[0].outcome == "collision"
+    assert result.valid and result.previous_map and result.code == (1, 2)
+
+
 def box_detection(*positions: Sequence[float]) -> Any:
     """A detection whose results are ``positions``, scored 0.9, 0.1, ..."""
     return detection(*(result(p, score) for p, score in zip(positions, (0.9, 0.1), strict=False)))
