@@ -41,7 +41,7 @@ from typing import NamedTuple
 
 from physics_mapper.mapping.association import InstanceTracks
 from physics_mapper.mapping.inputs import InputSnapshot
-from physics_mapper.mapping.previous_map import NEAR
+from physics_mapper.mapping.previous_map import nearby_ranks
 from physics_mapper.model.geometry import Pose
 from physics_mapper.model.hypotheses import Hypothesis, RankedHypotheses, absent_hypothesis
 from physics_mapper.model.scene import Scene
@@ -69,7 +69,7 @@ def with_held(ranked: RankedHypotheses, rested: Pose) -> RankedHypotheses:
     :data:`HELD_SHARE` of its lightest hypothesis (outside the others' sum, which stays 1), ranked last;
     ``ranked`` itself where no pose of it lies within :data:`~physics_mapper.mapping.previous_map.NEAR`
     metres of ``rested``."""
-    if not any(math.dist(ranked.pose(rank).position, rested.position) <= NEAR for rank in ranked.pose_ranks()):
+    if not nearby_ranks(ranked, rested):
         return ranked
     lightest = min(hypothesis.weight for hypothesis in ranked.hypotheses)
     # Appended, not renormalised: the search's hypotheses (without it) stay bit for bit the inputs', so a

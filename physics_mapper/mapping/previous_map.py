@@ -98,11 +98,12 @@ def previous_map_code(
     if not any(name in remembered for name in names):
         return None
     return tuple(
-        next(iter(_nearby(ranked, remembered.get(name))), 1) for name, ranked in zip(names, hypotheses, strict=True)
+        next(iter(nearby_ranks(ranked, remembered.get(name))), 1)
+        for name, ranked in zip(names, hypotheses, strict=True)
     )
 
 
-def _nearby(ranked: RankedHypotheses, rested: Pose | None) -> list[int]:
+def nearby_ranks(ranked: RankedHypotheses, rested: Pose | None) -> list[int]:
     """The ranks of this tick's poses of ``ranked`` (not its held one) within :data:`NEAR` metres of ``rested``,
     nearest first (none where ``rested`` is None)."""
     if rested is None:
@@ -150,7 +151,7 @@ def check_previous_map(
     droppable = {i for i in new if hypotheses[i].absent_rank() is not None and not hypotheses[i].is_absent(code[i])}
     holdable = {i: rank for i, ranked in enumerate(hypotheses) if (rank := ranked.held_rank()) not in (None, code[i])}
     nearer = {
-        i: [r for r in _nearby(ranked, rested.get(name)) if r != code[i]]
+        i: [r for r in nearby_ranks(ranked, rested.get(name)) if r != code[i]]
         for i, (name, ranked) in enumerate(zip(names, hypotheses, strict=True))
     }
     early_exit = early_exit_rule(params, complete=False, moving=True)
@@ -194,8 +195,8 @@ def _repaired(
     ``new``, the ``reached`` objects put at their held ranks (or, if none has one to go to, the culprits that
     may be absent left out); else the other way round. Whether anything changed."""
     if culprits - set(new):
-        return _held(code, reached, holdable) or _left_out(hypotheses, code, culprits & droppable, droppable)
-    return _left_out(hypotheses, code, culprits & droppable, droppable) or _held(code, reached, holdable)
+        return _held(code, reached, holdable) or _left_out(hypotheses, code, culprits, droppable)
+    return _left_out(hypotheses, code, culprits, droppable) or _held(code, reached, holdable)
 
 
 def _nearer(code: list[int], pair: Collection[int], nearer: dict[int, list[int]]) -> bool:
@@ -220,13 +221,15 @@ def _held(code: list[int], culprits: Collection[int], holdable: dict[int, int]) 
 def _left_out(
     hypotheses: tuple[RankedHypotheses, ...], code: list[int], culprits: set[int], droppable: set[int]
 ) -> bool:
-    """Put ``culprits`` at their *absent* ranks in ``code`` (no longer ``droppable``); whether there was one."""
-    for i in culprits:
+    """Put those of ``culprits`` that are ``droppable`` at their *absent* ranks in ``code`` (no longer droppable);
+    whether there was one."""
+    found = droppable & culprits
+    for i in found:
         absent = hypotheses[i].absent_rank()
         assert absent is not None  # droppable objects have one
         code[i] = absent
-        droppable.discard(i)
-    return bool(culprits)
+    droppable -= found
+    return bool(found)
 
 
 def _poses(hypotheses: Sequence[RankedHypotheses], code: Sequence[int]) -> tuple[Pose, ...]:
