@@ -32,6 +32,11 @@ ended early at rest as the search's are), within half the deadline, and repaired
   rested (within :data:`NEAR`, nearest first; no settling, only the collision pass again). Where the
   tick's refined map guides the check (below), the refinement parts two overlapping boxes by moving both,
   and the hypothesis nearest where one came to rest can be the overlapping one, its next the one beside;
+- where objects that moved beyond the threshold have none of these either, each takes its next hypothesis
+  near where it rested. Where the refined map guides the check, no object has a held pose and those the
+  refined map placed may not be left out; a pose a few millimetres from where an object rests can still
+  tip it (a mug on two others, a lego part on the studs), and the next may not (12 mugs in two layers:
+  two of the first three ticks' checks passed this way, none before);
 
 and the rest checked again, with at most :data:`CHECK_SETTLINGS` settlings in all. The search's own answer stands
 whenever it is valid: it is the paper's. Only when the search ends without a valid configuration is a
@@ -40,14 +45,22 @@ it passed, the search runs without its ``fallback``: a fallback map (the refined
 collision-free configuration) would only stand in for a valid map that exists, and making it takes the
 search's time (the refined root of 24 cylinders in two layers took most of a 0.2 s tick).
 
+A check that its half of the deadline stopped with a repaired configuration still to check is *pending*:
+the search runs first, leaving :data:`RESERVE_SHARE` times the check's longest settling, then, unless the
+search found a valid configuration, the check goes on with the time left (:func:`check_after_map`). A
+settling of 24 cylinders or mugs in two layers takes 40-70 ms, so at the 0.2 s deadline a repair's second
+settling never fitted in half a tick.
+
 Where no valid map is remembered (the first ticks of a bin) and the scene's fallback is ``refine``, the
-tick's own refined map guides the check instead (:func:`refined_map_first`): the search runs until it has
-made its map (the refined map comes first, so a tick keeps its map), and where that is the refined map, the
-configuration nearest where it rests the objects is checked with the time left (the objects it leaves out
-are new), then the search goes on (its own valid answer stands). The refined map's objects rest overlapping
-nothing, so the hypotheses nearest them are worth one check: in 24 cylinders in two layers searched 0.1 s a
-tick, whose refined map took most of each tick, no tick had a valid map; now 14 of 30 do (BENCHMARKS.md,
-"Bins of identical objects").
+tick's own refined map guides the check instead (:func:`refined_map_check`): the search runs until it has
+made its map (the refined map comes first, so a tick keeps its map) and checked its own first configuration,
+the most probable (often valid where the one nearest the refined map is not), and where its map is still the
+refined map, the configuration nearest where it rests the objects is checked with the time left, the objects
+it leaves out left out from the start (it saw them fall or slide away; a settling to see it again would take
+the check's time), then the search goes on
+(its own valid answer stands). The refined map's objects rest overlapping nothing, so the hypotheses nearest
+them are worth one check: in 24 cylinders in two layers searched 0.1 s a tick, whose refined map took most
+of each tick, no tick had a valid map; now 14 of 30 do (BENCHMARKS.md, "Bins of identical objects").
 
 Such a map is no verdict on the objects it leaves out
 (:func:`~physics_mapper.mapping.existence.left_out_by_physics`): its repairs are greedy (a new object
@@ -84,6 +97,9 @@ NEAR = 0.02
 #: Settlings one check may make: the first, and again after each repair (objects put at their held poses, new
 #: objects left out).
 CHECK_SETTLINGS = 4
+#: The time a search leaves a pending check, in its longest settling so far: the check begins no settling that
+#: would not end in time, and a search's run ends a few simulation steps after its budget.
+RESERVE_SHARE = 1.25
 #: Slices of a tick's time in which a search runs until its refined map is made (each ends at a step: a
 #: settling the slice interrupts goes on in the next, losing nothing).
 MAP_SLICES = 20
@@ -118,68 +134,85 @@ def nearby_ranks(ranked: RankedHypotheses, rested: Pose | None) -> list[int]:
 @dataclass(frozen=True)
 class PreviousMapCheck:
     """The previous map's configuration for ``hypotheses``: where it started (``start``), what it became
-    (``code``: new objects that broke a rule left out), and its settling if it passed both rules (None: it
-    failed one, or the check ran out of time)."""
+    (``code``: repaired where it broke a rule), where each object it placed rested (``rested``: object name ->
+    pose, in the map that guides it), the objects that map did not hold (``new``: scene indices), and its
+    settling if it passed both rules (None: it failed one, or it is ``pending``: not begun, or stopped for
+    time with ``code`` still to be checked). ``settlings``: how many it made, the longest
+    ``longest_settling`` seconds."""
 
     hypotheses: tuple[RankedHypotheses, ...]
     start: Code
     code: Code
-    settling: Settling | None
+    rested: Mapping[str, Pose]
+    new: tuple[int, ...]
+    settling: Settling | None = None
+    pending: bool = True
+    settlings: int = 0
+    longest_settling: float = 0.0
+
+    @property
+    def time_to_go_on(self) -> float:
+        """Seconds a search leaves this check to go on: :data:`RESERVE_SHARE` times its longest settling."""
+        return RESERVE_SHARE * self.longest_settling
 
 
 def check_previous_map(
-    checker: PhysicsChecker,
-    hypotheses: tuple[RankedHypotheses, ...],
-    start: Code,
-    new: Sequence[int],
-    params: SearchParams,
-    stop_at: float | None,
-    rested: Mapping[str, Pose],
+    checker: PhysicsChecker, check: PreviousMapCheck, params: SearchParams, stop_at: float | None
 ) -> PreviousMapCheck:
-    """Rule 1 and Rule 2 of configuration ``start`` over every object, settlings stopped at ``stop_at``
-    (a ``time.monotonic()`` instant; an unfinished check counts as failed), repaired where it fails (module
-    docstring): where an object the previous map held breaks a rule (one of the overlapping pair, or moved
-    beyond the jitter threshold), it and the objects it touches are put at their *held* ranks; where only
-    objects of ``new`` (scene indices the previous map did not hold) break it, they are left out (their
-    *absent* ranks, where they have one); where neither changes an overlapping pair, one of the two takes its
-    next pose near where ``rested`` has it (object name -> where it rested); then the rest is checked again,
-    with at most :data:`CHECK_SETTLINGS` settlings in all, none begun that would not end before ``stop_at`` if
-    it took as long as the longest so far (the time is the search's then: its fallback map may need it)."""
-    code = list(start)
+    """``check`` (not begun, or ``pending``) gone on with: Rule 1 and Rule 2 of its configuration over every
+    object, settlings stopped at ``stop_at`` (a ``time.monotonic()`` instant; an unfinished settling leaves the
+    check pending), repaired where it fails (module docstring): where an object the previous map held breaks a
+    rule (one of the overlapping pair, or moved beyond the jitter threshold), it and the objects it touches are
+    put at their *held* ranks; where only its ``new`` objects break it, they are left out (their *absent*
+    ranks, where they have one); where neither changes an overlapping pair, one of the two takes its next pose
+    near where it rested (not the rank it started at), and where neither changes what moved, each of those
+    takes its next;
+    then the rest is checked again, with at most :data:`CHECK_SETTLINGS` settlings in all, none begun that
+    would not end before ``stop_at`` if it took as long as the longest so far (the check is left pending: the
+    time is the search's then, and its fallback map may need it)."""
+    hypotheses, start, new, rested = check.hypotheses, check.start, check.new, check.rested
+    code = list(check.code)
     names = checker.scene.object_names
     shapes = [model.shape for model in checker.scene.objects]
     droppable = {i for i in new if hypotheses[i].absent_rank() is not None and not hypotheses[i].is_absent(code[i])}
     holdable = {i: rank for i, ranked in enumerate(hypotheses) if (rank := ranked.held_rank()) not in (None, code[i])}
     nearer = {
-        i: [r for r in nearby_ranks(ranked, rested.get(name)) if r != code[i]]
+        i: [r for r in nearby_ranks(ranked, rested.get(name)) if r not in (code[i], start[i])]
         for i, (name, ranked) in enumerate(zip(names, hypotheses, strict=True))
     }
     early_exit = early_exit_rule(params, complete=False, moving=True)
-    longest = 0.0  # seconds, the longest settling so far
-    for _ in range(CHECK_SETTLINGS):
+    settlings, longest = check.settlings, check.longest_settling
+
+    def ended(settling: Settling | None = None, pending: bool = False) -> PreviousMapCheck:
+        return replace(
+            check, code=tuple(code), settling=settling, pending=pending, settlings=settlings, longest_settling=longest
+        )
+
+    while settlings < CHECK_SETTLINGS:
         if stop_at is not None and time.monotonic() + longest > stop_at:
-            break  # a settling that would not end in time only takes the search's
+            return ended(pending=True)  # a settling that would not end in time only takes the search's
         poses = _poses(hypotheses, code)
         collision = checker.find_collision(poses, params.penetration_threshold)
         while collision is not None:
             pair = {names.index(body) for body in collision.pair if body in names}
             repaired = _repaired(hypotheses, code, pair, pair, new, droppable, holdable)
-            if not repaired and not _nearer(code, pair, nearer):
-                return PreviousMapCheck(hypotheses, start, tuple(code), None)
+            if not repaired and not _nearer(code, pair, nearer, every=False):
+                return ended()
             poses = _poses(hypotheses, code)
             collision = checker.find_collision(poses, params.penetration_threshold)
         started = time.monotonic()
         outcome = checker.settle(poses, params.settle_time, params.angular_weight, stop_at, early_exit=early_exit)
-        longest = max(longest, time.monotonic() - started)
+        settlings, longest = settlings + 1, max(longest, time.monotonic() - started)
         if not isinstance(outcome, Settling):
-            break
+            return ended(pending=True)
         if outcome.is_stable(params.jitter_threshold):
-            return PreviousMapCheck(hypotheses, start, tuple(code), outcome)
+            return ended(outcome)
         moved = {i for i, jitter in enumerate(outcome.jitters) if jitter > params.jitter_threshold}
         reached = within_reach(poses, shapes, moved, TOUCHING)
-        if not _repaired(hypotheses, code, moved, reached, new, droppable, holdable):
-            break
-    return PreviousMapCheck(hypotheses, start, tuple(code), None)
+        repaired = _repaired(hypotheses, code, moved, reached, new, droppable, holdable)
+        if not repaired and not _nearer(code, moved, nearer, every=True):
+            return ended()
+    return ended()
 
 
 def _repaired(
@@ -199,14 +232,14 @@ def _repaired(
     return _left_out(hypotheses, code, culprits, droppable) or _held(code, reached, holdable)
 
 
-def _nearer(code: list[int], pair: Collection[int], nearer: dict[int, list[int]]) -> bool:
-    """Move the first object of an overlapping ``pair`` that has one left to its next pose near where it rested
-    (``nearer``: per object, those poses not tried yet, nearest first); whether one moved."""
-    for i in sorted(pair):
-        if nearer[i]:
-            code[i] = nearer[i].pop(0)
-            return True
-    return False
+def _nearer(code: list[int], objects: Collection[int], nearer: dict[int, list[int]], every: bool) -> bool:
+    """Move the first of ``objects`` that has one left (``every``: each that has) to its next pose near where it
+    rested (``nearer``: per object, those poses not tried yet, nearest first); whether one moved. Of an
+    overlapping pair one is enough to part them; each object that moved beyond the threshold needs its own."""
+    found = [i for i in sorted(objects) if nearer[i]]
+    for i in found if every else found[:1]:
+        code[i] = nearer[i].pop(0)
+    return bool(found)
 
 
 def _held(code: list[int], culprits: Collection[int], holdable: dict[int, int]) -> bool:
@@ -249,10 +282,12 @@ def search_with_previous_map(
     """A tick's search with the previous map first (module docstring): the previous map's configuration
     checked within half of ``budget`` seconds (``last`` reused if it checked the same configuration of the
     same hypotheses), then the search made (:func:`~physics_mapper.search.strategy.make_search`, carrying
-    over ``previous``) and run for the rest of ``budget``. Where the previous map passed, the search runs
-    without its fallback (a fallback map would only stand in for the previous map). Returns the search, its
-    result or the previous map's where that is the valid one, and the check. The search ranks ``hypotheses``
-    without their *held* ones (:mod:`~physics_mapper.mapping.existence`): those are the check's."""
+    over ``previous``) and run for the rest of ``budget``; where no valid map is remembered, the refined
+    map's check once the search has its map; a check left pending gone on with before the deadline, after
+    the search. Where the previous map passed, the search runs without its fallback (a fallback map would
+    only stand in for the previous map). Returns the search, its result or the previous map's where that is
+    the valid one, and the check. The search ranks ``hypotheses`` without their *held* ones
+    (:mod:`~physics_mapper.mapping.existence`): those are the check's."""
     started = time.monotonic()
     hypotheses = searchable(hypotheses)
     searched = tuple(ranked.without_held() for ranked in hypotheses)
@@ -264,56 +299,79 @@ def search_with_previous_map(
     resumed = previous is not None and resumable(previous, checker, searched, params)
     waiting = previous is not None and settling_goes_on(previous, searched)
     if check is None and code is not None and not resumed and not waiting:
-        stop_at = None if budget is None else started + budget / 2.0
-        new = [i for i, name in enumerate(names) if name not in remembered]
-        check = check_previous_map(checker, hypotheses, code, new, params, stop_at, remembered)
+        new = tuple(i for i, name in enumerate(names) if name not in remembered)
+        unchecked = PreviousMapCheck(hypotheses, code, code, remembered, new)
+        check = check_previous_map(checker, unchecked, params, None if budget is None else started + budget / 2.0)
     passed = check is not None and check.settling is not None
     search = make_search(checker, searched, replace(params, fallback="none") if passed else params, previous)
     stop_at = None if budget is None else started + budget
     if code is None and params.fallback == "refine" and not resumed and not waiting:
-        result, check = refined_map_first(search, checker, hypotheses, params, stop_at)
-        return search, with_previous_map(result, check), check
+        result = _run_until_map(search, stop_at)
+        if result.valid or _time_up(stop_at):
+            return search, result, None
+        check = refined_map_check(checker, hypotheses, params, result, stop_at)
+    if check is not None and check.pending and not _time_up(stop_at, check.time_to_go_on):
+        assert stop_at is not None  # without a deadline a check ends passed or failed
+        result = _run_leaving(search, stop_at, check.time_to_go_on)
+        if result.valid or _time_up(stop_at):
+            return search, with_previous_map(result, check), check
+        check = check_previous_map(checker, check, params, stop_at)
     remaining = None if stop_at is None else max(0.0, stop_at - time.monotonic())
     return search, with_previous_map(search.run(remaining), check), check
 
 
-def refined_map_first(
-    search: Search,
+def refined_map_check(
     checker: PhysicsChecker,
     hypotheses: tuple[RankedHypotheses, ...],
     params: SearchParams,
+    result: SearchResult,
     stop_at: float | None,
-) -> tuple[SearchResult, PreviousMapCheck | None]:
-    """Where no valid map is remembered: run ``search`` until it has a map (its refined map, made first, or a
-    valid configuration), then, if that is the refined map, check the configuration nearest where it rests the
-    objects (module docstring) with the time left before ``stop_at``, and search on (its own valid answer
-    stands). Returns the search's result and the check (None: none was made)."""
-    result = _run_until_map(search, stop_at)
-    if result.valid or result.fallback != "refine" or result.code is None or result.settled_poses is None:
-        return result, None
-    if stop_at is not None and time.monotonic() >= stop_at:
-        return result, None
+) -> PreviousMapCheck | None:
+    """Where no valid map is remembered and ``result`` holds the tick's refined map: the configuration nearest
+    where it rests the objects, those it leaves out left out (module docstring), checked until ``stop_at``
+    (None: ``result`` holds no refined map)."""
+    if result.fallback != "refine" or result.code is None or result.settled_poses is None:
+        return None
     names = checker.scene.object_names
     chosen = zip(names, hypotheses, result.code, result.settled_poses, strict=True)
     rests = {name: pose for name, ranked, rank, pose in chosen if not ranked.is_absent(rank)}
-    start = previous_map_code(names, hypotheses, rests)
-    assert start is not None
-    new = [i for i, name in enumerate(names) if name not in rests]
-    check = check_previous_map(checker, hypotheses, start, new, params, stop_at, rests)
-    result = search.run(None if stop_at is None else max(0.0, stop_at - time.monotonic()))
-    return result, check
+    nearest = previous_map_code(names, hypotheses, rests)
+    assert nearest is not None
+    new = tuple(i for i, name in enumerate(names) if name not in rests)
+    start = tuple(result.code[i] if i in new else rank for i, rank in enumerate(nearest))
+    return check_previous_map(checker, PreviousMapCheck(hypotheses, start, start, rests, new), params, stop_at)
+
+
+def _time_up(stop_at: float | None, needed: float = 0.0) -> bool:
+    """Whether less than ``needed`` seconds are left before ``stop_at`` (a ``time.monotonic()`` instant; None:
+    no deadline)."""
+    return stop_at is not None and time.monotonic() + needed >= stop_at
 
 
 def _run_until_map(search: Search, stop_at: float | None) -> SearchResult:
     """``search`` run in :data:`MAP_SLICES` slices of the time to ``stop_at`` (to its end where None) until its
-    result holds a map: a valid configuration or a fallback's."""
+    result holds a map (a valid configuration or a fallback's) and it has checked a configuration of its own:
+    its first, the most probable, is often valid where the one nearest the refined map is not (24 lego parts
+    in two layers, named, seed 2: 22 ticks of 30 with a valid map where the check came first, 26 now)."""
     if stop_at is None:
         return search.run(None)
     piece = max(0.0, stop_at - time.monotonic()) / MAP_SLICES
+    before = search.result().stats.visited
     while True:
         result = search.run(piece)
-        if result.valid or result.fallback is not None or search.done or time.monotonic() >= stop_at:
+        tried = result.stats.visited > before
+        if result.valid or (result.fallback is not None and tried) or search.done or _time_up(stop_at):
             return result
+
+
+def _run_leaving(search: Search, stop_at: float, reserve: float) -> SearchResult:
+    """``search`` run until ``reserve`` seconds before ``stop_at`` (time for a check), and on to ``stop_at`` where
+    it has no map by then. In one run, not in slices: each slice that cuts a settling saves the world's state,
+    7 ms for 24 mugs (slices there left ticks with no map at all)."""
+    result = search.run(max(0.0, stop_at - time.monotonic() - reserve))
+    if result.valid or result.fallback is not None or search.done:
+        return result
+    return search.run(max(0.0, stop_at - time.monotonic()))
 
 
 def settling_goes_on(previous: Search, hypotheses: Sequence[RankedHypotheses]) -> bool:

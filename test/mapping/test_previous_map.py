@@ -3,8 +3,10 @@ the tick's map only where the search finds no valid one of its own (real pybulle
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import replace
+from time import monotonic
 from typing import Any
 
 import pytest
@@ -12,8 +14,15 @@ from detection_builders import array, detection, result
 
 from physics_mapper.mapping.inputs import InputSettings, check_poses, check_weights
 from physics_mapper.mapping.mapper import Mapper, MapperSettings, TickReport
-from physics_mapper.mapping.previous_map import NEAR, previous_map_code, settling_goes_on
-from physics_mapper.model.geometry import IDENTITY, Pose, quaternion_about_axis
+from physics_mapper.mapping.previous_map import (
+    NEAR,
+    PreviousMapCheck,
+    check_previous_map,
+    previous_map_code,
+    search_with_previous_map,
+    settling_goes_on,
+)
+from physics_mapper.model.geometry import IDENTITY, Pose, Quaternion, quaternion_about_axis
 from physics_mapper.model.hypotheses import Hypothesis, RankedHypotheses, absent_hypothesis
 from physics_mapper.model.scene import SearchParams
 from physics_mapper.model.scene_files import scene_from_dict
@@ -50,10 +59,17 @@ def test_each_object_takes_its_hypothesis_nearest_where_the_last_map_left_it() -
     assert previous_map_code("ab", hypotheses[:2], {}) is None  # no previous map
 
 
-def feed_poses(mapper: Mapper, name: str, positions: Sequence[tuple[float, float, float]], time: float) -> None:
-    """Named input: ``positions`` as hypotheses, weights 0.9, 0.1, ..."""
+def feed_poses(
+    mapper: Mapper,
+    name: str,
+    positions: Sequence[tuple[float, float, float]],
+    time: float,
+    orientations: Sequence[Quaternion] | None = None,
+) -> None:
+    """Named input: ``positions`` (upright, or turned by ``orientations``) as hypotheses, weights 0.9, 0.1, ..."""
+    turns = orientations or [IDENTITY] * len(positions)
     received = check_poses(
-        [(p, (0.0, 0.0, 0.0, 1.0)) for p in positions],
+        list(zip(positions, turns, strict=True)),
         frame_id="world",
         expected_frame="world",
         workspace=STACK.workspace,
@@ -162,6 +178,68 @@ def test_where_the_nearest_poses_overlap_the_check_takes_the_next_nearest() -> N
     result = mapper.tick(0.1, MapperSettings(replace(ROOT_ONLY, fallback="refine"), INPUTS, rate_hz=0.1)).result
     assert result is not None and result.stats.visited == 1 and result.trace[0].outcome == "collision"
     assert result.valid and result.previous_map and result.code == (1, 2)
+
+
+def test_where_the_nearest_pose_tips_over_the_check_takes_the_next_nearest() -> None:
+    """A stack mapped; now b's best pose is tilted 20 degrees on an edge of a, 1.4 cm from where b rested, and its
+    second upright on a, 1.8 cm beside it. The search checks the root alone (b tips back flat: unstable). The
+    check starts b at its pose nearest where it rested, the tilted one; b, named, has no held pose and may not
+    be left out, so it takes its next pose near its rest, stands, and that is the map, valid."""
+    tilt = 0.35  # rad
+    lowest = 0.05 * (math.cos(tilt) + math.sin(tilt))  # m, the tilted box's centre above its lowest edge
+    tilted, beside = (0.0, 0.0, 0.1 + lowest + 0.001), (0.018, 0.0, 0.15)
+    mapper = Mapper(STACK)
+    feed_poses(mapper, "a", [BOTTOM], 0.0)
+    feed_poses(mapper, "b", [TOP], 0.0)
+    first = mapper.tick(0.1, MapperSettings(GENEROUS, INPUTS, rate_hz=0.1))
+    assert first.result is not None and first.result.valid
+    turned = quaternion_about_axis((1.0, 0.0, 0.0), tilt)
+    feed_poses(mapper, "b", [tilted, beside], 0.5, orientations=[turned, IDENTITY])
+    result = mapper.tick(0.6, MapperSettings(ROOT_ONLY, INPUTS, rate_hz=0.1)).result
+    assert result is not None and result.stats.visited == 1 and result.trace[0].outcome == "unstable"
+    assert result.valid and result.previous_map and result.code == (1, 2)
+
+
+def test_a_check_that_ran_out_of_time_goes_on_after_the_search_has_its_map() -> None:
+    """A check of the stack's previous map stopped for time before its settling (its deadline passed) is
+    pending, its configuration unchanged. The next search of the same hypotheses goes on with it once the
+    search has its answer (the root alone: b floats, unstable), and the previous map is the map, valid, after
+    the one settling the first check never made."""
+    floating_first = RankedHypotheses((Hypothesis(Pose(FLOATING, IDENTITY), 0.9), Hypothesis(Pose(TOP, IDENTITY), 0.1)))
+    hypotheses = searchable((at(BOTTOM), floating_first))
+    remembered = {"a": Pose(BOTTOM, IDENTITY), "b": Pose(TOP, IDENTITY)}
+    code = previous_map_code("ab", hypotheses, remembered)
+    assert code == (1, 2)
+    with PhysicsChecker(STACK) as checker:
+        unstarted = PreviousMapCheck(hypotheses, code, code, remembered, new=())
+        cut = check_previous_map(checker, unstarted, ROOT_ONLY, monotonic() - 1.0)
+        assert cut.pending and cut.settling is None and cut.code == code and cut.settlings == 0
+        _, result, check = search_with_previous_map(checker, hypotheses, ROOT_ONLY, remembered, 5.0, last=cut)
+    assert result.stats.visited == 1 and result.trace[0].outcome == "unstable"
+    assert check is not None and not check.pending and check.settlings == 1 and check.settling is not None
+    assert result.valid and result.previous_map and result.code == (1, 2)
+
+
+def test_what_the_refined_map_leaves_out_the_check_leaves_out_from_the_start() -> None:
+    """The first tick: the stack's b floats first (the root is unstable), and c, which may be absent, floats
+    high above the floor beside it. The refined map rests b on a and leaves c out (it fell); the check of the
+    configuration nearest it starts with c left out, as the refined map has it, and passes in one settling
+    (c at its pose first would fall, to be left out at a second)."""
+    three = scene_from_dict(
+        {
+            "objects": [{"name": "a", **BOX}, {"name": "b", **BOX}, {"name": "c", **BOX}],
+            "static": [{"name": "floor", "shape": "plane"}],
+        },
+        "test",
+    )
+    maybe_c = RankedHypotheses((Hypothesis(Pose((0.6, 0.0, 0.5), IDENTITY), 0.6), absent_hypothesis(2, 0.4)))
+    hypotheses = searchable((at(BOTTOM), at(FLOATING, TOP), maybe_c))
+    params = replace(ROOT_ONLY, fallback="refine")
+    with PhysicsChecker(three) as checker:
+        _, result, check = search_with_previous_map(checker, hypotheses, params, {}, 5.0)
+    assert result.trace[0].outcome == "unstable"
+    assert check is not None and check.start == (1, 2, 2) and check.settlings == 1
+    assert result.valid and result.previous_map and result.code == (1, 2, 2)
 
 
 def box_detection(*positions: Sequence[float]) -> Any:

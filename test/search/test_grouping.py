@@ -12,12 +12,12 @@ from dataclasses import replace
 from core_builders import CUBE_SIZE, ON_FLOOR, cube, floor_scene, ranked, unrotated
 
 from physics_mapper.model.geometry import Pose, quaternion_about_axis
-from physics_mapper.model.hypotheses import RankedHypotheses
+from physics_mapper.model.hypotheses import Hypothesis, RankedHypotheses, absent_hypothesis
 from physics_mapper.model.scene import Box, ObjectModel, Scene, SearchParams, Sphere, StaticBody, object_radius
 from physics_mapper.physics.checker import PhysicsChecker
-from physics_mapper.search.grouped import GroupedSearch
+from physics_mapper.search.grouped import GroupedSearch, schedule_key
 from physics_mapper.search.groups import interaction_groups
-from physics_mapper.search.strategy import make_search, paper_search
+from physics_mapper.search.strategy import make_search, paper_search, searchable
 
 MARGIN = SearchParams().interaction_margin
 #: Half-edge of a test cube's volume boxes (unrotated): half its edge plus half the margin.
@@ -147,3 +147,21 @@ def test_merged_objects_stay_merged_while_their_hypotheses_do_not_change() -> No
         moved_ball = (ranked([on_slope(-0.26, BALL_RADIUS)], [1.0]), hypotheses[1])
         fresh = make_search(checker, moved_ball, scene.search, again)
         assert isinstance(fresh, GroupedSearch) and fresh.grouping.groups == ((0,), (1,))
+
+
+def test_a_detection_in_the_air_is_refined_before_the_pile_it_falls_onto_and_merges_with_it() -> None:
+    """``fallback: refine``: a pile of two cubes and, in a group of its own, a cube 40 cm above them, which may be
+    absent. The smallest group's refined map comes first (cheap; the pile's own would be made for nothing):
+    the cube falls into the pile's volume, the groups merge, and the one refined map is the merged group's."""
+    scene = floor_scene(cube("bottom"), cube("top"), cube("air"))
+    air = RankedHypotheses((Hypothesis(unrotated(0.0, 0.0, 0.6), 0.6), absent_hypothesis(2, 0.4)))
+    hypotheses = searchable((one(unrotated(0.0, 0.0, ON_FLOOR)), one(unrotated(0.0, 0.0, 3 * ON_FLOOR)), air))
+    params = replace(scene.search, fallback="refine", strategy="grouped")
+    assert interaction_groups(scene, hypotheses, MARGIN).groups == ((0, 1), (2,))
+    with PhysicsChecker(scene) as checker:
+        search = make_search(checker, hypotheses, params)
+        assert isinstance(search, GroupedSearch)
+        assert min(search.groups(), key=schedule_key).objects == (2,)
+        result = search.run(None)
+    assert result.stats.merges == 1 and [group.objects for group in search.groups()] == [(0, 1, 2)]
+    assert result.valid and result.code == (1, 1, 2)  # the cube in the air left out
