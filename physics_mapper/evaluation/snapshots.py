@@ -102,7 +102,7 @@ def no_snapshot_reason(scene: Scene) -> str:
 
 def has_instances(scene: Scene) -> bool:
     """Whether some class of the scene is associated across frames (identical instances, optional ones)."""
-    return any(scene.is_tracked(scene.class_of(name)) for name in scene.object_names)
+    return any(scene.is_instance(name) for name in scene.object_names)
 
 
 #: Told after each new snapshot's search: the chosen configuration (None: nothing chosen).

@@ -336,10 +336,6 @@ class InstanceTracks:
         track = self.tracks.get(name)
         return track is not None and (track.hits < self.settings.confirm_hits or not track.kept)
 
-    def is_instance(self, name: str) -> bool:
-        """Whether object ``name`` is an instance: of a class whose detections are associated to tracks."""
-        return self.scene.is_tracked(self.scene.class_of(name))
-
     def absent_weight(self, name: str) -> float | None:
         """The weight of ``name`` being absent, or None if it is certainly there while tracked."""
         track = self.tracks.get(name)

@@ -120,7 +120,9 @@ def searched_hypotheses(
             weight = tracks.absent_weight(name)
             ranked = status.hypotheses if weight is None else with_absent(status.hypotheses, index, weight)
             rested = memory.settled.get(name)
-            searched.append(ranked if rested is None or not tracks.is_instance(name) else with_held(ranked, rested))
+            searched.append(
+                ranked if rested is None or not tracks.scene.is_instance(name) else with_held(ranked, rested)
+            )
             continue
         since = memory.silent_since.setdefault(name, now)
         last = memory.poses.get(name)

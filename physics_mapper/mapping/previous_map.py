@@ -189,7 +189,7 @@ def check_previous_map(
         )
 
     while settlings < CHECK_SETTLINGS:
-        if stop_at is not None and time.monotonic() + longest > stop_at:
+        if _time_up(stop_at, longest):
             return ended(pending=True)  # a settling that would not end in time only takes the search's
         poses = _poses(hypotheses, code)
         collision = checker.find_collision(poses, params.penetration_threshold)

@@ -335,6 +335,10 @@ class Scene:
         objects = self.objects_of_class(class_id)
         return len(objects) > 1 or any(name in self.optional for name in objects)
 
+    def is_instance(self, name: str) -> bool:
+        """Whether object ``name`` is an instance: of a class whose detections are associated (:meth:`is_tracked`)."""
+        return self.is_tracked(self.class_of(name))
+
     @cached_property
     def workspace(self) -> Workspace:
         """The box hypotheses must lie in: :attr:`explicit_workspace`, else :func:`default_workspace`."""

@@ -472,7 +472,7 @@ class BestFirst(Generic[G, R]):
             ranked = self.hypotheses[i]
             if ranked.is_absent(code[i]):
                 poses[i], jitters[i] = ranked.pose(code[i]), 0.0
-            elif ranked.absent_rank() is None and scene.is_tracked(scene.class_of(scene.objects[self.objects[i]].name)):
+            elif ranked.absent_rank() is None and scene.is_instance(scene.objects[self.objects[i]].name):
                 poses[i] = refined.depenetrated_poses[i]
                 jitters[i] = pose_displacement(ranked.pose(code[i]), poses[i], params.angular_weight)
         return Candidate(code, self.probability(code), Settling(tuple(poses), tuple(jitters)))
