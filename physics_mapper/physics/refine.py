@@ -26,7 +26,13 @@ rule, the refinement repairs the most probable configuration instead of rejectin
    ``refine_max_speed * TIME_STEP`` metres per iteration (4.2 mm at the default 1 m/s), which
    also keeps objects from tunnelling through thin bodies. Objects are moved kinematically, at
    rest, so the depenetration gives them no velocity at all. It stops when no pair overlaps by
-   more than :data:`OVERLAP_TOLERANCE` (converged) or after :data:`MAX_ITERATIONS`.
+   more than :data:`OVERLAP_TOLERANCE` (converged), after :data:`MAX_ITERATIONS`, or once it has
+   *stalled*: :data:`STALL_ITERATIONS` least-distance steps in a row left the summed overlap of
+   all pairs no lower than its lowest so far (by :data:`OVERLAP_TOLERANCE`). Closest points of
+   concave bodies made of convex parts can contradict each other from one iteration to the next
+   (a mug's handle through another mug's wall): 24 mugs in two layers, packed, came from 228 mm
+   of summed overlap to 9.1 mm, two pairs, in 30 iterations, and stayed there for the other 210,
+   a quarter of a second. The settling, speeds capped, resolves what is left.
 
    **Escape.** Pairwise closest points describe each body alone, so an object deep inside
    static bodies that touch each other (a ball below the floor and inside a block standing on
@@ -77,6 +83,10 @@ FloatArray = NDArray[np.float64]
 OVERLAP_TOLERANCE = 1e-4
 #: Depenetration iterations at most: one simulated second of motion at the speed cap.
 MAX_ITERATIONS = 240
+#: Least-distance steps in a row without a new lowest summed overlap that end the depenetration as
+#: stalled (the module docstring). At the speed cap every object can move 4.2 mm an iteration, so a
+#: depenetration that makes progress shows it well within this many.
+STALL_ITERATIONS = 20
 #: Iterations of Bullet's constraint solver per step in the refinement's settling: Bullet's own
 #: default, not pybullet's 50 that Rule 2 uses. On 50 touching cubes the settling costs 0.8 ms a step
 #: instead of 2.3 ms, and the maps lie within 2.5 mm of the 50-iteration ones, 0.17 mm or less at the
@@ -141,6 +151,11 @@ class RefinedMap:
 def _deepest_overlap(proximities: Sequence[Proximity]) -> float:
     """The deepest overlap among the pairs, metres (0 when none overlaps)."""
     return max([0.0, *(-p.distance for p in proximities)])
+
+
+def _summed_overlap(proximities: Sequence[Proximity]) -> float:
+    """The overlaps of all pairs added up, metres."""
+    return sum(max(0.0, -p.distance) for p in proximities)
 
 
 def _stuck_in_statics(proximities: Sequence[Proximity]) -> list[int]:
@@ -236,6 +251,8 @@ class Refinement:
         self._positions = self._starts.copy()
         self._iterations = 0
         self._escape_steps = 0  # speed-cap steps the objects stuck in static bodies have marched out
+        self._lowest_overlap = math.inf  # the lowest summed overlap so far, metres
+        self._stalled_steps = 0  # least-distance steps since it was last lowered
         self._initial_overlap: float | None = None
         self._depenetrated: tuple[tuple[Pose, ...], bool, float] | None = None
         self._settling: PartialSettling | None = None
@@ -276,7 +293,7 @@ class Refinement:
             if self._initial_overlap is None:
                 self._initial_overlap = overlap
             converged = overlap <= OVERLAP_TOLERANCE
-            if converged or self._iterations >= MAX_ITERATIONS:
+            if converged or self._iterations >= MAX_ITERATIONS or self._stalled(proximities):
                 self._depenetrated = (poses, converged, overlap)
                 return True
             step = _step(proximities, self._slots, self._positions - self._starts)
@@ -290,6 +307,7 @@ class Refinement:
                     step *= self.max_step / largest
                 self._positions = self._positions + step
                 self._escape_steps = 0
+                self._stalled_steps += 1
             else:
                 self._escape_steps += 1
                 for index in stuck:
@@ -297,6 +315,14 @@ class Refinement:
             self._iterations += 1
             if stop_at is not None and time.monotonic() >= stop_at:
                 return False
+
+    def _stalled(self, proximities: Sequence[Proximity]) -> bool:
+        """Whether :data:`STALL_ITERATIONS` least-distance steps have gone by without a new lowest summed overlap
+        (escape steps count for nothing: the overlap stays put while the escape's reach grows)."""
+        summed = _summed_overlap(proximities)
+        if summed < self._lowest_overlap - OVERLAP_TOLERANCE:
+            self._lowest_overlap, self._stalled_steps = summed, 0
+        return self._stalled_steps >= STALL_ITERATIONS
 
     def _escape(self, index: int, reach: float) -> None:
         """Move object ``index`` out of the static bodies if that is possible within ``reach`` metres.

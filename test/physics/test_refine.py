@@ -28,6 +28,7 @@ from core_builders import (
 )
 from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PoseArray
+from mesh_builders import MUG_FILE, MUG_PARTS
 from ros_helpers import NodeProcess, RosClient, search_status, stamp_ns_of, values
 
 from physics_mapper.model.bullet import pybullet
@@ -45,8 +46,10 @@ from physics_mapper.msg_adapters.hypotheses import hypotheses_msgs
 from physics_mapper.msg_adapters.results import FALLBACK_COLOR, SHAPE_NAMESPACE
 from physics_mapper.physics.checker import PhysicsChecker
 from physics_mapper.physics.refine import (
+    MAX_ITERATIONS,
     OVERLAP_TOLERANCE,
     SETTLING_SOLVER_ITERATIONS,
+    STALL_ITERATIONS,
     RefinedMap,
     Refinement,
     refine_objects,
@@ -159,6 +162,31 @@ def test_depenetration_moves_no_object_faster_than_the_cap() -> None:
     slow = replace(REFINE, refine_max_speed=0.5)
     refined = refined_map(scene, single(unrotated(0.0, 0.0, ON_FLOOR - 0.02)), slow)
     assert refined.iterations == math.ceil(0.02 / (slow.refine_max_speed * TIME_STEP))
+
+
+def test_a_depenetration_that_stalls_ends_long_before_its_iteration_cap() -> None:
+    """A rod through a mug's handle, thicker than the hole: the deepest closest point of the pair flips
+    between the handle's bars from one iteration to the next, and no step lowers the overlap. The
+    depenetration ends once :data:`STALL_ITERATIONS` steps have not lowered it (not at
+    :data:`MAX_ITERATIONS`), unconverged, and the map is still made."""
+    scene = scene_from_dict(
+        {
+            "static": [{"name": "floor", "shape": "plane"}],
+            "objects": [
+                {"name": "mug", "shape": "mesh", "file": MUG_FILE, "collision": "decomposition", "parts": MUG_PARTS},
+                {"name": "rod", "shape": "cylinder", "radius": 0.018, "length": 0.2, "mass": 0.1},
+            ],
+        },
+        "rod_through_handle.yaml",
+    )
+    # The handle's hole spans y 4.1-7.3 cm and z 3.5-6.5 cm of the mug's frame; the rod lies along x
+    # through its middle, 3.6 cm thick.
+    along_x = quaternion_about_axis((0.0, 1.0, 0.0), math.pi / 2.0)
+    hypotheses = single(unrotated(0.0, 0.0, 0.0), make_pose((0.0, 0.057, 0.05), along_x))
+    refined = refined_map(scene, hypotheses)
+    assert not refined.converged and refined.remaining_overlap > OVERLAP_TOLERANCE
+    assert STALL_ITERATIONS <= refined.iterations < MAX_ITERATIONS // 2
+    assert len(refined.settled_poses) == 2
 
 
 def test_the_settling_of_a_noisy_grid_rests_with_fewer_solver_iterations_and_gives_rule_2_s_back() -> None:
