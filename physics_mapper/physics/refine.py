@@ -4,10 +4,14 @@ The search can only choose among the hypotheses it is given. When every combinat
 rule, the refinement repairs the most probable configuration instead of rejecting it:
 
 1. **Start.** Each object starts at the weighted mean position of its hypotheses lying within
-   ``refine_mean_radius`` metres of its most likely one (where they agree), with the most likely
-   one's orientation (:func:`refinement_start`). Orientations are not averaged: the mean of two
-   symmetric readings of a box is a box turned half-way. Which objects start (the search's live root,
-   with the objects another rests on put back) is :mod:`physics_mapper.physics.support`'s rule.
+   ``refine_mean_radius`` metres of its most likely pose, with that pose's orientation
+   (:func:`refinement_start`). Orientations are not averaged: the mean of two symmetric readings of
+   a box is a box turned half-way. Which objects start (the search's live root, with the objects
+   another rests on put back) is :mod:`physics_mapper.physics.support`'s rule; an object it starts
+   at its most likely pose though *absent* ranks first (a tentative instance more likely there than
+   not) starts at the mean as the others do: at its most likely pose alone, where an estimator's
+   pose 3 cm off ranked first, a box came to rest beside where its other poses put it, overlapping a
+   neighbour, and the first snapshot of a bin had no valid map.
 
 2. **Depenetration, with as little motion as possible.** Positions x_i (metres) move,
    orientations stay. Each iteration lists the pairs of bodies closer than a margin (an object
@@ -106,18 +110,18 @@ ESCAPE_DIRECTIONS = _escape_directions()
 
 
 def refinement_start(hypotheses: RankedHypotheses, radius: float) -> Pose:
-    """Where the refinement starts an object: its hypotheses' weighted mean position, most likely orientation.
+    """Where the refinement starts an object: its poses' weighted mean position, most likely pose's orientation.
 
-    The mean is over the hypotheses whose positions lie within ``radius`` metres of the most
-    likely one's (always including it), weighted by their weights: sum_j w_j p_j / sum_j w_j.
+    The mean is over the pose hypotheses (not *absent*) whose positions lie within ``radius`` metres of the
+    most likely pose's (always including it), weighted by their weights: sum_j w_j p_j / sum_j w_j.
     """
-    best = hypotheses.pose(1)
-    positions = np.array([h.pose.position for h in hypotheses.hypotheses])
-    weights = np.array([h.weight for h in hypotheses.hypotheses])
+    ranks = hypotheses.pose_ranks()
+    positions = np.array([hypotheses.pose(rank).position for rank in ranks], dtype=float)
+    weights = np.array([hypotheses.weight(rank) for rank in ranks], dtype=float)
     near = np.linalg.norm(positions - positions[0], axis=1) <= radius
     near[0] = True
     mean = weights[near] @ positions[near] / weights[near].sum()
-    return Pose((float(mean[0]), float(mean[1]), float(mean[2])), best.orientation)
+    return Pose((float(mean[0]), float(mean[1]), float(mean[2])), hypotheses.pose(ranks[0]).orientation)
 
 
 @dataclass(frozen=True)

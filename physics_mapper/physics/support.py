@@ -5,9 +5,11 @@ not those it moved away from where they were seen (ROS-free).
 alone), so an object that may be absent and whose every pose was ruled out is left out of the refined
 map. Where *absent* is that rank only because the object's poses share their weight (a tentative lego
 part's five particle poses of 0.20 and less, 0.75 in all, against *absent*'s 0.25), the object is more likely
-there than not: the refined map starts it at its most probable pose not ruled out, where its poses agree
-(all within half its size of that one: a detection whose wrong pose ranks first, 3 cm from the others, would
-start where no part is; :func:`present_where_likelier`); left out, it was a miss in the map. A detection
+there than not: the refined map holds it at its most probable pose not ruled out, where its poses agree
+(all within half its size of that one: :func:`present_where_likelier`), and starts it as any object whose
+most probable hypothesis is a pose, at the weighted mean of its poses around that one
+(:func:`~physics_mapper.physics.refine.refinement_start`): started at that pose alone, a wrong pose that
+ranks first, 3 cm from the others, started it where no part is. Left out, it was a miss in the map. A detection
 1 cm into the floor is ruled out for that alone (deeper than ``penetration_threshold``), yet the refinement
 lifts such a pose out of the floor in a few iterations; left out, the box resting on it falls into its place,
 and the map names the upper box where the lower one stands. So, as the silent

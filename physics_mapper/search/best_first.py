@@ -441,7 +441,7 @@ class BestFirst(Generic[G, R]):
             root = put_back_supports(live, self.hypotheses, shapes, scene.static, params.jitter_threshold)
             self._refined_root = root
             start = [
-                refinement_start(h, params.refine_mean_radius) if rank == 1 else h.pose(rank)
+                refinement_start(h, params.refine_mean_radius) if rank in h.pose_ranks()[:1] else h.pose(rank)
                 for h, rank in zip(self.hypotheses, root, strict=True)
             ]
             self._refinement = Refinement(self.checker, self.objects, start, self.poses(root), params)

@@ -39,7 +39,7 @@ from physics_mapper.model.geometry import (
     quaternion_about_axis,
     translation_distance,
 )
-from physics_mapper.model.hypotheses import RankedHypotheses
+from physics_mapper.model.hypotheses import Hypothesis, RankedHypotheses, absent_hypothesis
 from physics_mapper.model.scene import Fallback, Scene, SearchParams
 from physics_mapper.model.scene_files import SceneError, load_problem, scene_from_dict
 from physics_mapper.msg_adapters.hypotheses import hypotheses_msgs
@@ -278,6 +278,26 @@ def test_the_start_is_the_weighted_mean_of_the_hypotheses_near_the_most_likely_o
     assert start.position == pytest.approx((0.3 * 0.02 / 0.9, 0.2 * 0.04 / 0.9, 0.1))
     assert start.orientation == hypotheses.pose(1).orientation  # the most likely one's, never an average
     assert refinement_start(hypotheses, radius=0.0).position == (0.0, 0.0, 0.1)
+
+
+def test_an_object_likelier_there_than_not_starts_at_the_mean_of_its_poses_as_the_others_do() -> None:
+    """A tentative box: *absent* ranks first (0.30), then a wrong pose 3 cm off (0.25), then three poses
+    within 3 mm of where it stands (0.15 each). Its poses outweigh its absence, so the refined map holds it,
+    started at the weighted mean of its poses within ``refine_mean_radius`` of the most likely one, as an
+    object whose first rank is a pose starts: not at the wrong pose alone."""
+    wrong, *right = (unrotated(0.03, 0.0, ON_FLOOR), *(unrotated(0.003 * k, 0.0, ON_FLOOR) for k in range(3)))
+    tentative = RankedHypotheses.from_weighted(
+        [absent_hypothesis(0, 0.30), Hypothesis(wrong, 0.25), *(Hypothesis(p, 0.15) for p in right)]
+    )
+    assert tentative.is_absent(1)
+    mean_x = (0.25 * 0.03 + 0.15 * (0.0 + 0.003 + 0.006)) / 0.70
+    floating = ranked([unrotated(1.0, 0.0, 0.5)], [1.0])  # a named cube 0.5 m up: no configuration is valid
+    scene = floor_scene(cube("box"), cube("floating"))
+    with PhysicsChecker(scene) as checker:
+        result = make_search(checker, (tentative, floating), replace(REFINE, strategy="joint")).run(None)
+    assert not result.valid and result.refinement is not None
+    assert result.refinement.start_poses[0].position == pytest.approx((mean_x, 0.0, ON_FLOOR), abs=1e-9)
+    assert refinement_start(tentative, 0.0).position == wrong.position  # radius 0: the most likely pose
 
 
 def pyramid_c111() -> tuple[Scene, tuple[RankedHypotheses, ...]]:
