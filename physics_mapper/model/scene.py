@@ -244,8 +244,8 @@ class SearchParams:
     refine_mean_radius: float = field(
         default=0.1,
         metadata=_doc(
-            "fallback refine starts each object at the weighted mean position of its hypotheses within this many "
-            "metres of its most likely one (0: at the most likely one)"
+            "fallback refine starts each object at the weighted mean position of its poses within this many "
+            "metres of its most likely pose (0: at that pose)"
         ),
     )
     strategy: Strategy = field(
