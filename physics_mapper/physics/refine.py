@@ -3,7 +3,7 @@
 The search can only choose among the hypotheses it is given. When every combination breaks a
 rule, the refinement repairs the most probable configuration instead of rejecting it:
 
-1. **Start.** Each object starts at the weighted mean position of its hypotheses lying within
+1. **Start.** Each object starts at the weighted mean position of its poses lying within
    ``refine_mean_radius`` metres of its most likely pose, with that pose's orientation
    (:func:`refinement_start`). Orientations are not averaged: the mean of two symmetric readings of
    a box is a box turned half-way. Which objects start (the search's live root, with the objects
@@ -34,7 +34,7 @@ rule, the refinement repairs the most probable configuration instead of rejectin
    *stalled*: :data:`STALL_ITERATIONS` least-distance steps in a row left the summed overlap of
    all pairs no lower than its lowest so far (by :data:`OVERLAP_TOLERANCE`). Closest points of
    concave bodies made of convex parts can contradict each other from one iteration to the next
-   (a mug's handle through another mug's wall): 24 mugs in two layers, packed, came from 228 mm
+   (a mug's handle hooked through another's): 24 mugs in two layers, packed, came from 228 mm
    of summed overlap to 9.1 mm, two pairs, in 30 iterations, and stayed there for the other 210,
    a quarter of a second. The settling, speeds capped, resolves what is left.
 
