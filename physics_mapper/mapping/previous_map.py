@@ -47,7 +47,7 @@ search's time (the refined root of 24 cylinders in two layers took most of a 0.2
 
 A check that its half of the deadline stopped with a repaired configuration still to check is *pending*:
 the search runs first, leaving :data:`RESERVE_SHARE` times the check's longest settling, then, unless the
-search found a valid configuration, the check goes on with the time left (:func:`check_after_map`). A
+search found a valid configuration, the check goes on with the time left (:func:`search_with_previous_map`). A
 settling of 24 cylinders or mugs in two layers takes 40-70 ms, so at the 0.2 s deadline a repair's second
 settling never fitted in half a tick.
 

@@ -297,7 +297,9 @@ class Refinement:
             if self._initial_overlap is None:
                 self._initial_overlap = overlap
             converged = overlap <= OVERLAP_TOLERANCE
-            if converged or self._iterations >= MAX_ITERATIONS or self._stalled(proximities):
+            self._lower(_summed_overlap(proximities))
+            stalled = self._stalled_steps >= STALL_ITERATIONS
+            if converged or self._iterations >= MAX_ITERATIONS or stalled:
                 self._depenetrated = (poses, converged, overlap)
                 return True
             step = _step(proximities, self._slots, self._positions - self._starts)
@@ -320,13 +322,12 @@ class Refinement:
             if stop_at is not None and time.monotonic() >= stop_at:
                 return False
 
-    def _stalled(self, proximities: Sequence[Proximity]) -> bool:
-        """Whether :data:`STALL_ITERATIONS` least-distance steps have gone by without a new lowest summed overlap
-        (escape steps count for nothing: the overlap stays put while the escape's reach grows)."""
-        summed = _summed_overlap(proximities)
+    def _lower(self, summed: float) -> None:
+        """Count the least-distance steps from scratch where ``summed`` (metres) is a new lowest summed overlap, by
+        more than :data:`OVERLAP_TOLERANCE` (the stall of the module docstring; escape steps are not counted: the
+        overlap stays put while the escape's reach grows)."""
         if summed < self._lowest_overlap - OVERLAP_TOLERANCE:
             self._lowest_overlap, self._stalled_steps = summed, 0
-        return self._stalled_steps >= STALL_ITERATIONS
 
     def _escape(self, index: int, reach: float) -> None:
         """Move object ``index`` out of the static bodies if that is possible within ``reach`` metres.
