@@ -19,7 +19,11 @@ the map of the previous ticks (:class:`MapMemory`):
   has no valid configuration of them, yet the map of the last tick still agrees with them. The previous
   map's check (:mod:`~physics_mapper.mapping.previous_map`) puts an object that breaks a rule there, and
   the objects it touches, at their held poses. A map that holds an object at its held pose leaves the
-  remembered pose as it was: settled again every tick, a map at rest would creep.
+  remembered pose as it was: settled again every tick, a map at rest would creep. Until a valid map
+  holds any object (the first ticks of a bin), the last refined map stands in for the last valid map:
+  its objects' rests are remembered (:meth:`MapMemory.remember`), the previous map's check starts from
+  them, and an instance's held pose is its rest there. The refined map's objects rest together without
+  overlapping, so where the tick's poses miss the studs, the rests a pose agrees with may still stand.
 - **Silent** (its newest hypotheses older than ``max_age``, or its track ended): if the last valid
   map held it, its pose there is kept as one hypothesis beside *absent*, whose weight grows with the
   silence s (seconds since it fell silent): w_absent = 1 - exp(-s / max_age) / 2. From s = 0
@@ -65,7 +69,7 @@ def with_absent(ranked: RankedHypotheses, index: int, weight: float) -> RankedHy
 
 
 def with_held(ranked: RankedHypotheses, rested: Pose) -> RankedHypotheses:
-    """``ranked`` plus a *held* hypothesis at ``rested`` (where the object rested in the last valid map) weighing
+    """``ranked`` plus a *held* hypothesis at ``rested`` (where the object rested in the remembered map) weighing
     :data:`HELD_SHARE` of its lightest hypothesis (outside the others' sum, which stays 1), ranked last;
     ``ranked`` itself where no pose of it lies within :data:`~physics_mapper.mapping.previous_map.NEAR`
     metres of ``rested``."""
@@ -80,7 +84,8 @@ def with_held(ranked: RankedHypotheses, rested: Pose) -> RankedHypotheses:
 @dataclass
 class MapMemory:
     """What the valid maps held: each object's last pose in one (the chosen hypothesis's, ``poses``, and where
-    it came to rest in Rule 2's settling, ``settled``), and since when each is silent."""
+    it came to rest in Rule 2's settling, ``settled``), and since when each is silent. Until a valid map holds
+    an object, the last refined map stands in for one in ``settled`` alone (:meth:`remember`)."""
 
     poses: dict[str, Pose] = field(default_factory=dict)
     settled: dict[str, Pose] = field(default_factory=dict)
@@ -89,18 +94,27 @@ class MapMemory:
     def remember(self, names: tuple[str, ...], hypotheses: tuple[RankedHypotheses, ...], result: SearchResult) -> None:
         """Keep the chosen pose of every object a *valid* result's map holds; forget those it leaves out.
 
-        An invalid map (a fallback's, or a search's best so far that failed a rule) is not remembered:
-        its poses may lie inside a wall or another object, and kept as a silent object's only pose
+        An invalid map (a fallback's, or a search's best so far that failed a rule) is not remembered as a
+        pose: its poses may lie inside a wall or another object, and kept as a silent object's only pose
         beside *absent* they would feed that conflict to every later search. An object the map holds at its
-        *held* rank keeps the pose remembered (module docstring)."""
-        if not result.valid or result.code is None or result.poses is None or result.settled_poses is None:
+        *held* rank keeps the pose remembered (module docstring), or takes that pose where none was.
+
+        While no valid map holds any object (the first ticks of a bin), a refined map's rests are kept in
+        ``settled`` (replacing the last refined map's): the next tick's previous-map check starts from the
+        hypotheses nearest them, with *held* poses there, as from a valid map's."""
+        if result.code is None or result.poses is None or result.settled_poses is None:
             return
-        chosen = zip(names, hypotheses, result.code, result.poses, result.settled_poses, strict=True)
-        for name, ranked, rank, pose, settled in chosen:
+        if not result.valid:
+            if result.fallback == "refine" and not self.poses:
+                chosen = zip(names, hypotheses, result.code, result.settled_poses, strict=True)
+                self.settled = {name: settled for name, ranked, rank, settled in chosen if not ranked.is_absent(rank)}
+            return
+        chosen_poses = zip(names, hypotheses, result.code, result.poses, result.settled_poses, strict=True)
+        for name, ranked, rank, pose, settled in chosen_poses:
             if ranked.is_absent(rank):
                 self.poses.pop(name, None)
                 self.settled.pop(name, None)
-            elif not ranked.hypotheses[rank - 1].held:
+            elif not ranked.hypotheses[rank - 1].held or name not in self.poses:
                 self.poses[name] = pose
                 self.settled[name] = settled
 

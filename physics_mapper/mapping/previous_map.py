@@ -8,10 +8,10 @@ box's own second rank is tried. Yet the last tick's map was valid and the bin ha
 
 So before a new search runs, the tick checks one configuration, the *previous map's*:
 
-- an object the last valid map held (:class:`~physics_mapper.mapping.existence.MapMemory`) takes
-  its hypothesis from this tick's inputs whose position is nearest where it came to rest in that map's
-  settling, if one lies within :data:`NEAR` metres (the rest pose, not the chosen hypothesis: a
-  hypothesis near where the object rests is one it rests at); else rank 1;
+- an object the last valid map held (:class:`~physics_mapper.mapping.existence.MapMemory`; before any, the
+  last refined map: below) takes its hypothesis from this tick's inputs whose position is nearest where it
+  came to rest in that map's settling, if one lies within :data:`NEAR` metres (the rest pose, not the chosen
+  hypothesis: a hypothesis near where the object rests is one it rests at); else rank 1;
 - an object the map did not hold (a new instance, a silent object the map left out) takes rank 1.
 
 It is checked by Rule 1 (the collision pass of every object) and Rule 2 (a settling of every object,
@@ -61,6 +61,12 @@ the check's time), then the search goes on
 (its own valid answer stands). The refined map's objects rest overlapping nothing, so the hypotheses nearest
 them are worth one check: in 24 cylinders in two layers searched 0.1 s a tick, whose refined map took most
 of each tick, no tick had a valid map; now 14 of 30 do (BENCHMARKS.md, "Bins of identical objects").
+Where that check fails too, the tick's map is its refined map, and the next tick starts from it as from a
+valid map: its rests are remembered until a valid map holds an object
+(:meth:`~physics_mapper.mapping.existence.MapMemory.remember`), so the next check, with half the tick and no
+refinement before it, starts at the hypotheses nearest them, and an instance that breaks a rule is put at
+its rest there (its *held* pose). 24 lego parts in two layers (seed 3): the first nine ticks had the refined
+map, now the first alone (BENCHMARKS.md, "Bins of identical objects").
 
 Such a map is no verdict on the objects it leaves out
 (:func:`~physics_mapper.mapping.existence.left_out_by_physics`): its repairs are greedy (a new object

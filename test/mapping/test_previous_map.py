@@ -280,6 +280,38 @@ def test_new_instances_stay_in_the_previous_map_where_they_can_and_leave_it_wher
     assert after.result is not None and after.result.valid and len(after.absent) == 1
 
 
+def test_until_a_map_is_valid_the_refined_map_s_rests_stand_in_for_the_previous_map() -> None:
+    """A stack of three boxes of a class. The first tick: box_2 and box_3 are seen 4 cm above their places (the
+    root is unstable); the refined map rests them in place, and no pose lies within ``NEAR`` of those rests: the
+    tick's map is the refined map, whose rests are remembered, no pose. The next tick box_2 is seen tilted 20
+    degrees on an edge of box_1, 1.4 cm from its rest, so into box_3, seen in place: the root collides, and
+    leaving either out makes the other fall or tip. The check starts from the refined map's rests, puts the
+    overlapping pair at their *held* poses there, and the map is valid and holds all three (guided by that tick's
+    own refined map instead, which parts the pair and sees both move away, the check left both out)."""
+    scene = scene_from_dict(
+        {"objects": [{"name": "box", "count": 3, **BOX}], "static": [{"name": "floor", "shape": "plane"}]}, "test"
+    )
+    settings = MapperSettings(replace(ROOT_ONLY, fallback="refine"), INPUTS, rate_hz=0.1)
+    mapper = Mapper(scene)
+    above = [box_detection(BOTTOM), box_detection(FLOATING), box_detection((0.0, 0.0, 0.29))]
+    mapper.add_detections(array(above), received=0.0)
+    first = mapper.tick(0.1, settings)
+    assert first.result is not None and not first.result.valid and first.result.fallback == "refine"
+    assert mapper.memory.poses == {} and mapper.memory.settled["box_2"].position == pytest.approx(TOP, abs=0.005)
+    tilt = 0.35  # rad
+    tilted = (0.0, 0.0, 0.1 + 0.05 * (math.cos(tilt) + math.sin(tilt)) + 0.001)
+    lying = detection(result(tilted, orientation=quaternion_about_axis((1.0, 0.0, 0.0), tilt)))
+    mapper.add_detections(array([box_detection(BOTTOM), lying, box_detection((0.0, 0.0, 0.25))], sec=2), received=0.5)
+    report = mapper.tick(0.6, settings)
+    result_ = report.result
+    assert result_ is not None and result_.trace[0].outcome == "collision"
+    assert result_.valid and result_.previous_map and result_.code is not None
+    names = report.snapshot.names
+    held = [name for i, name in enumerate(names) if report.hypotheses[i].hypotheses[result_.code[i] - 1].held]
+    assert sorted(held) == ["box_2", "box_3"] and report.absent == ()
+    assert mapper.memory.poses["box_2"].position == pytest.approx(TOP, abs=0.005)
+
+
 def test_the_check_waits_only_for_a_settling_the_next_search_goes_on_with() -> None:
     """A search cut short in its settling of the stack: the next search with the same hypotheses of those
     objects goes on with it (the world holds it: no check then); with one of them moved it starts afresh,
