@@ -197,14 +197,16 @@ def test_an_object_the_boxes_put_under_another_is_left_out_unless_the_other_rest
     assert leave_out_displaced((1, 1), hypotheses, shapes, {0}, settled, set(), TAU) == (2, 1)
 
 
-def test_an_object_whose_poses_together_outweigh_its_absence_starts_the_refinement_at_its_likeliest_pose() -> None:
+def test_an_object_whose_poses_together_outweigh_its_absence_starts_the_refinement_where_they_agree() -> None:
     """*absent* ranks first in each object below (0.25 against poses of 0.20 and less), but the first object's
     poses weigh 0.75 in all and lie within 3 cm of each other: it starts at its first pose. The second's poses
-    not ruled out weigh 0.20 only (its ranks 3-5 are ruled out), the third's 0.25 in all, and the fourth's
-    first pose lies 8 cm from the others (more than half the 10 cm cube: they disagree where it is): all three
-    stay out. An object at a pose is left as it is."""
+    not ruled out weigh 0.20 only (its ranks 3-5 are ruled out), and the third's 0.25 in all: both stay out.
+    The fourth's first pose lies 8 cm from the others (more than half the 10 cm cube), which agree without it
+    and weigh 0.55: it starts at the first of them, its rank 3. The fifth's poses lie 20 cm apart, none agreeing
+    with another: it stays out. An object at a pose is left as it is."""
     spread = [unrotated(0.01 * k, 0.0, ON_FLOOR) for k in range(4)]
-    apart = [unrotated(0.08, 0.0, ON_FLOOR), *spread[1:]]
+    apart = [unrotated(0.11, 0.0, ON_FLOOR), *spread[1:]]
+    scattered = [unrotated(0.2 * k, 0.0, ON_FLOOR) for k in range(4)]
 
     def weighted(index: int, poses: list[Pose], weights: list[float], absent: float) -> RankedHypotheses:
         hypotheses = [Hypothesis(p, w) for p, w in zip(poses, weights, strict=True)]
@@ -215,10 +217,12 @@ def test_an_object_whose_poses_together_outweigh_its_absence_starts_the_refineme
         weighted(1, spread, [0.20, 0.20, 0.20, 0.15], 0.25),
         weighted(2, spread[:2], [0.15, 0.10], 0.75),
         weighted(3, apart, [0.20, 0.20, 0.20, 0.15], 0.25),
+        weighted(4, scattered, [0.20, 0.20, 0.20, 0.15], 0.25),
         ranked([spread[0]], [1]),
     ]
-    assert all(h.is_absent(1) for h in hypotheses[:4])
+    assert all(h.is_absent(1) for h in hypotheses[:5])
+    assert hypotheses[3].pose(2) == apart[0] and hypotheses[3].pose(3) == spread[1]
     shapes = [o.shape for o in floor_scene(*(cube(f"c{i}") for i in range(len(hypotheses)))).objects]
     ruled_out = {(1, 3), (1, 4), (1, 5)}
-    assert present_where_likelier((1, 1, 1, 1, 1), hypotheses, shapes, ruled_out) == (2, 1, 1, 1, 1)
-    assert present_where_likelier((1, 1, 1, 1, 1), hypotheses, shapes, set()) == (2, 2, 1, 1, 1)
+    assert present_where_likelier((1,) * 6, hypotheses, shapes, ruled_out) == (2, 1, 1, 3, 1, 1)
+    assert present_where_likelier((1,) * 6, hypotheses, shapes, set()) == (2, 2, 1, 3, 1, 1)
