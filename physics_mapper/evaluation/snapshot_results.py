@@ -101,7 +101,14 @@ class OfflineSearch:
     def __call__(self, snapshot: BagSnapshot) -> SearchResult:
         remembered = dict(snapshot.remembered)
         self._search, found, self._check = search_with_previous_map(
-            self.checker, snapshot.hypotheses, self.scene.search, remembered, self.budget, self._search, self._check
+            self.checker,
+            snapshot.hypotheses,
+            self.scene.search,
+            remembered,
+            self.budget,
+            self._search,
+            self._check,
+            refined=snapshot.remembered_refined,
         )
         self.results.append(SnapshotResult(snapshot, found.code, found.poses, found.settled_poses, found))
         if self.progress is not None:

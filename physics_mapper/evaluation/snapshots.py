@@ -53,7 +53,8 @@ class BagSnapshot:
     ``ground_truth``: newest ``/ground_truth`` so far; ``detections``: (instance, index of the detection
     it took in the burst's last ``Detection3DArray``) for each instance the association gave one;
     ``remembered``: (object, pose) where each object the last valid map held came to rest (a node's
-    :class:`~physics_mapper.mapping.existence.MapMemory`, where the bag's snapshots follow the maps chosen).
+    :class:`~physics_mapper.mapping.existence.MapMemory`, where the bag's snapshots follow the maps chosen);
+    ``remembered_refined``: whether those are a refined map's rests (no valid map yet).
     """
 
     time_ns: int
@@ -63,6 +64,7 @@ class BagSnapshot:
     stamps_ns: tuple[int, ...] = ()
     detections: tuple[tuple[str, int], ...] = ()
     remembered: tuple[tuple[str, Pose], ...] = ()
+    remembered_refined: bool = False
 
 
 def _bursts(messages: Sequence[BagMessage]) -> Iterator[list[BagMessage]]:
@@ -186,7 +188,9 @@ def bag_snapshots(
         stamps = tuple(o.stamp_ns for o in snapshot.objects if o.stamp_ns is not None)
         remembered = tuple(memory.settled.items())
         snapshots.append(
-            BagSnapshot(burst[-1].time_ns, snapshot.stamp_ns, hypotheses, truth, stamps, taken, remembered)
+            BagSnapshot(
+                burst[-1].time_ns, snapshot.stamp_ns, hypotheses, truth, stamps, taken, remembered, memory.refined
+            )
         )
         result = None if decide is None else decide(snapshots[-1])
         if tracked:  # as after the node's tick (Mapper.tick)

@@ -21,9 +21,10 @@ the map of the previous ticks (:class:`MapMemory`):
   the objects it touches, at their held poses. A map that holds an object at its held pose leaves the
   remembered pose as it was: settled again every tick, a map at rest would creep. Until a valid map
   holds any object (the first ticks of a bin), the last refined map stands in for the last valid map:
-  its objects' rests are remembered (:meth:`MapMemory.remember`), the previous map's check starts from
-  them, and an instance's held pose is its rest there. The refined map's objects rest together without
-  overlapping, so where the tick's poses miss the studs, the rests a pose agrees with may still stand.
+  its objects' rests are remembered (:meth:`MapMemory.remember`), the previous map's check (made after
+  the tick's own refined map) starts from them, and an instance's held pose is its rest there. The
+  refined map's objects rest together without overlapping, so where the tick's poses miss the studs, the
+  rests a pose agrees with may still stand.
 - **Silent** (its newest hypotheses older than ``max_age``, or its track ended): if the last valid
   map held it, its pose there is kept as one hypothesis beside *absent*, whose weight grows with the
   silence s (seconds since it fell silent): w_absent = 1 - exp(-s / max_age) / 2. From s = 0
@@ -90,6 +91,8 @@ class MapMemory:
     poses: dict[str, Pose] = field(default_factory=dict)
     settled: dict[str, Pose] = field(default_factory=dict)
     silent_since: dict[str, float] = field(default_factory=dict)
+    #: Whether ``settled`` holds a refined map's rests (no valid map has held an object yet).
+    refined: bool = False
 
     def remember(self, names: tuple[str, ...], hypotheses: tuple[RankedHypotheses, ...], result: SearchResult) -> None:
         """Keep the chosen pose of every object a *valid* result's map holds; forget those it leaves out.
@@ -100,15 +103,17 @@ class MapMemory:
         *held* rank keeps the pose remembered (module docstring), or takes that pose where none was.
 
         While no valid map holds any object (the first ticks of a bin), a refined map's rests are kept in
-        ``settled`` (replacing the last refined map's): the next tick's previous-map check starts from the
-        hypotheses nearest them, with *held* poses there, as from a valid map's."""
+        ``settled`` (replacing the last refined map's; ``refined`` says so): the next tick's previous-map check
+        starts from the hypotheses nearest them, with *held* poses there, as from a valid map's."""
         if result.code is None or result.poses is None or result.settled_poses is None:
             return
         if not result.valid:
             if result.fallback == "refine" and not self.poses:
                 chosen = zip(names, hypotheses, result.code, result.settled_poses, strict=True)
                 self.settled = {name: settled for name, ranked, rank, settled in chosen if not ranked.is_absent(rank)}
+                self.refined = True
             return
+        self.refined = False
         chosen_poses = zip(names, hypotheses, result.code, result.poses, result.settled_poses, strict=True)
         for name, ranked, rank, pose, settled in chosen_poses:
             if ranked.is_absent(rank):

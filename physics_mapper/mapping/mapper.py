@@ -225,6 +225,7 @@ class Mapper:
             settings.search.deadline,
             previous,
             self._previous_map,
+            refined=self.memory.refined,
         )
         self._search = search
         elapsed = time.monotonic() - started

@@ -61,12 +61,12 @@ the check's time), then the search goes on
 (its own valid answer stands). The refined map's objects rest overlapping nothing, so the hypotheses nearest
 them are worth one check: in 24 cylinders in two layers searched 0.1 s a tick, whose refined map took most
 of each tick, no tick had a valid map; now 14 of 30 do (BENCHMARKS.md, "Bins of identical objects").
-Where that check fails too, the tick's map is its refined map, and the next tick starts from it as from a
-valid map: its rests are remembered until a valid map holds an object
-(:meth:`~physics_mapper.mapping.existence.MapMemory.remember`), so the next check, with half the tick and no
-refinement before it, starts at the hypotheses nearest them, and an instance that breaks a rule is put at
-its rest there (its *held* pose). 24 lego parts in two layers (seed 3): the first nine ticks had the refined
-map, now the first alone (BENCHMARKS.md, "Bins of identical objects").
+Where that check fails too, the tick's map is its refined map, and its rests are remembered until a valid
+map holds an object (:meth:`~physics_mapper.mapping.existence.MapMemory.remember`, ``refined``): the next
+tick still makes its own refined map first (it may be the tick's only map), then checks the configuration
+nearest the remembered rests, where an instance that breaks a rule is put at its rest there (its *held*
+pose), as after a valid map. 24 lego parts in two layers (seed 3): the first nine ticks had the refined map,
+now the first alone (BENCHMARKS.md, "Bins of identical objects").
 
 Such a map is no verdict on the objects it leaves out
 (:func:`~physics_mapper.mapping.existence.left_out_by_physics`): its repairs are greedy (a new object
@@ -284,16 +284,19 @@ def search_with_previous_map(
     budget: float | None,
     previous: Search | None = None,
     last: PreviousMapCheck | None = None,
+    refined: bool = False,
 ) -> tuple[Search, SearchResult, PreviousMapCheck | None]:
     """A tick's search with the previous map first (module docstring): the previous map's configuration
     checked within half of ``budget`` seconds (``last`` reused if it checked the same configuration of the
     same hypotheses), then the search made (:func:`~physics_mapper.search.strategy.make_search`, carrying
     over ``previous``) and run for the rest of ``budget``; where no valid map is remembered, the refined
-    map's check once the search has its map; a check left pending gone on with before the deadline, after
-    the search. Where the previous map passed, the search runs without its fallback (a fallback map would
-    only stand in for the previous map). Returns the search, its result or the previous map's where that is
-    the valid one, and the check. The search ranks ``hypotheses`` without their *held* ones
-    (:mod:`~physics_mapper.mapping.existence`): those are the check's."""
+    map's check once the search has its map, and where ``remembered`` holds a refined map's rests
+    (``refined``), the check of the configuration nearest them, once the search has its map; a check left
+    pending gone on with before the deadline, after the search. Where the previous map passed, the search
+    runs without its fallback (a fallback map would only stand in for the previous map). Returns the search,
+    its result or the previous map's where that is the valid one, and the check. The search ranks
+    ``hypotheses`` without their *held* ones (:mod:`~physics_mapper.mapping.existence`): those are the
+    check's."""
     started = time.monotonic()
     hypotheses = searchable(hypotheses)
     searched = tuple(ranked.without_held() for ranked in hypotheses)
@@ -304,18 +307,25 @@ def search_with_previous_map(
     # settling the deadline interrupted lives in the world until the search resumes it.
     resumed = previous is not None and resumable(previous, checker, searched, params)
     waiting = previous is not None and settling_goes_on(previous, searched)
-    if check is None and code is not None and not resumed and not waiting:
+    # Where only a refined map is remembered, this tick's refined map comes first: it may be the only map.
+    map_first = (code is None or refined) and params.fallback == "refine" and not resumed and not waiting
+    unchecked = None
+    if code is not None:
         new = tuple(i for i, name in enumerate(names) if name not in remembered)
         unchecked = PreviousMapCheck(hypotheses, code, code, remembered, new)
+    if check is None and unchecked is not None and not map_first and not resumed and not waiting:
         check = check_previous_map(checker, unchecked, params, None if budget is None else started + budget / 2.0)
     passed = check is not None and check.settling is not None
     search = make_search(checker, searched, replace(params, fallback="none") if passed else params, previous)
     stop_at = None if budget is None else started + budget
-    if code is None and params.fallback == "refine" and not resumed and not waiting:
+    if map_first:
         result = _run_until_map(search, stop_at)
         if result.valid or _time_up(stop_at):
             return search, result, None
-        check = refined_map_check(checker, hypotheses, params, result, stop_at)
+        if unchecked is None:
+            check = refined_map_check(checker, hypotheses, params, result, stop_at)
+        elif check is None:
+            check = check_previous_map(checker, unchecked, params, stop_at)
     if check is not None and check.pending and not _time_up(stop_at, check.time_to_go_on):
         assert stop_at is not None  # without a deadline a check ends passed or failed
         result = _run_leaving(search, stop_at, check.time_to_go_on)

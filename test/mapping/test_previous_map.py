@@ -312,6 +312,26 @@ def test_until_a_map_is_valid_the_refined_map_s_rests_stand_in_for_the_previous_
     assert mapper.memory.poses["box_2"].position == pytest.approx(TOP, abs=0.005)
 
 
+def test_where_only_a_refined_map_is_remembered_the_tick_makes_its_own_refined_map_before_the_check() -> None:
+    """The stack, b's best pose floating (the search checks the root alone: unstable), the check's configuration
+    (b where it rested) standing. Remembered from a valid map, the check runs first and passes, and the search
+    runs without its fallback (no refined map: it would only stand in for the previous map). Remembered from a
+    refined map only, the tick's own refined map comes first (it may be the tick's only map), then the check
+    passes: the map is the previous map's either way."""
+    floating_first = RankedHypotheses((Hypothesis(Pose(FLOATING, IDENTITY), 0.9), Hypothesis(Pose(TOP, IDENTITY), 0.1)))
+    hypotheses = searchable((at(BOTTOM), floating_first))
+    rests = {"a": Pose(BOTTOM, IDENTITY), "b": Pose(TOP, IDENTITY)}
+    params = replace(ROOT_ONLY, fallback="refine")
+    with PhysicsChecker(STACK) as checker:
+        after_valid, valid_result, _ = search_with_previous_map(checker, hypotheses, params, rests, 5.0)
+        after_refined, refined_result, _ = search_with_previous_map(
+            checker, hypotheses, params, rests, 5.0, refined=True
+        )
+    for found in (valid_result, refined_result):
+        assert found.valid and found.previous_map and found.code == (1, 2) and found.trace[0].outcome == "unstable"
+    assert after_valid.result().fallback is None and after_refined.result().fallback == "refine"
+
+
 def test_the_check_waits_only_for_a_settling_the_next_search_goes_on_with() -> None:
     """A search cut short in its settling of the stack: the next search with the same hypotheses of those
     objects goes on with it (the world holds it: no check then); with one of them moved it starts afresh,
