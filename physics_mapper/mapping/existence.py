@@ -91,8 +91,11 @@ class MapMemory:
     poses: dict[str, Pose] = field(default_factory=dict)
     settled: dict[str, Pose] = field(default_factory=dict)
     silent_since: dict[str, float] = field(default_factory=dict)
-    #: Whether ``settled`` holds a refined map's rests (no valid map has held an object yet).
-    refined: bool = False
+
+    @property
+    def refined(self) -> bool:
+        """Whether ``settled`` holds a refined map's rests: rests, but no valid map's poses (:meth:`remember`)."""
+        return bool(self.settled) and not self.poses
 
     def remember(self, names: tuple[str, ...], hypotheses: tuple[RankedHypotheses, ...], result: SearchResult) -> None:
         """Keep the chosen pose of every object a *valid* result's map holds; forget those it leaves out.
@@ -111,9 +114,7 @@ class MapMemory:
             if result.fallback == "refine" and not self.poses:
                 chosen = zip(names, hypotheses, result.code, result.settled_poses, strict=True)
                 self.settled = {name: settled for name, ranked, rank, settled in chosen if not ranked.is_absent(rank)}
-                self.refined = True
             return
-        self.refined = False
         chosen_poses = zip(names, hypotheses, result.code, result.poses, result.settled_poses, strict=True)
         for name, ranked, rank, pose, settled in chosen_poses:
             if ranked.is_absent(rank):

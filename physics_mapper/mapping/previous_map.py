@@ -313,7 +313,7 @@ def search_with_previous_map(
     if code is not None:
         new = tuple(i for i, name in enumerate(names) if name not in remembered)
         unchecked = PreviousMapCheck(hypotheses, code, code, remembered, new)
-    if check is None and unchecked is not None and not map_first and not resumed and not waiting:
+    if check is None and unchecked is not None and not (map_first or resumed or waiting):
         check = check_previous_map(checker, unchecked, params, None if budget is None else started + budget / 2.0)
     passed = check is not None and check.settling is not None
     search = make_search(checker, searched, replace(params, fallback="none") if passed else params, previous)

@@ -201,7 +201,7 @@ def test_an_object_whose_poses_together_outweigh_its_absence_starts_the_refineme
     """*absent* ranks first in each object below (0.25 against poses of 0.20 and less), but the first object's
     poses weigh 0.75 in all and lie within 3 cm of each other: it starts at its first pose. The second's poses
     not ruled out weigh 0.20 only (its ranks 3-5 are ruled out), and the third's 0.25 in all: both stay out.
-    The fourth's first pose lies 8 cm from the others (more than half the 10 cm cube), which agree without it
+    The fourth's first pose lies 8-10 cm from the others (more than half the 10 cm cube), which agree without it
     and weigh 0.55: it starts at the first of them, its rank 3. The fifth's poses lie 20 cm apart, none agreeing
     with another: it stays out. An object at a pose is left as it is."""
     spread = [unrotated(0.01 * k, 0.0, ON_FLOOR) for k in range(4)]
