@@ -49,7 +49,10 @@ A check that its half of the deadline stopped with a repaired configuration stil
 the search runs first, leaving :data:`RESERVE_SHARE` times the check's longest settling, then, unless the
 search found a valid configuration, the check goes on with the time left (:func:`search_with_previous_map`). A
 settling of 24 cylinders or mugs in two layers takes 40-70 ms, so at the 0.2 s deadline a repair's second
-settling never fitted in half a tick.
+settling never fitted in half a tick. For the same reason an object the last tick's check put at its held pose
+starts the next frame's check there (:func:`held_again`): its poses are much like those that broke a rule then,
+and checking them again took the settling the repair needed (24 boxes, cylinders and lego parts in two layers,
+four seeds: BENCHMARKS.md, "Bins of identical objects").
 
 Where no valid map is remembered (the first ticks of a bin) and the scene's fallback is ``refine``, the
 tick's own refined map guides the check instead (:func:`refined_map_check`): the search runs until it has
@@ -122,6 +125,17 @@ def previous_map_code(
     return tuple(
         next(iter(nearby_ranks(ranked, remembered.get(name))), 1)
         for name, ranked in zip(names, hypotheses, strict=True)
+    )
+
+
+def held_again(hypotheses: Sequence[RankedHypotheses], code: Code, last: PreviousMapCheck | None) -> Code:
+    """``code`` with each object the ``last`` check left at its held pose (it, or what it touches, broke a rule at
+    their own poses) put at its held pose again, where it has one: this frame's poses are much like the last's."""
+    if last is None:
+        return code
+    return tuple(
+        held if (held := ranked.held_rank()) is not None and before.held_rank() == rank_before else rank
+        for ranked, rank, before, rank_before in zip(hypotheses, code, last.hypotheses, last.code, strict=True)
     )
 
 
@@ -288,15 +302,15 @@ def search_with_previous_map(
 ) -> tuple[Search, SearchResult, PreviousMapCheck | None]:
     """A tick's search with the previous map first (module docstring): the previous map's configuration
     checked within half of ``budget`` seconds (``last`` reused if it checked the same configuration of the
-    same hypotheses), then the search made (:func:`~physics_mapper.search.strategy.make_search`, carrying
-    over ``previous``) and run for the rest of ``budget``; where no valid map is remembered, the refined
-    map's check once the search has its map, and where ``remembered`` holds a refined map's rests
-    (``refined``), the check of the configuration nearest them, once the search has its map; a check left
-    pending gone on with before the deadline, after the search. Where the previous map passed, the search
-    runs without its fallback (a fallback map would only stand in for the previous map). Returns the search,
-    its result or the previous map's where that is the valid one, and the check. The search ranks
-    ``hypotheses`` without their *held* ones (:mod:`~physics_mapper.mapping.existence`): those are the
-    check's."""
+    same hypotheses; else what ``last`` put at held poses starts there), then the search made
+    (:func:`~physics_mapper.search.strategy.make_search`, carrying over ``previous``) and run for the rest of
+    ``budget``; where no valid map is remembered, the refined map's check once the search has its map, and
+    where ``remembered`` holds a refined map's rests (``refined``), the check of the configuration nearest
+    them, once the search has its map; a check left pending gone on with before the deadline, after the
+    search. Where the previous map passed, the search runs without its fallback (a fallback map would only
+    stand in for the previous map). Returns the search, its result or the previous map's where that is the
+    valid one, and the check. The search ranks ``hypotheses`` without their *held* ones
+    (:mod:`~physics_mapper.mapping.existence`): those are the check's."""
     started = time.monotonic()
     hypotheses = searchable(hypotheses)
     searched = tuple(ranked.without_held() for ranked in hypotheses)
@@ -312,7 +326,7 @@ def search_with_previous_map(
     unchecked = None
     if code is not None:
         new = tuple(i for i, name in enumerate(names) if name not in remembered)
-        unchecked = PreviousMapCheck(hypotheses, code, code, remembered, new)
+        unchecked = PreviousMapCheck(hypotheses, code, held_again(hypotheses, code, last), remembered, new)
     if check is None and unchecked is not None and not (map_first or resumed or waiting):
         check = check_previous_map(checker, unchecked, params, None if budget is None else started + budget / 2.0)
     passed = check is not None and check.settling is not None

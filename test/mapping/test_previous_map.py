@@ -12,6 +12,7 @@ from typing import Any
 import pytest
 from detection_builders import array, detection, result
 
+from physics_mapper.mapping.existence import with_held
 from physics_mapper.mapping.inputs import InputSettings, check_poses, check_weights
 from physics_mapper.mapping.mapper import Mapper, MapperSettings, TickReport
 from physics_mapper.mapping.previous_map import (
@@ -198,6 +199,31 @@ def test_where_the_nearest_pose_tips_over_the_check_takes_the_next_nearest() -> 
     result = mapper.tick(0.6, MapperSettings(ROOT_ONLY, INPUTS, rate_hz=0.1)).result
     assert result is not None and result.stats.visited == 1 and result.trace[0].outcome == "unstable"
     assert result.valid and result.previous_map and result.code == (1, 2)
+
+
+def test_what_the_last_check_put_where_it_rested_starts_there_at_the_next_frame() -> None:
+    """Two instances, a stack in the last map; box_2's only pose is tilted 20 degrees on an edge of box_1 (it tips
+    back flat) at one frame, 21 degrees at the next. The first check settles, sees box_2 tip, puts it and box_1
+    at their *held* poses and settles again; the next frame's check starts them there, and passes at its first
+    settling (a settling of a bin of 24 takes half a tick: the repeated first one left no time for the second)."""
+    scene = scene_from_dict(
+        {"objects": [{"name": "box", "count": 2, **BOX}], "static": [{"name": "floor", "shape": "plane"}]}, "test"
+    )
+    rests = {"box_1": Pose(BOTTOM, IDENTITY), "box_2": Pose(TOP, IDENTITY)}
+
+    def tipping(tilt: float) -> tuple[RankedHypotheses, ...]:
+        centre = (0.0, 0.0, 0.1 + 0.05 * (math.cos(tilt) + math.sin(tilt)) + 0.001)
+        on_edge = RankedHypotheses((Hypothesis(Pose(centre, quaternion_about_axis((1.0, 0.0, 0.0), tilt)), 1.0),))
+        return searchable((with_held(at(BOTTOM), rests["box_1"]), with_held(on_edge, rests["box_2"])))
+
+    with PhysicsChecker(scene) as checker:
+        _, first, check = search_with_previous_map(checker, tipping(0.35), ROOT_ONLY, rests, 5.0)
+        assert check is not None and check.start == (1, 1) and check.settlings == 2
+        assert first.valid and first.previous_map and first.code == (2, 2)
+        _, second, again = search_with_previous_map(checker, tipping(0.37), ROOT_ONLY, rests, 5.0, last=check)
+    assert second.trace[0].outcome == "unstable"  # the search's own root: box_2 on its edge
+    assert again is not None and again.start == (1, 1) and again.settlings == 1
+    assert second.valid and second.previous_map and second.code == (2, 2)
 
 
 def test_a_check_that_ran_out_of_time_goes_on_after_the_search_has_its_map() -> None:
