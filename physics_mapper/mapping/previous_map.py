@@ -52,7 +52,8 @@ settling of 24 cylinders or mugs in two layers takes 40-70 ms, so at the 0.2 s d
 settling never fitted in half a tick. For the same reason an object the last tick's check put at its held pose
 starts the next frame's check there (:func:`held_again`): its poses are much like those that broke a rule then,
 and checking them again took the settling the repair needed (24 boxes, cylinders and lego parts in two layers,
-four seeds: BENCHMARKS.md, "Bins of identical objects").
+four seeds: BENCHMARKS.md, "Bins of identical objects"). For one frame only: the frame after, its own poses
+are checked again, so that a rest that was wrong does not stay the map's.
 
 Where no valid map is remembered (the first ticks of a bin) and the scene's fallback is ``refine``, the
 tick's own refined map guides the check instead (:func:`refined_map_check`): the search runs until it has
@@ -128,15 +129,20 @@ def previous_map_code(
     )
 
 
-def held_again(hypotheses: Sequence[RankedHypotheses], code: Code, last: PreviousMapCheck | None) -> Code:
-    """``code`` with each object the ``last`` check left at its held pose (it, or what it touches, broke a rule at
-    their own poses) put at its held pose again, where it has one: this frame's poses are much like the last's."""
+def held_again(hypotheses: Sequence[RankedHypotheses], last: PreviousMapCheck | None) -> dict[int, int]:
+    """The objects (index -> held rank) that start this frame's check at their held poses: those the ``last``
+    check's repairs put there (it, or what it touches, broke a rule at their own poses), where they have one:
+    this frame's poses are much like the last's. For one frame: those it started there (``carried``) start at
+    their own poses again, so that a rest that was wrong (a refined map's, made from a wrong pose) does not
+    stay the map's (12 lego parts in two layers, seed 2: a part 3 cm from its place for six ticks instead of
+    three)."""
     if last is None:
-        return code
-    return tuple(
-        held if (held := ranked.held_rank()) is not None and before.held_rank() == rank_before else rank
-        for ranked, rank, before, rank_before in zip(hypotheses, code, last.hypotheses, last.code, strict=True)
-    )
+        return {}
+    return {
+        i: held
+        for i, (ranked, before, rank_before) in enumerate(zip(hypotheses, last.hypotheses, last.code, strict=True))
+        if (held := ranked.held_rank()) is not None and before.held_rank() == rank_before and i not in last.carried
+    }
 
 
 def nearby_ranks(ranked: RankedHypotheses, rested: Pose | None) -> list[int]:
@@ -158,7 +164,8 @@ class PreviousMapCheck:
     pose, in the map that guides it), the objects that map did not hold (``new``: scene indices), and its
     settling if it passed both rules (None: it failed one, or it is ``pending``: not begun, or stopped for
     time with ``code`` still to be checked). ``settlings``: how many it made, the longest
-    ``longest_settling`` seconds."""
+    ``longest_settling`` seconds. ``carried``: the objects it started at their held poses, where the last
+    check had put them (:func:`held_again`)."""
 
     hypotheses: tuple[RankedHypotheses, ...]
     start: Code
@@ -169,6 +176,7 @@ class PreviousMapCheck:
     pending: bool = True
     settlings: int = 0
     longest_settling: float = 0.0
+    carried: frozenset[int] = frozenset()
 
     @property
     def time_to_go_on(self) -> float:
@@ -326,7 +334,9 @@ def search_with_previous_map(
     unchecked = None
     if code is not None:
         new = tuple(i for i, name in enumerate(names) if name not in remembered)
-        unchecked = PreviousMapCheck(hypotheses, code, held_again(hypotheses, code, last), remembered, new)
+        again = held_again(hypotheses, last)
+        held = tuple(again.get(i, rank) for i, rank in enumerate(code))
+        unchecked = PreviousMapCheck(hypotheses, code, held, remembered, new, carried=frozenset(again))
     if check is None and unchecked is not None and not (map_first or resumed or waiting):
         check = check_previous_map(checker, unchecked, params, None if budget is None else started + budget / 2.0)
     passed = check is not None and check.settling is not None

@@ -203,9 +203,11 @@ def test_where_the_nearest_pose_tips_over_the_check_takes_the_next_nearest() -> 
 
 def test_what_the_last_check_put_where_it_rested_starts_there_at_the_next_frame() -> None:
     """Two instances, a stack in the last map; box_2's only pose is tilted 20 degrees on an edge of box_1 (it tips
-    back flat) at one frame, 21 degrees at the next. The first check settles, sees box_2 tip, puts it and box_1
-    at their *held* poses and settles again; the next frame's check starts them there, and passes at its first
-    settling (a settling of a bin of 24 takes half a tick: the repeated first one left no time for the second)."""
+    back flat) at one frame, 21 and 22 degrees at the next two. The first check settles, sees box_2 tip, puts it
+    and box_1 at their *held* poses and settles again; the next frame's check starts them there, and passes at
+    its first settling (a settling of a bin of 24 takes half a tick: the repeated first one left no time for the
+    second). For one frame only: the third frame's check starts at their own poses again (a wrong rest would
+    otherwise stay the map's)."""
     scene = scene_from_dict(
         {"objects": [{"name": "box", "count": 2, **BOX}], "static": [{"name": "floor", "shape": "plane"}]}, "test"
     )
@@ -221,9 +223,12 @@ def test_what_the_last_check_put_where_it_rested_starts_there_at_the_next_frame(
         assert check is not None and check.start == (1, 1) and check.settlings == 2
         assert first.valid and first.previous_map and first.code == (2, 2)
         _, second, again = search_with_previous_map(checker, tipping(0.37), ROOT_ONLY, rests, 5.0, last=check)
-    assert second.trace[0].outcome == "unstable"  # the search's own root: box_2 on its edge
-    assert again is not None and again.start == (1, 1) and again.settlings == 1
-    assert second.valid and second.previous_map and second.code == (2, 2)
+        assert second.trace[0].outcome == "unstable"  # the search's own root: box_2 on its edge
+        assert again is not None and again.start == (1, 1) and again.settlings == 1 and again.carried == {0, 1}
+        assert second.valid and second.previous_map and second.code == (2, 2)
+        _, third, fresh = search_with_previous_map(checker, tipping(0.39), ROOT_ONLY, rests, 5.0, last=again)
+    assert fresh is not None and fresh.settlings == 2 and fresh.carried == frozenset()
+    assert third.valid and third.previous_map and third.code == (2, 2)
 
 
 def test_a_check_that_ran_out_of_time_goes_on_after_the_search_has_its_map() -> None:
