@@ -134,8 +134,8 @@ def held_again(hypotheses: Sequence[RankedHypotheses], last: PreviousMapCheck | 
     check's repairs put there (it, or what it touches, broke a rule at their own poses), where they have one:
     this frame's poses are much like the last's. For one frame: those it started there (``carried``) start at
     their own poses again, so that a rest that was wrong (a refined map's, made from a wrong pose) does not
-    stay the map's (12 lego parts in two layers, seed 2: a part 3 cm from its place for six ticks instead of
-    three)."""
+    stay the map's (12 lego parts in two layers, seed 2: a part 3 cm from its place missed for five to six ticks
+    where held for as long as the checks passed, for four so, for three where nothing was carried)."""
     if last is None:
         return {}
     return {
