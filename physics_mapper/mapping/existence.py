@@ -17,14 +17,15 @@ the map of the previous ticks (:class:`MapMemory`):
   few millimetres around the truth from frame to frame, and a lego part stands on the studs under it
   only within a millimetre or two: in a bin standing still, a tick whose poses each miss by that much
   has no valid configuration of them, yet the map of the last tick still agrees with them. The previous
-  map's check (:mod:`~physics_mapper.mapping.previous_map`) puts an object that breaks a rule there, and
-  the objects it touches, at their held poses. A map that holds an object at its held pose leaves the
-  remembered pose as it was: settled again every tick, a map at rest would creep. Until a valid map
-  holds any object (the first ticks of a bin), the last refined map stands in for the last valid map:
-  its objects' rests are remembered (:meth:`MapMemory.remember`), the previous map's check (made after
-  the tick's own refined map) starts from them, and an instance's held pose is its rest there. The
-  refined map's objects rest together without overlapping, so where the tick's poses miss the studs, the
-  rests a pose agrees with may still stand.
+  map's check (:mod:`~physics_mapper.mapping.previous_map`) starts an instance seen where it rested (its
+  nearest pose within :data:`~physics_mapper.mapping.previous_map.AGREE`) at its held pose, and puts an
+  object that breaks a rule there, and the objects it touches, at their held poses. A map that holds an
+  object at its held pose leaves the remembered pose as it was: settled again every tick, a map at rest
+  would creep. Until a valid map holds any object (the first ticks of a bin), the last refined map stands
+  in for the last valid map: its objects' rests are remembered (:meth:`MapMemory.remember`), the previous
+  map's check (made after the tick's own refined map) starts from them, and an instance's held pose is its
+  rest there. The refined map's objects rest together without overlapping, so where the tick's poses miss
+  the studs, the rests a pose agrees with may still stand.
 - **Silent** (its newest hypotheses older than ``max_age``, or its track ended): if the last valid
   map held it, its pose there is kept as one hypothesis beside *absent*, whose weight grows with the
   silence s (seconds since it fell silent): w_absent = 1 - exp(-s / max_age) / 2. From s = 0

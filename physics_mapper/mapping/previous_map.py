@@ -11,7 +11,12 @@ So before a new search runs, the tick checks one configuration, the *previous ma
 - an object the last valid map held (:class:`~physics_mapper.mapping.existence.MapMemory`; before any, the
   last refined map: below) takes its hypothesis from this tick's inputs whose position is nearest where it
   came to rest in that map's settling, if one lies within :data:`NEAR` metres (the rest pose, not the chosen
-  hypothesis: a hypothesis near where the object rests is one it rests at); else rank 1;
+  hypothesis: a hypothesis near where the object rests is one it rests at); else rank 1. An instance whose
+  nearest hypothesis lies within :data:`AGREE` of that rest starts at its *held* pose, the rest itself
+  (:mod:`~physics_mapper.mapping.existence`): the estimator sees it where it stood, and its poses scatter a
+  few millimetres from frame to frame, enough to miss the studs or the rim it stood on, so that the check
+  started from them saw objects tip at every frame and its repairs took the settlings of the tick (24
+  cylinders, lego parts and mugs in two layers: BENCHMARKS.md, "Bins of identical objects");
 - an object the map did not hold (a new instance, a silent object the map left out) takes rank 1.
 
 It is checked by Rule 1 (the collision pass of every object) and Rule 2 (a settling of every object,
@@ -50,10 +55,11 @@ the search runs first, leaving :data:`RESERVE_SHARE` times the check's longest s
 search found a valid configuration, the check goes on with the time left (:func:`search_with_previous_map`). A
 settling of 24 cylinders or mugs in two layers takes 40-70 ms, so at the 0.2 s deadline a repair's second
 settling never fitted in half a tick. For the same reason an object the last tick's check put at its held pose
-starts the next frame's check there (:func:`held_again`): its poses are much like those that broke a rule then,
-and checking them again took the settling the repair needed (24 boxes, cylinders and lego parts in two layers,
-four seeds: BENCHMARKS.md, "Bins of identical objects"). For one frame only: the frame after, its own poses
-are checked again, so that a rest that was wrong does not stay the map's.
+(one not seen within :data:`AGREE` of it) starts the next frame's check there (:func:`held_again`): its poses
+are much like those that broke a rule then, and checking them again took the settling the repair needed (24
+boxes, cylinders and lego parts in two layers, four seeds: BENCHMARKS.md, "Bins of identical objects"). For one
+frame only: the frame after, its own poses are checked again, so that a rest that was wrong (one the estimator
+does not agree with) does not stay the map's.
 
 Where no valid map is remembered (the first ticks of a bin) and the scene's fallback is ``refine``, the
 tick's own refined map guides the check instead (:func:`refined_map_check`): the search runs until it has
@@ -102,6 +108,10 @@ from physics_mapper.search.strategy import make_search, searchable
 
 #: How far (m) a hypothesis may lie from the previous map's pose of its object to stand for it there.
 NEAR = 0.02
+#: How near (m) an instance's nearest hypothesis must lie to where it rested for the check to start it at its
+#: *held* pose there: the estimator sees it where it stood, within its scatter from frame to frame (a few
+#: millimetres), and the rest is where it stood on its neighbours.
+AGREE = 0.005
 
 
 #: Settlings one check may make: the first, and again after each repair (objects put at their held poses, new
@@ -119,14 +129,23 @@ def previous_map_code(
     names: Sequence[str], hypotheses: Sequence[RankedHypotheses], remembered: Mapping[str, Pose]
 ) -> Code | None:
     """Where the previous map's configuration starts among this tick's ``hypotheses`` (module docstring):
-    each object the map held at its hypothesis nearest where it rested, each other at rank 1; None when
-    the last valid map held none of ``names``."""
+    each object the map held at its *held* pose where its hypothesis nearest where it rested lies within
+    :data:`AGREE` of it, else at that hypothesis, each other at rank 1; None when the last valid map held none
+    of ``names``."""
     if not any(name in remembered for name in names):
         return None
-    return tuple(
-        next(iter(nearby_ranks(ranked, remembered.get(name))), 1)
-        for name, ranked in zip(names, hypotheses, strict=True)
-    )
+    return tuple(_start_rank(ranked, remembered.get(name)) for name, ranked in zip(names, hypotheses, strict=True))
+
+
+def _start_rank(ranked: RankedHypotheses, rested: Pose | None) -> int:
+    """Where an object that rested at ``rested`` in the previous map (None: not in it) starts the check."""
+    nearest = next(iter(nearby_ranks(ranked, rested)), None)
+    if nearest is None or rested is None:
+        return 1
+    held = ranked.held_rank()
+    if held is not None and math.dist(ranked.pose(nearest).position, rested.position) <= AGREE:
+        return held
+    return nearest
 
 
 def held_again(hypotheses: Sequence[RankedHypotheses], last: PreviousMapCheck | None) -> dict[int, int]:
@@ -138,10 +157,13 @@ def held_again(hypotheses: Sequence[RankedHypotheses], last: PreviousMapCheck | 
     where held for as long as the checks passed, for four so, for three where nothing was carried)."""
     if last is None:
         return {}
+    repaired = zip(hypotheses, last.hypotheses, last.start, last.code, strict=True)
     return {
         i: held
-        for i, (ranked, before, rank_before) in enumerate(zip(hypotheses, last.hypotheses, last.code, strict=True))
-        if (held := ranked.held_rank()) is not None and before.held_rank() == rank_before and i not in last.carried
+        for i, (ranked, before, started, rank_before) in enumerate(repaired)
+        if (held := ranked.held_rank()) is not None
+        and before.held_rank() == rank_before != started
+        and i not in last.carried
     }
 
 

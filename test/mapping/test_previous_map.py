@@ -16,6 +16,7 @@ from physics_mapper.mapping.existence import with_held
 from physics_mapper.mapping.inputs import InputSettings, check_poses, check_weights
 from physics_mapper.mapping.mapper import Mapper, MapperSettings, TickReport
 from physics_mapper.mapping.previous_map import (
+    AGREE,
     NEAR,
     PreviousMapCheck,
     check_previous_map,
@@ -58,6 +59,17 @@ def test_each_object_takes_its_hypothesis_nearest_where_the_last_map_left_it() -
     assert previous_map_code("abcd", hypotheses, remembered) == (2, 3, 1, 1)
     assert previous_map_code("ab", (at(far), at(FLOATING)), remembered) == (1, 1)  # none near: rank 1
     assert previous_map_code("ab", hypotheses[:2], {}) is None  # no previous map
+
+
+def test_an_instance_seen_where_it_rested_starts_the_check_at_its_rest() -> None:
+    """Its nearest pose within AGREE of where it rested: the check starts it at its *held* pose, the rest (a pose
+    scattered a few millimetres can miss the studs it stood on); farther, at that pose."""
+    rests = {"box_1": Pose(BOTTOM, IDENTITY), "box_2": Pose(TOP, IDENTITY)}
+    seen = (0.0, AGREE - 0.001, 0.05)
+    moved = (0.0, 0.0, 0.15 + AGREE + 0.002)
+    hypotheses = (with_held(at(FLOATING, seen), rests["box_1"]), with_held(at(moved), rests["box_2"]))
+    assert [ranked.held_rank() for ranked in hypotheses] == [3, 2]
+    assert previous_map_code(("box_1", "box_2"), hypotheses, rests) == (3, 1)
 
 
 def feed_poses(
@@ -202,12 +214,12 @@ def test_where_the_nearest_pose_tips_over_the_check_takes_the_next_nearest() -> 
 
 
 def test_what_the_last_check_put_where_it_rested_starts_there_at_the_next_frame() -> None:
-    """Two instances, a stack in the last map; box_2's only pose is tilted 20 degrees on an edge of box_1 (it tips
-    back flat) at one frame, 21 and 22 degrees at the next two. The first check settles, sees box_2 tip, puts it
-    and box_1 at their *held* poses and settles again; the next frame's check starts them there, and passes at
-    its first settling (a settling of a bin of 24 takes half a tick: the repeated first one left no time for the
-    second). For one frame only: the third frame's check starts at their own poses again (a wrong rest would
-    otherwise stay the map's)."""
+    """Two instances, a stack in the last map; box_1 is seen where it rested (it starts every check at its *held*
+    pose there), box_2's only pose is tilted 20 degrees on an edge of box_1 (it tips back flat) at one frame, 21
+    and 22 degrees at the next two. The first check settles, sees box_2 tip, puts it at its held pose and settles
+    again; the next frame's check starts it there, and passes at its first settling (a settling of a bin of 24
+    takes half a tick: the repeated first one left no time for the second). For one frame only: the third
+    frame's check starts box_2 at its own pose again (a wrong rest would otherwise stay the map's)."""
     scene = scene_from_dict(
         {"objects": [{"name": "box", "count": 2, **BOX}], "static": [{"name": "floor", "shape": "plane"}]}, "test"
     )
@@ -220,11 +232,11 @@ def test_what_the_last_check_put_where_it_rested_starts_there_at_the_next_frame(
 
     with PhysicsChecker(scene) as checker:
         _, first, check = search_with_previous_map(checker, tipping(0.35), ROOT_ONLY, rests, 5.0)
-        assert check is not None and check.start == (1, 1) and check.settlings == 2
+        assert check is not None and check.start == (2, 1) and check.settlings == 2
         assert first.valid and first.previous_map and first.code == (2, 2)
         _, second, again = search_with_previous_map(checker, tipping(0.37), ROOT_ONLY, rests, 5.0, last=check)
         assert second.trace[0].outcome == "unstable"  # the search's own root: box_2 on its edge
-        assert again is not None and again.start == (1, 1) and again.settlings == 1 and again.carried == {0, 1}
+        assert again is not None and again.start == (2, 1) and again.settlings == 1 and again.carried == {1}
         assert second.valid and second.previous_map and second.code == (2, 2)
         _, third, fresh = search_with_previous_map(checker, tipping(0.39), ROOT_ONLY, rests, 5.0, last=again)
     assert fresh is not None and fresh.settlings == 2 and fresh.carried == frozenset()
@@ -304,7 +316,8 @@ def test_new_instances_stay_in_the_previous_map_where_they_can_and_leave_it_wher
     placed = {name: report.hypotheses[i].pose(code[i]).position for i, name in enumerate(names)}
     (left_out,) = report.absent  # the floating one, fallen
     assert report.hypotheses[names.index(left_out)].pose(1).position == floating
-    assert placed["box_1"] == first and placed["box_2"] == second  # box_1 where it rested: its rank 2
+    # Both where they rested (their held poses: seen there), box_1 not where its best result is.
+    assert math.dist(placed["box_1"], first) < 1e-3 and math.dist(placed["box_2"], second) < 1e-3
     assert sorted(p for n, p in placed.items() if n not in ("box_1", "box_2", left_out)) == [new]
     after = mapper.tick(1.0, MapperSettings(GENEROUS, INPUTS, rate_hz=0.1))
     assert report.tracking.ends == ()  # the previous map's is no verdict
@@ -316,9 +329,10 @@ def test_until_a_map_is_valid_the_refined_map_s_rests_stand_in_for_the_previous_
     root is unstable); the refined map rests them in place, and no pose lies within ``NEAR`` of those rests: the
     tick's map is the refined map, whose rests are remembered, no pose. The next tick box_2 is seen tilted 20
     degrees on an edge of box_1, 1.4 cm from its rest, so into box_3, seen in place: the root collides, and
-    leaving either out makes the other fall or tip. The check starts from the refined map's rests, puts the
-    overlapping pair at their *held* poses there, and the map is valid and holds all three (guided by that tick's
-    own refined map instead, which parts the pair and sees both move away, the check left both out)."""
+    leaving either out makes the other fall or tip. The check starts from the refined map's rests (box_1, seen
+    where it rested, at its *held* pose there), puts the overlapping pair at their held poses, and the map is
+    valid and holds all three (guided by that tick's own refined map instead, which parts the pair and sees both
+    move away, the check left both out)."""
     scene = scene_from_dict(
         {"objects": [{"name": "box", "count": 3, **BOX}], "static": [{"name": "floor", "shape": "plane"}]}, "test"
     )
@@ -339,7 +353,7 @@ def test_until_a_map_is_valid_the_refined_map_s_rests_stand_in_for_the_previous_
     assert result_.valid and result_.previous_map and result_.code is not None
     names = report.snapshot.names
     held = [name for i, name in enumerate(names) if report.hypotheses[i].hypotheses[result_.code[i] - 1].held]
-    assert sorted(held) == ["box_2", "box_3"] and report.absent == ()
+    assert sorted(held) == ["box_1", "box_2", "box_3"] and report.absent == ()
     assert mapper.memory.poses["box_2"].position == pytest.approx(TOP, abs=0.005)
 
 
