@@ -139,8 +139,10 @@ def previous_map_code(
 
 def _start_rank(ranked: RankedHypotheses, rested: Pose | None) -> int:
     """Where an object that rested at ``rested`` in the previous map (None: not in it) starts the check."""
+    if rested is None:
+        return 1
     nearest = next(iter(nearby_ranks(ranked, rested)), None)
-    if nearest is None or rested is None:
+    if nearest is None:
         return 1
     held = ranked.held_rank()
     if held is not None and math.dist(ranked.pose(nearest).position, rested.position) <= AGREE:
@@ -162,7 +164,8 @@ def held_again(hypotheses: Sequence[RankedHypotheses], last: PreviousMapCheck | 
         i: held
         for i, (ranked, before, started, rank_before) in enumerate(repaired)
         if (held := ranked.held_rank()) is not None
-        and before.held_rank() == rank_before != started
+        and before.held_rank() == rank_before
+        and rank_before != started
         and i not in last.carried
     }
 
