@@ -14,10 +14,17 @@ settling. Where the paper's search (per group) finishes within :data:`EXHAUSTIVE
 answer is compared with the conflict-directed one's run to the end, on the suite and on the reduced
 suite (:data:`~physics_mapper.scenarios.crowded_suite.REDUCED`), where it always finishes.
 
-Targets that travel. Seconds are wall-clock seconds on this machine, so the run first measures a
-*reference settling*: Rule 2 of the shipped ``stack`` problem's ground truth in the persistent world,
-the median of 50 (``physics_costs.py``'s method). Times are reported as measured and against the
-node's 0.2 s deadline scaled to this machine, 0.2 s x reference / 6.3 ms (:data:`REFERENCE_SETTLING`).
+Targets that travel. Seconds are wall-clock seconds on this machine, so the run measures a *reference
+settling* beside each search (:class:`ReferenceSettling`, :func:`beside_reference`): Rule 2 of the shipped
+``stack`` problem's ground truth in one persistent world, the median of :data:`REFERENCE_REPEATS`, just
+before and just after the search, their mean (``physics_costs.py``'s method). Times are reported as measured
+and against the node's 0.2 s deadline scaled to the machine as it ran that search, 0.2 s x reference / 6.3 ms
+(:data:`REFERENCE_SETTLING`). A virtual machine's speed drifts within a run: on the machine of BENCHMARKS.md's
+latest round the reference took 12.3 ms at the start of one run and 6.5 ms at the start of the next, 25
+minutes later, and 6.4 to 13.9 ms within one minute; one bin of 30 searched 25 times in a row took 110 to
+212 ms, and its time over the mean of the references before and after it varied a third as much as its time
+(coefficient of variation 0.07 against 0.14; the time's correlation with that mean 0.99, with the reference
+before alone 0.63). One reference for a whole run judged every problem by the speed of its first second.
 
 Last round's default. With ``--previous DIR`` (a copy of last round's ``physics_mapper`` package,
 e.g. ``git archive d7d60c9 physics_mapper | tar -x -C DIR``), each problem is also searched by that
@@ -38,8 +45,9 @@ import sys
 import time
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, replace
+from functools import partial
 from pathlib import Path
-from typing import Literal
+from typing import Literal, TypeVar
 
 import numpy as np
 from with_package import run_with_package
@@ -62,6 +70,7 @@ from physics_mapper.scenarios.scale_suite import ScaleCase, ScaleProblem, scale_
 from physics_mapper.search.results import SearchResult
 from physics_mapper.search.strategy import make_search
 
+T = TypeVar("T")
 Strategy = Literal["conflict", "grouped", "joint"]
 STRATEGIES: tuple[Strategy, ...] = ("conflict", "grouped", "joint")
 #: The searches compared: this code's three, and last round's default (``previous``, with ``--previous``).
@@ -71,6 +80,8 @@ MESH_SIZES = (10, 20, 30)
 #: The reference settling the node's 0.2 s deadline was set against (s), and that deadline (s).
 REFERENCE_SETTLING = 0.0063
 NODE_DEADLINE = 0.2
+#: Settlings of the reference timed before and after each search, whose median is taken (about 0.1 s of them).
+REFERENCE_REPEATS = 9
 HYPOTHESES = (5, 10)
 SEEDS = 2
 #: Seconds of search between two looks at the result; seconds a search gets to reach the answer.
@@ -98,6 +109,7 @@ class ProblemRun:
     """Every search on one problem, the local verdicts' agreement with full settling, and the exhaustive check."""
 
     case: CrowdedCase
+    references: dict[Runner, float]  # s, per search: the reference settling measured beside it
     truth_valid: bool
     runs: dict[Runner, SearchRun]
     unstable_checked: int  # configurations the conflict search found unstable, settled again in full
@@ -106,6 +118,14 @@ class ProblemRun:
     valid_agreed: int
     exhaustive_finished: bool
     exhaustive_agrees: bool | None
+
+    def deadline(self, runner: Runner) -> float:
+        """The node's deadline scaled to the machine as it ran ``runner``'s search of this problem (s)."""
+        return scaled_deadline(self.references[runner])
+
+    def answered_in_time(self, runner: Runner) -> bool:
+        """Whether ``runner``'s search reached the answer within its scaled deadline."""
+        return self.runs[runner].solved_within(self.deadline(runner))
 
 
 #: The counters of a run that the conflict-directed search's parts keep (``part_counters``; the paper's
@@ -181,17 +201,37 @@ def previous_time_to_answer(problem: CrowdedProblem, previous: Path, cap: float 
     return SearchRun(*run_with_package(PREVIOUS_RUN, previous, data, failure))
 
 
-def run_problem(case: CrowdedCase, exhaustive_cap: float = EXHAUSTIVE_CAP, previous: Path | None = None) -> ProblemRun:
+def beside_reference(reference: ReferenceSettling, search: Callable[[], T]) -> tuple[T, float]:
+    """``search()``'s outcome, run between two reference settlings, and their mean (s): the machine's speed
+    while it ran (module docstring)."""
+    before = reference.measure()
+    outcome = search()
+    return outcome, (before + reference.measure()) / 2.0
+
+
+def run_problem(
+    case: CrowdedCase,
+    reference: ReferenceSettling,
+    exhaustive_cap: float = EXHAUSTIVE_CAP,
+    previous: Path | None = None,
+) -> ProblemRun:
+    """Every search on ``case``'s problem, each beside the ``reference`` settling."""
     problem = crowded_problem(case)
     runs: dict[Runner, SearchRun] = {}
+    references: dict[Runner, float] = {}
     results = {}
     for strategy in STRATEGIES:
-        runs[strategy], results[strategy] = time_to_answer(problem, strategy)
+        (runs[strategy], results[strategy]), references[strategy] = beside_reference(
+            reference, partial(time_to_answer, problem, strategy)
+        )
     if previous is not None:
-        runs["previous"] = previous_time_to_answer(problem, previous)
+        runs["previous"], references["previous"] = beside_reference(
+            reference, partial(previous_time_to_answer, problem, previous)
+        )
     verdicts = full_verdicts(problem, results["conflict"])
     finished, agrees = exhaustive_agreement(problem, exhaustive_cap)
-    return ProblemRun(case, truth_is_valid(problem), runs, *verdicts["unstable"], *verdicts["valid"], finished, agrees)
+    truth_valid = truth_is_valid(problem)
+    return ProblemRun(case, references, truth_valid, runs, *verdicts["unstable"], *verdicts["valid"], finished, agrees)
 
 
 def suite_cases(
@@ -225,12 +265,13 @@ def chosen_cases(seeds: int, quick: bool, layouts: Sequence[str] | None) -> list
 
 def run_suite(
     cases: Sequence[CrowdedCase],
+    reference: ReferenceSettling,
     progress: Callable[[int, int, ProblemRun], None] | None = None,
     previous: Path | None = None,
 ) -> list[ProblemRun]:
     runs = []
     for index, case in enumerate(cases):
-        runs.append(run_problem(case, EXHAUSTIVE_CAP if case.objects <= 10 else 0.0, previous))
+        runs.append(run_problem(case, reference, EXHAUSTIVE_CAP if case.objects <= 10 else 0.0, previous))
         if progress is not None:
             progress(index + 1, len(cases), runs[-1])
     return runs
@@ -245,29 +286,33 @@ class ScaleCheck:
     answered: int
     finished: int
     agreed: int
+    references: tuple[float, ...]  # s, the reference settling beside each problem
 
 
 def scale_check(
-    cases: Sequence[ScaleCase], deadline: float, progress: Callable[[int, int], None] | None = None
+    cases: Sequence[ScaleCase], reference: ReferenceSettling, progress: Callable[[int, int], None] | None = None
 ) -> ScaleCheck:
     answered = finished = agreed = 0
+    references = []
     for index, case in enumerate(cases):
         problem = scale_problem(case)
-        run, _ = time_to_answer(problem, "conflict")
-        answered += run.solved_within(deadline)
+        (run, _), measured = beside_reference(reference, partial(time_to_answer, problem, "conflict"))
+        references.append(measured)
+        answered += run.solved_within(scaled_deadline(measured))
         done, same = exhaustive_agreement(problem)
         finished += done
         agreed += bool(same)
         if progress is not None:
             progress(index + 1, len(cases))
-    return ScaleCheck(len(cases), answered, finished, agreed)
+    return ScaleCheck(len(cases), answered, finished, agreed, tuple(references))
 
 
-def scale_text(check: ScaleCheck, deadline: float) -> str:
+def scale_text(check: ScaleCheck) -> str:
     share = check.answered / check.problems if check.problems else 0.0
     return (
-        f"- scale suite, conflict-directed search: the answer within the scaled deadline ({deadline * 1000:.0f} ms) "
-        f"in {check.answered} of {check.problems} ({share:.1%}; target 100 %: {'met' if share == 1.0 else 'missed'}); "
+        f"- scale suite, conflict-directed search: the answer within the scaled deadline "
+        f"({deadlines_text(check.references)}) in {check.answered} of {check.problems} "
+        f"({share:.1%}; target 100 %: {'met' if share == 1.0 else 'missed'}); "
         f"the same answer as the paper's search per group in {check.agreed} of {check.finished} where it finished "
         f"(target 100 %: {'met' if check.agreed == check.finished else 'missed'})"
     )
@@ -276,20 +321,50 @@ def scale_text(check: ScaleCheck, deadline: float) -> str:
 # --- figures --------------------------------------------------------------------------------------
 
 
-def reference_settling() -> float:
-    """This machine's reference settling (s): Rule 2 of the ``stack`` problem's ground truth in the persistent
-    world, the median of 50 (``physics_costs.py``'s measure)."""
-    import physics_costs
+class ReferenceSettling:
+    """This machine's reference settling, timed whenever asked (module docstring): Rule 2 of the ``stack``
+    problem's ground truth in one persistent world, the median of :data:`REFERENCE_REPEATS` (``physics_costs.py``'s
+    measure). A context manager: the world lives until it exits."""
 
-    from physics_mapper.commands.files import load_problem_file
-    from physics_mapper.model.shipped import shipped_path
+    def __init__(self) -> None:
+        from physics_mapper.commands.files import load_problem_file
+        from physics_mapper.model.shipped import shipped_path
 
-    return physics_costs.measure(load_problem_file(shipped_path("config/problems/stack.yaml"), "bench")).settle
+        scene = load_problem_file(shipped_path("config/problems/stack.yaml"), "bench").scene
+        assert scene.ground_truth is not None  # the shipped stack has its truth
+        self._poses, self._params = scene.ground_truth, scene.search
+        self._checker = PhysicsChecker(scene)
+
+    def __enter__(self) -> ReferenceSettling:
+        return self
+
+    def __exit__(self, *_: object) -> None:
+        self._checker.close()
+
+    def measure(self) -> float:
+        """Seconds of the reference settling now."""
+        from physics_costs import median_seconds
+
+        params = self._params
+        return median_seconds(
+            lambda: self._checker.settle(self._poses, params.settle_time, params.angular_weight), REFERENCE_REPEATS
+        )
 
 
 def scaled_deadline(reference: float) -> float:
     """The node's 0.2 s deadline scaled to a machine whose reference settling takes ``reference`` seconds."""
     return NODE_DEADLINE * reference / REFERENCE_SETTLING
+
+
+def _references(problems: Sequence[ProblemRun]) -> list[float]:
+    """The reference settlings beside the conflict-directed searches (s)."""
+    return [p.references["conflict"] for p in problems]
+
+
+def deadlines_text(references: Sequence[float]) -> str:
+    """The scaled deadlines of problems run beside ``references`` (s): their median and range, in ms."""
+    deadlines = [scaled_deadline(r) * 1000 for r in references]
+    return f"median {statistics.median(deadlines):.0f} ms, {min(deadlines):.0f}-{max(deadlines):.0f} ms"
 
 
 def runners(problems: Sequence[ProblemRun]) -> tuple[Runner, ...]:
@@ -314,11 +389,11 @@ def _cells(problems: Sequence[ProblemRun]) -> dict[tuple[str, str, int, int], li
     return cells
 
 
-def figures_table(problems: Sequence[ProblemRun], deadline: float) -> str:
+def figures_table(problems: Sequence[ProblemRun]) -> str:
     """The per-(layout, weights, N, M) table, markdown: one number per search, in :func:`runners`' order."""
     names = runners(problems)
     lines = [
-        f"| layout | weights | N | M | answered ≤ 0.2 s (as measured) | answered ≤ {deadline * 1000:.0f} ms (scaled) "
+        "| layout | weights | N | M | answered ≤ 0.2 s (as measured) | answered within the scaled deadline "
         "| answered ≤ 1 s | median time to answer | conflicts | skipped | local / full settlings "
         "| unstable verdicts as full |",
         "| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |",
@@ -326,8 +401,12 @@ def figures_table(problems: Sequence[ProblemRun], deadline: float) -> str:
     for (layout, weights, objects, count), runs in _cells(problems).items():
         by = {s: [p.runs[s] for p in runs] for s in names}
         shares = [
-            " / ".join(f"{sum(r.solved_within(b) for r in by[s]) / len(runs):.0%}" for s in names)
-            for b in (NODE_DEADLINE, deadline, ANSWER_CAP)
+            " / ".join(f"{sum(within(p, s) for p in runs) / len(runs):.0%}" for s in names)
+            for within in (
+                lambda p, s: p.runs[s].solved_within(NODE_DEADLINE),
+                ProblemRun.answered_in_time,
+                lambda p, s: p.runs[s].solved_within(ANSWER_CAP),
+            )
         ]
         times = " / ".join(_seconds(_median_time(by[s])) for s in names)
         c = by["conflict"]
@@ -354,14 +433,15 @@ def linear_fit(problems: Sequence[ProblemRun], strategy: Runner = "conflict") ->
     return float(intercept), float(slope)
 
 
-def targets_text(problems: Sequence[ProblemRun], reduced: Sequence[ProblemRun], deadline: float) -> str:
-    """The targets: per layout (and weights) the share answered within the scaled ``deadline``, and the rest."""
+def targets_text(problems: Sequence[ProblemRun], reduced: Sequence[ProblemRun]) -> str:
+    """The targets: per layout (and weights) the share answered within each problem's scaled deadline, and the
+    rest."""
     names = runners(problems)
     layouts: dict[str, list[ProblemRun]] = {}
     for p in problems:
         layouts.setdefault(f"{p.case.layout} ({p.case.weights} weights)", []).append(p)
     shares = {
-        layout: {s: sum(p.runs[s].solved_within(deadline) for p in runs) / len(runs) for s in names}
+        layout: {s: sum(p.answered_in_time(s) for p in runs) / len(runs) for s in names}
         for layout, runs in layouts.items()
     }
     worst = min((share["conflict"] for share in shares.values()), default=0.0)
@@ -379,7 +459,7 @@ def targets_text(problems: Sequence[ProblemRun], reduced: Sequence[ProblemRun], 
     intercept, slope = linear_fit(problems)
     return "\n".join(
         [
-            f"- answered within the scaled deadline ({deadline * 1000:.0f} ms), per layout, "
+            f"- answered within the scaled deadline ({deadlines_text(_references(problems))}), per layout, "
             f"{' / '.join(names)}: {per_layout}",
             f"- the conflict-directed search's worst layout: {worst:.0%} (target >= 95 % in every layout: "
             f"{'met' if worst >= 0.95 else 'missed'})",
@@ -397,9 +477,9 @@ def targets_text(problems: Sequence[ProblemRun], reduced: Sequence[ProblemRun], 
     )
 
 
-def plot_time_to_answer(problems: Sequence[ProblemRun], path: Path, deadline: float) -> None:
+def plot_time_to_answer(problems: Sequence[ProblemRun], path: Path) -> None:
     """PNG: every problem's time to the answer against N, per search (unanswered at the cap), with the
-    conflict search's linear fit and the scaled deadline."""
+    conflict search's linear fit and the median of the problems' scaled deadlines."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
@@ -424,8 +504,9 @@ def plot_time_to_answer(problems: Sequence[ProblemRun], path: Path, deadline: fl
         linewidth=0.8,
         label=f"conflict fit: {intercept * 1000:.0f} ms + {slope * 1000:.1f} ms x N",
     )
+    deadline = scaled_deadline(statistics.median(_references(problems)))
     axes.axhline(deadline, color="grey", linewidth=0.8)
-    scaled = f"0.2 s scaled to this machine: {deadline * 1000:.0f} ms"
+    scaled = f"0.2 s scaled to this machine: {deadlines_text(_references(problems))}"
     axes.text(sizes[0], deadline * 1.03, scaled, color="grey", fontsize=8)
     axes.axhline(ANSWER_CAP, color="grey", linewidth=0.8, linestyle=":")
     axes.text(sizes[0], ANSWER_CAP * 1.07, f"not answered within {ANSWER_CAP:g} s", color="grey", fontsize=8)
@@ -459,37 +540,41 @@ def main(argv: Sequence[str] | None = None) -> None:
         raise InputError(f"--seeds must be at least 1, got {args.seeds}")
     if args.previous is not None and not (args.previous / "physics_mapper" / "__init__.py").is_file():
         raise InputError(f"--previous {args.previous}: no physics_mapper package there")
-    reference = reference_settling()
-    deadline = scaled_deadline(reference)
     cases = chosen_cases(args.seeds, args.quick, args.layouts)
     started = time.monotonic()
 
     def progress(done: int, total: int, run: ProblemRun) -> None:
         times = " ".join(f"{s} {_seconds(run.runs[s].answer_time)}" for s in run.runs)
-        print(f"[{done}/{total} {time.monotonic() - started:.0f} s] {run.case.label}: {times}", file=sys.stderr)
+        scaled = f"scaled deadline {run.deadline('conflict') * 1000:.0f} ms"
+        print(
+            f"[{done}/{total} {time.monotonic() - started:.0f} s] {run.case.label}: {times} ({scaled})", file=sys.stderr
+        )
 
-    problems = run_suite(cases, progress, args.previous)
-    reduced = run_suite(REDUCED, progress)
     scale_cases = scale.suite_cases(sizes=(3, 6, 10), hypotheses=(5,), seeds=1) if args.quick else scale.suite_cases()
 
     def scale_progress(done: int, total: int) -> None:
         print(f"[scale suite {done}/{total} {time.monotonic() - started:.0f} s]", file=sys.stderr)
 
-    checked = scale_check(scale_cases, deadline, scale_progress)
+    with ReferenceSettling() as reference:
+        problems = run_suite(cases, reference, progress, args.previous)
+        reduced = run_suite(REDUCED, reference, progress)
+        checked = scale_check(scale_cases, reference, scale_progress)
     print(f"{len(problems)} problems, {1 if args.quick else args.seeds} per (layout, N, M); {scale.load_text()}")
+    references = [r * 1000 for r in _references(problems)]
     print(
-        f"reference settling (stack, Rule 2, median of 50): {reference * 1000:.2f} ms; the 0.2 s deadline scaled "
-        f"to this machine: 0.2 s x {reference * 1000:.2f} / {REFERENCE_SETTLING * 1000:.1f} ms "
-        f"= {deadline * 1000:.0f} ms"
+        f"reference settling beside each search (stack, Rule 2, median of {REFERENCE_REPEATS}, before and after the "
+        f"search): median {statistics.median(references):.2f} ms, {min(references):.2f}-{max(references):.2f} ms; "
+        f"each search's time against the 0.2 s deadline scaled to its own, 0.2 s x reference / "
+        f"{REFERENCE_SETTLING * 1000:.1f} ms ({deadlines_text(_references(problems))})"
     )
     print(f"Numbers per search: {' / '.join(runners(problems))}.")
-    print(figures_table(problems, deadline))
+    print(figures_table(problems))
     print()
-    print(targets_text(problems, reduced, deadline))
-    print(scale_text(checked, deadline))
+    print(targets_text(problems, reduced))
+    print(scale_text(checked))
     if args.output is not None:
         args.output.mkdir(parents=True, exist_ok=True)
-        plot_time_to_answer(problems, args.output / "crowded.png", deadline)
+        plot_time_to_answer(problems, args.output / "crowded.png")
         plot_search(args.output / "crowded_search.png")
         print(f"\nplots: {args.output / 'crowded.png'}, {args.output / 'crowded_search.png'}")
 

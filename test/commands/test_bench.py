@@ -14,7 +14,16 @@ from core_builders import PHYSICS_MAPPER, cli
 from physics_mapper.model.scene_files import load_problem
 
 sys.path.insert(0, str(REPO / "benchmarks"))  # the benchmarks import each other by name, as scripts do
-from crowded import chosen_cases, suite_cases
+from crowded import (
+    ProblemRun,
+    ReferenceSettling,
+    Runner,
+    SearchRun,
+    beside_reference,
+    chosen_cases,
+    suite_cases,
+    targets_text,
+)
 from physics_costs import measure
 from with_package import run_with_package
 
@@ -67,6 +76,24 @@ def test_bench_refuses_bad_repeats_missing_files_and_unknown_benchmarks() -> Non
     completed = cli("bench", "scale", "--no-such-option")
     assert completed.returncode == 2
     assert "unrecognized arguments: --no-such-option" in completed.stderr
+
+
+def test_each_search_is_judged_against_the_deadline_scaled_to_the_reference_measured_beside_it() -> None:
+    with ReferenceSettling() as reference:
+        outcome, measured = beside_reference(reference, lambda: "searched")
+    assert outcome == "searched" and measured > 0.0
+    case = suite_cases(["bin"], sizes=[10], hypotheses=[5], seeds=1)[0]
+
+    def problem(reference_s: float) -> ProblemRun:
+        run = SearchRun(0.3, 0.3, 1, 0, 0, 0, 1)  # answered after 300 ms
+        runs: dict[Runner, SearchRun] = {"conflict": run, "grouped": run, "joint": run}
+        references: dict[Runner, float] = dict.fromkeys(runs, reference_s)
+        return ProblemRun(case, references, True, runs, 0, 0, 0, 0, False, None)
+
+    # 0.2 s x 12.6 / 6.3 ms = 400 ms on a machine as slow as that then; 200 ms at 6.3 ms.
+    slow, fast = problem(0.0126), problem(0.0063)
+    assert slow.answered_in_time("conflict") and not fast.answered_in_time("conflict")
+    assert "worst layout: 50%" in targets_text([slow, fast], [])
 
 
 def test_bench_crowded_searches_only_the_layouts_asked_for() -> None:
