@@ -71,8 +71,9 @@ WRONG_SHARE = 0.3
 #: Simulated seconds the true scene settles before it is used (a dropped bin: :data:`DROP_SETTLE_TIME`).
 TRUTH_SETTLE_TIME = 1.0
 DROP_SETTLE_TIME = 3.0
-#: Settlings at most until the truth passes both rules with half the jitter threshold to spare.
-TRUTH_SETTLINGS = 4
+#: Settlings at most until the truth passes both rules with half the jitter threshold to spare (a dropped bin can
+#: creep through four: bins of 50 seed 118 and of 30 meshes seed 227 did, and the first failed Rule 2).
+TRUTH_SETTLINGS = 8
 #: Shelf boards: heights of their top faces (m; the floor is the first) and boxes per board.
 SHELF_HEIGHTS = (0.0, 0.35, 0.7)
 BOARD_THICKNESS = 0.02
