@@ -22,7 +22,7 @@ and against the node's 0.2 s deadline scaled to the machine as it ran that searc
 (:data:`REFERENCE_SETTLING`). A virtual machine's speed drifts within a run: on the machine of BENCHMARKS.md's
 latest round the reference took 12.3 ms at the start of one run and 6.5 ms at the start of the next, 25
 minutes later, and 6.4 to 13.9 ms within one minute; one bin of 30 searched 25 times in a row took 110 to
-212 ms, and its time over the mean of the references before and after it varied a third as much as its time
+212 ms, and its time over the mean of the references before and after it varied half as much as its time
 (coefficient of variation 0.07 against 0.14; the time's correlation with that mean 0.99, with the reference
 before alone 0.63). One reference for a whole run judged every problem by the speed of its first second.
 
