@@ -20,7 +20,7 @@ settling* beside each search (:class:`ReferenceSettling`, :func:`beside_referenc
 before and just after the search, their mean (``physics_costs.py``'s method). Times are reported as measured
 and against the node's 0.2 s deadline scaled to the machine as it ran that search, 0.2 s x reference / 6.3 ms
 (:data:`REFERENCE_SETTLING`). A virtual machine's speed drifts within a run: on the machine of BENCHMARKS.md's
-latest round the reference took 12.3 ms at the start of one run and 6.5 ms at the start of the next, 25
+latest round the reference took 12.3 ms at the start of one run and 6.5 ms at the start of the next, 23
 minutes later, and 6.4 to 13.9 ms within one minute; one bin of 30 searched 25 times in a row took 110 to
 212 ms, and its time over the mean of the references before and after it varied half as much as its time
 (coefficient of variation 0.07 against 0.14; the time's correlation with that mean 0.99, with the reference
