@@ -504,9 +504,10 @@ def plot_time_to_answer(problems: Sequence[ProblemRun], path: Path) -> None:
         linewidth=0.8,
         label=f"conflict fit: {intercept * 1000:.0f} ms + {slope * 1000:.1f} ms x N",
     )
-    deadline = scaled_deadline(statistics.median(_references(problems)))
+    references = _references(problems)
+    deadline = scaled_deadline(statistics.median(references))
     axes.axhline(deadline, color="grey", linewidth=0.8)
-    scaled = f"0.2 s scaled to this machine: {deadlines_text(_references(problems))}"
+    scaled = f"0.2 s scaled to this machine: {deadlines_text(references)}"
     axes.text(sizes[0], deadline * 1.03, scaled, color="grey", fontsize=8)
     axes.axhline(ANSWER_CAP, color="grey", linewidth=0.8, linestyle=":")
     axes.text(sizes[0], ANSWER_CAP * 1.07, f"not answered within {ANSWER_CAP:g} s", color="grey", fontsize=8)
@@ -560,12 +561,13 @@ def main(argv: Sequence[str] | None = None) -> None:
         reduced = run_suite(REDUCED, reference, progress)
         checked = scale_check(scale_cases, reference, scale_progress)
     print(f"{len(problems)} problems, {1 if args.quick else args.seeds} per (layout, N, M); {scale.load_text()}")
-    references = [r * 1000 for r in _references(problems)]
+    references = _references(problems)
+    ms = [r * 1000 for r in references]
     print(
         f"reference settling beside each search (stack, Rule 2, median of {REFERENCE_REPEATS}, before and after the "
-        f"search): median {statistics.median(references):.2f} ms, {min(references):.2f}-{max(references):.2f} ms; "
+        f"search): median {statistics.median(ms):.2f} ms, {min(ms):.2f}-{max(ms):.2f} ms; "
         f"each search's time against the 0.2 s deadline scaled to its own, 0.2 s x reference / "
-        f"{REFERENCE_SETTLING * 1000:.1f} ms ({deadlines_text(_references(problems))})"
+        f"{REFERENCE_SETTLING * 1000:.1f} ms ({deadlines_text(references)})"
     )
     print(f"Numbers per search: {' / '.join(runners(problems))}.")
     print(figures_table(problems))
