@@ -104,11 +104,14 @@ class RulingOut:
     def _on_statics(self, statics: Sequence[StaticBody]) -> list[Ruling]:
         """Learn the ranks that overlap a static body deeper than the threshold; why each."""
         rulings = []
+        lows, highs = np.concatenate(self.lows), np.concatenate(self.highs)
+        reach = np.zeros(len(lows), dtype=bool)
+        for body in statics:
+            reach |= may_overlap_static(body, lows, highs, self.threshold)
+        starts = np.cumsum([0, *(len(low) for low in self.lows)])
         for position, index in enumerate(self.objects):
-            reach = np.zeros(len(self.lows[position]), dtype=bool)
-            for body in statics:
-                reach |= may_overlap_static(body, self.lows[position], self.highs[position], self.threshold)
-            for rank in (int(k) + 1 for k in np.nonzero(reach)[0]):
+            reached = reach[starts[position] : starts[position + 1]]
+            for rank in (int(k) + 1 for k in np.nonzero(reached)[0]):
                 other, depth = self.table.deepest_static(index, rank)
                 if other is None or depth <= self.threshold:
                     continue
