@@ -358,9 +358,7 @@ class GroupedSearch(Generic[G, R]):
             self._kept.discard(group_id)
         self._trace.entries = [entry for entry in self._trace.entries if entry.group not in gone_groups]
         self.links.append(frozenset(objects))
-        self.grouping = interaction_groups(
-            self.checker.scene, self.hypotheses, self.params.interaction_margin, self.links
-        )
+        self.grouping = self.grouping.joined(objects)
         for link in self._links.values():
             link.grouping = self.grouping
         self._merges += 1

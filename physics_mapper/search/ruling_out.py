@@ -210,7 +210,7 @@ class Ground:
 
 
 class Grounds:
-    """The :class:`Ground` of a search's hypotheses, made once per grouping (the envelopes are its boxes,
+    """The :class:`Ground` of a search's hypotheses, made once per grouping's volumes (the envelopes are its boxes,
     less the grouping's margin, grown by g_i): every group of a grouped search asks for the same one (50
     groups of one object with 20 ranks each made it 50 times over, 1,000 envelopes against each other:
     0.33 s of a 0.47 s search)."""
@@ -222,18 +222,19 @@ class Grounds:
             stable_growth(object_radius(o.shape), params.jitter_threshold, params.angular_weight) for o in scene.objects
         )
         self.bodies = tuple(np.array([not h.absent for h in ranked.hypotheses]) for ranked in hypotheses)
-        self._made: tuple[Grouping, Ground] | None = None
+        self._made: tuple[tuple[FloatArray, ...], Ground] | None = None
 
     def of(self, grouping: Grouping) -> Ground:
-        """The ground of ``grouping``'s boxes (made on the first call for it)."""
-        if self._made is None or self._made[0] is not grouping:
+        """The ground of ``grouping``'s boxes (made on the first call for them: a grouping joined after an
+        escape has its parent's)."""
+        if self._made is None or self._made[0] is not grouping.lows:
             half_margin = self.params.interaction_margin / 2.0  # the grouping's boxes are grown by it
             envelopes = [
                 (low + half_margin - growth, high - half_margin + growth)
                 for low, high, growth in zip(grouping.lows, grouping.highs, self.growths, strict=True)
             ]
             ground = Ground.of(envelopes, self.growths, self.bodies, self.params.settle_time, self.scene.static)
-            self._made = (grouping, ground)
+            self._made = (grouping.lows, ground)
         return self._made[1]
 
 

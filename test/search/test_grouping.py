@@ -83,6 +83,20 @@ def test_linked_objects_stay_together_whatever_their_volumes() -> None:
     assert interaction_groups(scene, hypotheses, MARGIN, linked=[{0, 2}]).groups == ((0, 2), (1,))
 
 
+def test_a_grouping_joined_after_an_escape_is_the_grouping_made_with_the_link() -> None:
+    scene = floor_scene(*(cube(f"cube_{i}") for i in range(6)))
+    pile = [unrotated(2.0, 0.0, ON_FLOOR), unrotated(2.0, 0.0, 3 * ON_FLOOR)]
+    hypotheses = [one(unrotated(i * 1.0, 0.0, ON_FLOOR)) for i in range(2)] + [one(pose) for pose in pile]
+    hypotheses += [one(unrotated(3.0, 0.0, ON_FLOOR)), one(unrotated(4.0, 0.0, ON_FLOOR))]
+    grouping = interaction_groups(scene, hypotheses, MARGIN, linked=[{1, 4}])
+    assert grouping.groups == ((0,), (1, 4), (2, 3), (5,))
+    # The escape guard joins whole groups: those of cube_0 and of the pile (found by any of their objects).
+    joined = grouping.joined((0, 2, 3))
+    assert joined.groups == interaction_groups(scene, hypotheses, MARGIN, linked=[{1, 4}, {0, 2, 3}]).groups
+    assert joined.groups == ((0, 2, 3), (1, 4), (5,))
+    assert joined.lows is grouping.lows and joined.group_of(3) == 0
+
+
 # --- the escape guard: a ball rolls down a slope into a cube resting further down --------------
 
 SLOPE_ANGLE = math.radians(20.0)
