@@ -77,8 +77,8 @@ class _Region(NamedTuple):
     """A queued region, compared as a tuple by (-key, best completion): unique (regions are disjoint).
     ``known``: the conflicts known when its key was made (-1: its key is its parent's, made when taken up),
     ``split`` the one of them its best completion holds that it is split on (bit k: the k-th learned; -1: it
-    holds none); ``masked``: the conflicts known when the ranks ruled
-    out alone were last taken out of ``allowed``."""
+    holds none); ``masked``: the conflicts known when the ranks ruled out alone were last taken out of
+    ``allowed``."""
 
     neg_key: float
     code: Code
