@@ -132,3 +132,19 @@ def test_a_configuration_outside_a_conflict_s_rank_sets_comes_in_its_place() -> 
     store = ConflictStore([3, 2])
     store.learn(Conflict(((0, 1), (1, 1)), "collision", ranks=(frozenset({1, 2}), frozenset({1}))))
     assert [code for code, _ in generated(weights, store)] == [(3, 1), (1, 2), (2, 2), (3, 2)]
+
+
+def test_a_region_is_split_on_the_conflict_that_costs_most_to_leave() -> None:
+    """The root C111 holds two conflicts of two objects: object 1 with object 2 (learned first; object 1 leaves it
+    for 2.5 times less p(C)) and object 0 with object 2 (3 times less, object 2 leaving). Split on the costlier,
+    the generator takes up 6 regions before the first candidate, C212; on the first learned it took up 9."""
+    weights = [[0.6, 0.1], [0.5, 0.2], [0.6, 0.2]]
+    store = ConflictStore([2, 2, 2])
+    for assignments in (((0, 1), (2, 2)), ((0, 2), (2, 1)), ((1, 1), (2, 1)), ((0, 1), (2, 1))):
+        store.learn(Conflict(assignments, "collision"))
+    candidates = ConflictFreeCandidates(weights, store, lambda _: False, queue_limit=1_000)
+    first = candidates.take()
+    assert first is not None
+    expected = next(code for code in paper_order(weights) if not any(c.holds_in(code) for c in store))
+    assert first[0] == expected == (2, 1, 2)
+    assert candidates.taken_up == 6
