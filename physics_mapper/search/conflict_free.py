@@ -271,13 +271,14 @@ class ConflictFreeCandidates:
                 if outside:
                     weights = self.weights[position]
                     best = weights[_first(outside) - 1]
-                    if best > 0.0 and weights[code[position] - 1] / best < least:
-                        least = weights[code[position] - 1] / best
+                    if best > 0.0:
+                        least = min(least, weights[code[position] - 1] / best)
             if least == math.inf:
                 return None
             costs.append((least, bit))
-            if (len(rank_sets), -least) < split_order:
-                split, split_order = bit, (len(rank_sets), -least)
+            order = (len(rank_sets), -least)
+            if order < split_order:
+                split, split_order = bit, order
         costs.sort(key=lambda cost: cost[0], reverse=True)
         used: frozenset[int] = frozenset()
         bound = probability
