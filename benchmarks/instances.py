@@ -37,9 +37,9 @@ all), those with the refined map instead (``fallback: refine``: a physically con
 configuration of the hypotheses was found valid) and among them those that keep Rule 1 and Rule 2 (the map's
 deepest overlap, and a settling from rest at the map: :func:`within_rules`), the position error by identity
 of the faulty, the identified and the named bag, and the share of ticks whose search finished within the
-deadline (else it stopped there with its best so far). The reference settling (Rule 2 on the pyramid's
-three-cube stack, the median of 9, measured in this run) is printed first: deadlines scale with it (0.2 s at
-6.3 ms).
+deadline (else it stopped there with its best so far). The reference settling (``crowded.py``'s: Rule 2 on the
+shipped ``stack`` problem's three cubes with pybullet's own solver, the median of 9, measured in this run) is
+printed first: deadlines scale with it (0.2 s at 6.3 ms).
 """
 
 from __future__ import annotations
@@ -47,14 +47,13 @@ from __future__ import annotations
 import argparse
 import contextlib
 import io
-import statistics
 import tempfile
-import time
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import yaml
+from crowded import ReferenceSettling, scaled_deadline
 
 from physics_mapper.bags.storage import read_bag
 from physics_mapper.cli import main as cli_main
@@ -83,7 +82,6 @@ FAULTS = [
 BAGS = {"faulty": FAULTS, "identified": [*FAULTS, "--ids", "stable"], "named": []}
 GAP = 0.01  # metres between neighbours
 DEADLINE = 0.2  # s, the node's default
-NOMINAL_REFERENCE = 0.0063  # s, the reference settling on the machine the default deadline was set on
 
 
 def _box(entry: dict[str, Any]) -> tuple[np.ndarray, np.ndarray]:
@@ -150,19 +148,6 @@ def identity_gate(scene: Scene) -> float:
     centres = np.array([pose.position for pose in scene.ground_truth])
     spacing = min(float(np.linalg.norm(a - b)) for k, a in enumerate(centres) for b in centres[k + 1 :])
     return min(IDENTITY_GATE, spacing / 2.0)
-
-
-def reference_settling() -> float:
-    """Seconds of one Rule 2 settling of the pyramid's three-cube stack (median of 9)."""
-    scene = load_scene(REPO / "config" / "scenes" / "pyramid.yaml")
-    assert scene.ground_truth is not None
-    times = []
-    with PhysicsChecker(scene) as checker:
-        for _ in range(9):
-            started = time.perf_counter()
-            checker.settle(scene.ground_truth, scene.search.settle_time, scene.search.angular_weight)
-            times.append(time.perf_counter() - started)
-    return statistics.median(times)
 
 
 def _generate(scene_file: Path, bag: Path, extra: list[str], frames: int, particles: int, seed: int) -> None:
@@ -249,10 +234,11 @@ def main() -> None:
     unknown = [shape for shape in args.shapes if shape not in shapes]
     if unknown:
         parser.error(f"unknown shapes {unknown}: {sorted(shapes)} (or one more with --object)")
-    reference = reference_settling()
-    scaled = DEADLINE * reference / NOMINAL_REFERENCE
+    with ReferenceSettling() as settling:
+        reference = settling.measure()
+    scaled = scaled_deadline(reference)
     deadline = scaled if args.scaled else args.deadline or DEADLINE
-    print(f"reference settling (pyramid stack, Rule 2): {reference * 1000:.1f} ms; the {DEADLINE} s deadline scaled to "
+    print(f"reference settling (stack, Rule 2): {reference * 1000:.1f} ms; the {DEADLINE} s deadline scaled to "
           f"this machine is {scaled:.2f} s; each snapshot searched for {deadline:.2f} s")  # fmt: skip
     header = (
         "| bin | objects | switches | IDF1 | MOTA | FP in map (false objects) | misses | valid maps (previous map's) "
