@@ -64,8 +64,8 @@ PYBULLET_SOLVER_RESIDUAL = 1e-7
 def solver_residual(scene: Scene) -> float:
     """The solver residual ((m/s)^2) of ``scene``'s world: :data:`PYBULLET_SOLVER_RESIDUAL` where a body is a
     mesh (its many contact points converge slowly, and a verdict at rest can change), else :data:`SOLVER_RESIDUAL`."""
-    bodies = [*scene.objects, *scene.static]
-    return PYBULLET_SOLVER_RESIDUAL if any(isinstance(body.shape, Mesh) for body in bodies) else SOLVER_RESIDUAL
+    shapes = [body.shape for body in scene.objects] + [body.shape for body in scene.static]
+    return PYBULLET_SOLVER_RESIDUAL if any(isinstance(shape, Mesh) for shape in shapes) else SOLVER_RESIDUAL
 
 
 def inertial_frame(shape: Shape) -> Pose | None:
