@@ -55,7 +55,6 @@ from with_package import run_with_package
 from physics_mapper.model.errors import InputError
 from physics_mapper.model.scene import SearchParams
 from physics_mapper.physics.checker import PhysicsChecker
-from physics_mapper.physics.world import PYBULLET_SOLVER_RESIDUAL
 from physics_mapper.scenarios.crowded_suite import (
     CROWDED_LAYOUTS,
     REDUCED,
@@ -325,9 +324,7 @@ def scale_text(check: ScaleCheck) -> str:
 class ReferenceSettling:
     """This machine's reference settling, timed whenever asked (module docstring): Rule 2 of the ``stack``
     problem's ground truth in one persistent world, the median of :data:`REFERENCE_REPEATS` (``physics_costs.py``'s
-    measure), with pybullet's own solver residual (:data:`~physics_mapper.physics.world.PYBULLET_SOLVER_RESIDUAL`,
-    as when :data:`REFERENCE_SETTLING` was measured: it times the machine, not the project's solver). A context
-    manager: the world lives until it exits."""
+    measure). A context manager: the world lives until it exits."""
 
     def __init__(self) -> None:
         from physics_mapper.commands.files import load_problem_file
@@ -337,7 +334,6 @@ class ReferenceSettling:
         assert scene.ground_truth is not None  # the shipped stack has its truth
         self._poses, self._params = scene.ground_truth, scene.search
         self._checker = PhysicsChecker(scene)
-        self._checker.world.set_solver_residual(PYBULLET_SOLVER_RESIDUAL)
 
     def __enter__(self) -> ReferenceSettling:
         return self

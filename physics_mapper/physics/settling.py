@@ -16,7 +16,8 @@ velocities and contact points, measured bit for bit too (BENCHMARKS.md, "Interru
 A settler keeps one interrupted settling: interrupting another frees the first's saved state, and
 resuming the first then simulates it again from its start (same result, more time); so does
 resuming after other objects were parked or placed. A settling may cap the objects' speed
-(``max_speed``) and run Bullet's solver with fewer iterations than Rule 2's (``solver_iterations``).
+(``max_speed``) and run Bullet's solver with fewer iterations than Rule 2's (``solver_iterations``), or ending
+each step's iterations at a larger residual (``solver_residual``).
 
 Early exit (:class:`EarlyExit`): a settling may stop before ``settle_time`` once every simulated
 object has stayed at rest for :data:`REST_CHECKS` looks at it, or once an object has stayed at rest
@@ -40,7 +41,7 @@ from typing import Literal, TypedDict, Unpack, overload
 from physics_mapper.model.bullet import pybullet
 from physics_mapper.model.geometry import Pose, Vector3, pose_displacement, rotation_angle, translation_distance
 from physics_mapper.model.scene import SearchParams
-from physics_mapper.physics.world import SOLVER_ITERATIONS, TIME_STEP, PhysicsWorld
+from physics_mapper.physics.world import SOLVER_ITERATIONS, SOLVER_RESIDUAL, TIME_STEP, PhysicsWorld
 
 #: Simulation steps between two looks at the wall clock during settling: an interrupted settling
 #: stops at most this many steps after its deadline, and a resumed one advances at least this many.
@@ -198,9 +199,9 @@ class PartialSettling:
 
     ``steps_done`` of ``steps_total`` :data:`TIME_STEP` steps are simulated from rest at
     ``poses`` (the start, from which the jitters are measured). Compared by identity: the
-    checker that interrupted it recognises it as the settling it kept. ``objects``,
-    ``max_speed``, ``early_exit`` and ``solver_iterations`` are the settling's (see :meth:`PhysicsChecker.settle`), with
-    ``fixed`` are objects held where they are (scene index, pose), with the consecutive looks so far
+    checker that interrupted it recognises it as the settling it kept. ``objects``, ``max_speed``,
+    ``early_exit``, ``solver_iterations``, ``solver_residual`` and ``fixed`` (objects held where they are:
+    scene index, pose) are the settling's (see :meth:`PhysicsChecker.settle`), with the consecutive looks so far
     with every object at rest (``rest_checks``) and, per object, with it beyond (``beyond_checks``, empty
     before the first look), the last looks' poses (``recent``: step, poses; for ``wobble_rate``), and the
     ``extent`` and ``path`` so far (None: not tracked; an extent not begun).
@@ -215,6 +216,7 @@ class PartialSettling:
     early_exit: EarlyExit | None = None
     fixed: tuple[tuple[int, Pose], ...] = ()
     solver_iterations: int | None = None
+    solver_residual: float | None = None
     rest_checks: int = 0
     beyond_checks: tuple[int, ...] = ()
     recent: tuple[tuple[int, tuple[Pose, ...]], ...] = ()
@@ -281,8 +283,9 @@ def _beyond(bound: float | None, value: float) -> bool:
 class SettleOptions(TypedDict, total=False):
     """Keyword options of :meth:`PhysicsChecker.settle` (see there): which objects settle (scene
     indices; the others stay parked), a speed cap (m/s), an early exit, whether to record where objects
-    went, objects held fixed at given poses (scene index, pose) while the others settle, and the solver's
-    iterations per step (None: :data:`~physics_mapper.physics.world.SOLVER_ITERATIONS`)."""
+    went, objects held fixed at given poses (scene index, pose) while the others settle, the solver's
+    iterations per step (None: :data:`~physics_mapper.physics.world.SOLVER_ITERATIONS`) and the residual
+    ((m/s)^2) that ends them (None: :data:`~physics_mapper.physics.world.SOLVER_RESIDUAL`)."""
 
     objects: Sequence[int] | None
     max_speed: float | None
@@ -290,6 +293,7 @@ class SettleOptions(TypedDict, total=False):
     track_reach: bool
     fixed: Sequence[tuple[int, Pose]]
     solver_iterations: int | None
+    solver_residual: float | None
 
 
 @dataclass(frozen=True)
@@ -349,7 +353,10 @@ class Settler:
         against them.
         ``solver_iterations`` runs Bullet's constraint solver with that many iterations per step
         instead of Rule 2's :data:`~physics_mapper.physics.world.SOLVER_ITERATIONS` (cheaper, less stiff
-        contacts; the world goes back to Rule 2's when the settling returns).
+        contacts; the world goes back to Rule 2's when the settling returns). ``solver_residual`` ((m/s)^2) ends
+        each step's iterations once the last one changed no contact's velocity by more than its square root,
+        instead of at :data:`~physics_mapper.physics.world.SOLVER_RESIDUAL` (cheaper where contacts are at
+        rest; the world goes back to that when the settling returns).
         """
         objects = options.get("objects")
         fixed = tuple(options.get("fixed", ()))
@@ -364,6 +371,7 @@ class Settler:
             early_exit=options.get("early_exit"),
             fixed=fixed,
             solver_iterations=options.get("solver_iterations"),
+            solver_residual=options.get("solver_residual"),
             path=(tuple(poses),) if options.get("track_reach", False) else None,
         )
         return self._simulate(plan, stop_at)
@@ -399,17 +407,19 @@ class Settler:
 
     def _simulate(self, plan: PartialSettling, stop_at: float | None) -> Settling | PartialSettling:
         """Step the world from ``plan.steps_done`` to ``plan.steps_total``, or until it may stop early
-        or ``stop_at`` passes (:meth:`settle`), with the plan's solver iterations."""
-        if plan.solver_iterations is None:
+        or ``stop_at`` passes (:meth:`settle`), with the plan's solver iterations and residual."""
+        if plan.solver_iterations is None and plan.solver_residual is None:
             return self._step_through(plan, stop_at)
-        self.world.set_solver_iterations(plan.solver_iterations)
+        self.world.set_solver_iterations(plan.solver_iterations or SOLVER_ITERATIONS)
+        self.world.set_solver_residual(plan.solver_residual or SOLVER_RESIDUAL)
         try:
             return self._step_through(plan, stop_at)
         finally:
             self.world.set_solver_iterations(SOLVER_ITERATIONS)
+            self.world.set_solver_residual(SOLVER_RESIDUAL)
 
     def _step_through(self, plan: PartialSettling, stop_at: float | None) -> Settling | PartialSettling:
-        """:meth:`_simulate` with the world's solver iterations as they are."""
+        """:meth:`_simulate` with the world's solver as it is."""
         steps_done, steps_total = plan.steps_done, plan.steps_total
         uids = self.world.uids(plan.objects)
         watched = plan.early_exit is not None or plan.path is not None

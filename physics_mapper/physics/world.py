@@ -49,23 +49,9 @@ TIME_STEP = 1.0 / 240.0
 GRAVITY = -9.81  # m/s^2 along z
 #: Iterations of Bullet's constraint solver per step: pybullet's default, which Rule 2 uses.
 SOLVER_ITERATIONS = 50
-#: Bullet's solver ends a step's iterations early once the largest velocity change it made to any contact in
-#: one iteration, squared, is at most this ((m/s)^2; 3.2 mm/s), in worlds of boxes, cylinders and spheres
-#: (:func:`solver_residual`). Contacts at rest converge in a few iterations: a settling of 50 boxes in a bin
-#: costs 40-50 % less, and of 874 Rule 2 verdicts of such worlds (crowded problems, bins of 24 boxes and
-#: cylinders) one changed, a jitter of 20.1 mm against a threshold of 20 (BENCHMARKS.md, "Physics costs").
-SOLVER_RESIDUAL = 1e-5
-#: pybullet's own residual ((m/s)^2; 0.3 mm/s). Worlds holding a mesh keep it: of 450 verdicts of the shipped
-#: mesh scenes, even 1e-6 tipped a mug resting 8 mm from where it stood. Benchmarks' reference settlings keep
-#: it too, so that they time the machine as when the node's default deadline was set, not this project's solver.
-PYBULLET_SOLVER_RESIDUAL = 1e-7
-
-
-def solver_residual(scene: Scene) -> float:
-    """The solver residual ((m/s)^2) of ``scene``'s world: :data:`PYBULLET_SOLVER_RESIDUAL` where a body is a
-    mesh (its many contact points converge slowly, and a verdict at rest can change), else :data:`SOLVER_RESIDUAL`."""
-    shapes = [body.shape for body in scene.objects] + [body.shape for body in scene.static]
-    return PYBULLET_SOLVER_RESIDUAL if any(isinstance(shape, Mesh) for shape in shapes) else SOLVER_RESIDUAL
+#: The residual ((m/s)^2, 0.3 mm/s) at which Bullet's solver ends a step's iterations early: pybullet's default,
+#: the largest velocity change the last iteration made to any contact, squared.
+SOLVER_RESIDUAL = 1e-7
 
 
 def inertial_frame(shape: Shape) -> Pose | None:
@@ -117,7 +103,7 @@ class PhysicsWorld:
         pybullet.setPhysicsEngineParameter(
             deterministicOverlappingPairs=1,
             numSolverIterations=SOLVER_ITERATIONS,
-            solverResidualThreshold=solver_residual(self.scene),
+            solverResidualThreshold=SOLVER_RESIDUAL,
             physicsClientId=client,
         )
         statics = []
@@ -398,5 +384,5 @@ class PhysicsWorld:
 
     def set_solver_residual(self, residual: float) -> None:
         """The residual ((m/s)^2) at which the constraint solver ends each later :meth:`step`'s iterations
-        (:func:`solver_residual` by default)."""
+        (:data:`SOLVER_RESIDUAL` by default)."""
         pybullet.setPhysicsEngineParameter(solverResidualThreshold=residual, physicsClientId=self.client)

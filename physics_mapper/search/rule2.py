@@ -63,7 +63,8 @@ class FullSettling:
     and their simulation ``steps``.
 
     ``moving``: a settling no fallback reports also stops once an object is far off and still moving;
-    ``track_reach``: settlings record where objects went (an escape guard needs it).
+    ``track_reach``: settlings record where objects went (an escape guard needs it); ``solver_residual``:
+    the residual ((m/s)^2) that ends each step's solver iterations (None: the world's, pybullet's).
     """
 
     checker: PhysicsChecker
@@ -72,6 +73,7 @@ class FullSettling:
     moving: bool = False
     track_reach: bool = False
     observers: Sequence[SettlingObserver] = ()
+    solver_residual: float | None = None
     settlings: int = field(default=0, init=False)
     steps: StepCounts = field(default_factory=StepCounts, init=False)
 
@@ -87,6 +89,7 @@ class FullSettling:
             objects=self.objects,
             early_exit=early_exit_rule(params, complete=complete, moving=self.moving),
             track_reach=self.track_reach,
+            solver_residual=self.solver_residual,
         )
         return self.finished(code, outcome)
 

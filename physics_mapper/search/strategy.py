@@ -37,7 +37,7 @@ from physics_mapper.search.paper_queue import PaperQueue
 from physics_mapper.search.results import SearchResult
 from physics_mapper.search.rule1 import FullCollisionPass, PairwiseTable
 from physics_mapper.search.rule2 import FullSettling, MemoisedSettling
-from physics_mapper.search.trial_settling import TrialSettling
+from physics_mapper.search.trial_settling import TrialSettling, solver_residual
 
 
 def paper_search(
@@ -101,9 +101,15 @@ def conflict_group(spec: GroupSpec) -> ConflictGroup:
         bound,
         spec.trace_group,
     )
-    settling = FullSettling(checker, objects, params, moving=True, track_reach=True, observers=[guard.settled])
+    residual = solver_residual(checker.scene, objects)
+    observers = [guard.settled]
+    settling = FullSettling(
+        checker, objects, params, moving=True, track_reach=True, observers=observers, solver_residual=residual
+    )
     confirm = MemoisedSettling(spec.memo, settling)
-    rule2 = TrialSettling(checker, objects, params, LocalSettling(blame), confirm, observers=[guard.settled])
+    rule2 = TrialSettling(
+        checker, objects, params, LocalSettling(blame), confirm, observers=observers, solver_residual=residual
+    )
     return _group_core(spec, candidates, rule2, bound)
 
 
