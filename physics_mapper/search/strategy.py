@@ -36,8 +36,8 @@ from physics_mapper.search.local_settling import LocalSettling
 from physics_mapper.search.paper_queue import PaperQueue
 from physics_mapper.search.results import SearchResult
 from physics_mapper.search.rule1 import FullCollisionPass, PairwiseTable
-from physics_mapper.search.rule2 import FullSettling, MemoisedSettling
-from physics_mapper.search.trial_settling import TrialSettling, solver_residual
+from physics_mapper.search.rule2 import FullSettling, MemoisedSettling, solver_residual
+from physics_mapper.search.trial_settling import TrialSettling
 
 
 def paper_search(
@@ -83,7 +83,7 @@ def paper_group(spec: GroupSpec) -> BestFirst[PaperQueue, MemoisedSettling]:
 def conflict_group(spec: GroupSpec) -> ConflictGroup:
     """One interaction group searched conflict-directed: conflict-free generation, the pairwise table,
     trial and local settlings confirmed by memoised full ones (their early exits also stop a far-off
-    object still moving)."""
+    object still moving; their solver ends early in groups without meshes, :func:`solver_residual`)."""
     checker, params, objects, guard, link = spec.checker, spec.params, spec.objects, spec.guard, spec.link
     hypotheses = tuple(spec.hypotheses[i] for i in objects)
     shapes = [checker.scene.objects[i].shape for i in objects]
@@ -102,14 +102,11 @@ def conflict_group(spec: GroupSpec) -> ConflictGroup:
         spec.trace_group,
     )
     residual = solver_residual(checker.scene, objects)
-    observers = [guard.settled]
     settling = FullSettling(
-        checker, objects, params, moving=True, track_reach=True, observers=observers, solver_residual=residual
+        checker, objects, params, moving=True, track_reach=True, observers=[guard.settled], solver_residual=residual
     )
     confirm = MemoisedSettling(spec.memo, settling)
-    rule2 = TrialSettling(
-        checker, objects, params, LocalSettling(blame), confirm, observers=observers, solver_residual=residual
-    )
+    rule2 = TrialSettling(checker, objects, params, LocalSettling(blame), confirm, observers=[guard.settled])
     return _group_core(spec, candidates, rule2, bound)
 
 

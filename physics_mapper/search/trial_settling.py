@@ -15,7 +15,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 from physics_mapper.model.geometry import Pose
-from physics_mapper.model.scene import Mesh, Scene, SearchParams
+from physics_mapper.model.scene import SearchParams
 from physics_mapper.physics.checker import PhysicsChecker
 from physics_mapper.physics.settling import PartialSettling, Settling, early_exit_rule
 from physics_mapper.search.local_settling import LocalPlan, LocalSettling
@@ -27,25 +27,10 @@ from physics_mapper.search.rule2 import MemoisedSettling, SettlingObserver, Step
 #: and bins of 50 step 1.9 to 2.6 times faster; the 866 configurations the crowded suite's searches
 #: found unstable or valid, settled in full with 50, 15 and 10 iterations, were stable alike.
 TRIAL_SOLVER_ITERATIONS = 15
-#: The residual ((m/s)^2: 3.2 mm/s) at which Bullet's solver ends a step's iterations in every settling of a
-#: group of boxes, cylinders and spheres, trials and Rule 2's own (pybullet's is 1e-7,
-#: ``world.SOLVER_RESIDUAL``): contacts at rest converge in a few iterations, and a bin of 50 boxes settles
-#: 40-50 % faster. Of 874 Rule 2 verdicts of such groups (the crowded suite's searches, bins of 24 boxes and
-#: cylinders) one changed, a jitter of 20.1 mm against a threshold of 20; of 450 on the shipped mesh scenes,
-#: even 1e-6 tipped a mug resting 8 mm from where it stood, so a group holding a mesh, or in a scene with a
-#: static mesh, keeps pybullet's (BENCHMARKS.md, "Crowded scenes", round 12).
-PRIMITIVE_SOLVER_RESIDUAL = 1e-5
 #: Objects a group needs before a candidate with no context known is tried as a whole: a small group's
 #: first candidate is often valid (the scale suite's separate piles: the median search took 1.3 times
 #: longer with whole-group trials in every group), and a valid trial costs one settling more.
 WHOLE_TRIALS_FROM_OBJECTS = 7
-
-
-def solver_residual(scene: Scene, objects: Sequence[int]) -> float | None:
-    """The solver residual of the settlings of a group of ``objects`` (scene indices) in ``scene``:
-    :data:`PRIMITIVE_SOLVER_RESIDUAL` unless one of them or a static body is a mesh (None: the world's)."""
-    shapes = [scene.objects[i].shape for i in objects] + [body.shape for body in scene.static]
-    return None if any(isinstance(shape, Mesh) for shape in shapes) else PRIMITIVE_SOLVER_RESIDUAL
 
 
 @dataclass(eq=False)
@@ -53,10 +38,9 @@ class TrialSettling:
     """Trial settlings where the stable contexts of ``local`` allow, confirmed by ``confirm`` (Rule 2's own,
     memoised); the stable contexts learned from every settling (module docstring).
 
-    ``observers`` see each trial as a settling of the whole group (the escape guard); ``solver_residual``
-    ends each step's solver iterations in the trials (None: the world's; :func:`solver_residual`). Counts its
-    trials' ``steps``, the ``local_settlings`` (part of the group simulated) and every settling of the whole
-    group (``full_settlings``: whole trials and Rule 2's own).
+    ``observers`` see each trial as a settling of the whole group (the escape guard). Counts its trials'
+    ``steps``, the ``local_settlings`` (part of the group simulated) and every settling of the whole group
+    (``full_settlings``: whole trials and Rule 2's own).
     """
 
     checker: PhysicsChecker
@@ -65,7 +49,6 @@ class TrialSettling:
     local: LocalSettling
     confirm: MemoisedSettling
     observers: Sequence[SettlingObserver] = ()
-    solver_residual: float | None = None
     local_settlings: int = field(default=0, init=False)
     whole_trials: int = field(default=0, init=False)
     steps: StepCounts = field(default_factory=StepCounts, init=False)
@@ -111,7 +94,6 @@ class TrialSettling:
             track_reach=True,
             # Meshes change verdicts at fewer iterations (7 of 377 at 15 on the shipped mesh scenes).
             solver_iterations=None if self.local.holds_meshes else TRIAL_SOLVER_ITERATIONS,
-            solver_residual=self.solver_residual,
         )
         return self._tried(code, plan, outcome)
 
