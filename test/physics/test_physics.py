@@ -345,3 +345,21 @@ def test_a_settling_ends_bit_for_bit_where_a_fresh_world_s_does_whatever_objects
         with PhysicsChecker(scene) as checker:
             work(checker)
             assert checker.settle(truth, params.settle_time, params.angular_weight) == expected
+
+
+def test_a_settling_with_a_larger_solver_residual_ends_elsewhere_and_leaves_the_world_s_solver_as_it_was() -> None:
+    """The pyramid's stack settled with Bullet's solver ending at a residual of 1e-5 rests a little elsewhere
+    (its iterations ended earlier) but as stable; the next settling, without it, is bit for bit a fresh
+    world's: the world went back to pybullet's residual."""
+    scene = shipped_scene("pyramid.yaml")
+    truth = ground_truth(scene)
+    params = scene.search
+    with PhysicsChecker(scene) as fresh:
+        expected = fresh.settle(truth, params.settle_time, params.angular_weight)
+    with PhysicsChecker(scene) as checker:
+        early = checker.settle(truth, params.settle_time, params.angular_weight, solver_residual=1e-5)
+        again = checker.settle(truth, params.settle_time, params.angular_weight)
+    assert early.settled_poses != expected.settled_poses
+    assert early.is_stable(JITTER_THRESHOLD) and expected.is_stable(JITTER_THRESHOLD)
+    assert max(abs(a - b) for a, b in zip(early.jitters, expected.jitters, strict=True)) < 0.001
+    assert again == expected

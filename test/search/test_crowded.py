@@ -23,7 +23,7 @@ from mesh_builders import box_mesh, floor_scene_dict, load_inline, mesh_object, 
 
 from physics_mapper.model.geometry import Pose
 from physics_mapper.model.hypotheses import Hypothesis, RankedHypotheses
-from physics_mapper.model.scene import Bound, Box, Mesh, ObjectModel, SearchParams
+from physics_mapper.model.scene import Bound, Box, Mesh, ObjectModel, SearchParams, Strategy
 from physics_mapper.physics.checker import PhysicsChecker
 from physics_mapper.physics.settling import (
     CLOCK_CHECK_STEPS,
@@ -48,6 +48,7 @@ from physics_mapper.search.conflict_directed import ConflictDirectedCandidates, 
 from physics_mapper.search.conflicts import Blame, Conflict, ConflictStore
 from physics_mapper.search.grouped import GroupedSearch
 from physics_mapper.search.results import Code, SearchResult
+from physics_mapper.search.rule2 import PRIMITIVE_SOLVER_RESIDUAL
 from physics_mapper.search.strategy import make_search
 from physics_mapper.search.trial_settling import TRIAL_SOLVER_ITERATIONS
 
@@ -223,6 +224,46 @@ def test_trials_run_fewer_solver_iterations_and_valid_verdicts_rule_2_s() -> Non
     assert None in iterations  # the confirmations: Rule 2's solver
     best = [group.best_valid for group in conflict_groups(search)]
     assert all(candidate is not None and candidate.settling.solver_iterations is None for candidate in best)
+
+
+def solver_residuals(problem: CrowdedProblem, strategy: Strategy = "conflict") -> tuple[SearchResult, set[object]]:
+    """The problem searched to its end under ``strategy``; the solver residuals of its Rule 2 settlings (those
+    with Rule 2's iterations: no trial's), as asked of the checker (None: the world's, pybullet's)."""
+    params = replace(problem.problem.scene.search, strategy=strategy, trace_limit=None)
+    with PhysicsChecker(problem.problem.scene) as checker:
+        residuals: set[object] = set()
+        settle = checker.settle
+
+        def noted(*args: Any, **options: Any) -> Any:  # the checker's own settling, its solver noted
+            if options.get("solver_iterations") is None:
+                residuals.add(options.get("solver_residual"))
+            return settle(*args, **options)
+
+        checker.settle = noted
+        return make_search(checker, problem.problem.hypotheses, params).run(None), residuals
+
+
+def test_rule_2_s_own_settlings_of_primitives_end_the_solver_at_a_larger_residual_only_in_the_conflict_search(
+    tmp_path: Path,
+) -> None:
+    """A row of cubes: the conflict-directed search's Rule 2 settlings end Bullet's iterations at
+    ``PRIMITIVE_SOLVER_RESIDUAL``, the paper's grouped search's at pybullet's, with the same answer; the same
+    row as meshes keeps pybullet's residual."""
+    problem = crowded_problem(CrowdedCase("row", 8, 2, 8))
+    conflict, residuals = solver_residuals(problem)
+    assert residuals == {PRIMITIVE_SOLVER_RESIDUAL}
+    paper, paper_residuals = solver_residuals(problem, "grouped")
+    assert paper_residuals == {None}
+    assert (conflict.code, conflict.valid) == (paper.code, paper.valid) == (problem.answer, True)
+    scene = problem.problem.scene
+    cube = scene.objects[0].shape
+    assert isinstance(cube, Box)
+    write_mesh(box_mesh(cube.size), tmp_path / "cube.obj")
+    objects = [mesh_object(model.name, "cube.obj", mass=model.mass) for model in scene.objects]
+    meshes = replace(load_inline(floor_scene_dict(*objects), tmp_path), search=scene.search)
+    result, mesh_residuals = solver_residuals(replace(problem, problem=replace(problem.problem, scene=meshes)))
+    assert mesh_residuals == {None}
+    assert (result.code, result.valid) == (problem.answer, True)
 
 
 def test_groups_with_meshes_are_settled_locally_with_the_same_answer(tmp_path: Path) -> None:
