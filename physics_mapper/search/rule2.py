@@ -30,12 +30,13 @@ from physics_mapper.search.results import Code, Counters, SearchStats
 #: The residual ((m/s)^2: 3.2 mm/s) at which Bullet's solver ends a step's iterations in the conflict-directed
 #: search's own Rule 2 settlings (:class:`FullSettling`'s ``solver_residual``) of a group of boxes, cylinders
 #: and spheres; pybullet's is 1e-7 (``world.SOLVER_RESIDUAL``), which the paper's searches keep. Contacts at
-#: rest converge in a few iterations: a bin of 50 boxes settles 40-50 % faster. Of 874 Rule 2 verdicts of
-#: such groups (the crowded suite's searches, bins of 24 boxes and cylinders) one changed, a jitter of 20.1 mm
-#: against a threshold of 20; of 450 of the shipped mesh scenes, even 1e-6 tipped a mug resting 8 mm from
-#: where it stood, so a group holding a mesh, or in a scene with a static mesh, keeps pybullet's. So do the
-#: trials, whose instability is believed: at their 15 iterations it turned 8 of 106 stable configurations of
-#: 24 cylinders in two layers unstable, 3 without it (BENCHMARKS.md, "Crowded scenes", round 12).
+#: rest converge in a few iterations: a bin of 50 boxes settles 40-50 % faster. Of 811 Rule 2 verdicts of
+#: such groups (the crowded suite's searches, bins of 24 boxes and cylinders in two layers) one changed, a
+#: jitter of 20.1 mm against a threshold of 20; of 633 with meshes five did, a mug resting 8 mm from where it
+#: stood tipping (even at 1e-6), so a group holding a mesh, or in a scene with a static mesh, keeps
+#: pybullet's. So do the trials, whose instability is believed: at their 15 iterations it turned 8 of 106
+#: stable configurations of 24 cylinders in two layers unstable, 3 without it (BENCHMARKS.md, "Crowded
+#: scenes", round 12).
 PRIMITIVE_SOLVER_RESIDUAL = 1e-5
 #: Settlings a grouped search remembers (each group a share in proportion to its objects), a few hundred bytes each.
 SETTLE_MEMO_LIMIT = 5_000
