@@ -59,11 +59,9 @@ CaseRuns = tuple[CrowdedProblem, SearchResult, SearchResult, list[ConflictGroup]
 
 def searched(problem: CrowdedProblem, **changes: object) -> tuple[SearchResult, list[ConflictGroup]]:
     """``problem`` searched to the end with the defaults changed by ``changes``, and its conflict groups."""
-    params = replace(problem.problem.scene.search, trace_limit=None, **changes)  # type: ignore[arg-type]
-    with PhysicsChecker(problem.problem.scene) as checker:
-        search = make_search(checker, problem.problem.hypotheses, params)
-        result = search.run(None)
-    return result, conflict_groups(search) if params.strategy == "conflict" else []
+    search, result, _ = settling_options(problem, **changes)
+    strategy = changes.get("strategy", problem.problem.scene.search.strategy)
+    return result, conflict_groups(search) if strategy == "conflict" else []
 
 
 def conflict_groups(search: Search) -> list[ConflictGroup]:
@@ -202,22 +200,40 @@ def test_local_settlings_decide_as_full_ones() -> None:
     assert (conflict.code, conflict.valid) == (paper.code, paper.valid) == (problem.answer, True)
 
 
+def settling_options(problem: CrowdedProblem, **changes: object) -> tuple[Search, SearchResult, list[dict[str, Any]]]:
+    """``problem`` searched to the end with the defaults changed by ``changes``, and the options each settling
+    asked of the checker (its solver's iterations and residual among them)."""
+    params = replace(problem.problem.scene.search, trace_limit=None, **changes)  # type: ignore[arg-type]
+    with PhysicsChecker(problem.problem.scene) as checker:
+        options: list[dict[str, Any]] = []
+        settle = checker.settle
+
+        def noted(*args: Any, **asked: Any) -> Any:  # the checker's own settling, its options noted
+            options.append(asked)
+            return settle(*args, **asked)
+
+        checker.settle = noted
+        search = make_search(checker, problem.problem.hypotheses, params)
+        return search, search.run(None), options
+
+
+def row_of_meshes(problem: CrowdedProblem, folder: Path) -> CrowdedProblem:
+    """``problem``, a row of identical cubes, with each cube a mesh of the same box (written into ``folder``)."""
+    scene = problem.problem.scene
+    cube = scene.objects[0].shape
+    assert isinstance(cube, Box) and all(model.shape == cube for model in scene.objects)
+    write_mesh(box_mesh(cube.size), folder / "cube.obj")
+    objects = [mesh_object(model.name, "cube.obj", mass=model.mass) for model in scene.objects]
+    meshes = replace(load_inline(floor_scene_dict(*objects), folder), search=scene.search)
+    return replace(problem, problem=replace(problem.problem, scene=meshes))
+
+
 def test_trials_run_fewer_solver_iterations_and_valid_verdicts_rule_2_s() -> None:
     """Trial settlings (local ones, and the whole group's before any context is known) run
     ``TRIAL_SOLVER_ITERATIONS``; the configuration found valid was settled with Rule 2's solver."""
     problem = crowded_problem(CrowdedCase("row", 8, 2, 8))
-    params = replace(problem.problem.scene.search, trace_limit=None)
-    with PhysicsChecker(problem.problem.scene) as checker:
-        iterations: list[int | None] = []
-        settle = checker.settle
-
-        def counted(*args: Any, **options: Any) -> Any:  # the checker's own settling, its solver noted
-            iterations.append(options.get("solver_iterations"))
-            return settle(*args, **options)
-
-        checker.settle = counted
-        search = make_search(checker, problem.problem.hypotheses, params)
-        result = search.run(None)
+    search, result, options = settling_options(problem)
+    iterations = [asked.get("solver_iterations") for asked in options]
     assert (result.code, result.valid) == (problem.answer, True)
     assert result.stats.part_counters["local_settlings"] > 0
     assert iterations.count(TRIAL_SOLVER_ITERATIONS) >= result.stats.part_counters["local_settlings"]
@@ -226,21 +242,11 @@ def test_trials_run_fewer_solver_iterations_and_valid_verdicts_rule_2_s() -> Non
     assert all(candidate is not None and candidate.settling.solver_iterations is None for candidate in best)
 
 
-def solver_residuals(problem: CrowdedProblem, strategy: Strategy = "conflict") -> tuple[SearchResult, set[object]]:
+def rule_2_residuals(problem: CrowdedProblem, strategy: Strategy = "conflict") -> tuple[SearchResult, set[object]]:
     """The problem searched to its end under ``strategy``; the solver residuals of its Rule 2 settlings (those
     with Rule 2's iterations: no trial's), as asked of the checker (None: the world's, pybullet's)."""
-    params = replace(problem.problem.scene.search, strategy=strategy, trace_limit=None)
-    with PhysicsChecker(problem.problem.scene) as checker:
-        residuals: set[object] = set()
-        settle = checker.settle
-
-        def noted(*args: Any, **options: Any) -> Any:  # the checker's own settling, its solver noted
-            if options.get("solver_iterations") is None:
-                residuals.add(options.get("solver_residual"))
-            return settle(*args, **options)
-
-        checker.settle = noted
-        return make_search(checker, problem.problem.hypotheses, params).run(None), residuals
+    _, result, options = settling_options(problem, strategy=strategy)
+    return result, {asked.get("solver_residual") for asked in options if asked.get("solver_iterations") is None}
 
 
 def test_rule_2_s_own_settlings_of_primitives_end_the_solver_at_a_larger_residual_only_in_the_conflict_search(
@@ -250,18 +256,12 @@ def test_rule_2_s_own_settlings_of_primitives_end_the_solver_at_a_larger_residua
     ``PRIMITIVE_SOLVER_RESIDUAL``, the paper's grouped search's at pybullet's, with the same answer; the same
     row as meshes keeps pybullet's residual."""
     problem = crowded_problem(CrowdedCase("row", 8, 2, 8))
-    conflict, residuals = solver_residuals(problem)
+    conflict, residuals = rule_2_residuals(problem)
     assert residuals == {PRIMITIVE_SOLVER_RESIDUAL}
-    paper, paper_residuals = solver_residuals(problem, "grouped")
+    paper, paper_residuals = rule_2_residuals(problem, "grouped")
     assert paper_residuals == {None}
     assert (conflict.code, conflict.valid) == (paper.code, paper.valid) == (problem.answer, True)
-    scene = problem.problem.scene
-    cube = scene.objects[0].shape
-    assert isinstance(cube, Box)
-    write_mesh(box_mesh(cube.size), tmp_path / "cube.obj")
-    objects = [mesh_object(model.name, "cube.obj", mass=model.mass) for model in scene.objects]
-    meshes = replace(load_inline(floor_scene_dict(*objects), tmp_path), search=scene.search)
-    result, mesh_residuals = solver_residuals(replace(problem, problem=replace(problem.problem, scene=meshes)))
+    result, mesh_residuals = rule_2_residuals(row_of_meshes(problem, tmp_path))
     assert mesh_residuals == {None}
     assert (result.code, result.valid) == (problem.answer, True)
 
@@ -270,14 +270,7 @@ def test_groups_with_meshes_are_settled_locally_with_the_same_answer(tmp_path: P
     """The same row with its cubes as meshes: settled locally too (their neighbours simulated), and the
     same answer."""
     problem = crowded_problem(CrowdedCase("row", 8, 2, 8))
-    scene = problem.problem.scene
-    cube = scene.objects[0].shape
-    assert isinstance(cube, Box) and all(model.shape == cube for model in scene.objects)
-    write_mesh(box_mesh(cube.size), tmp_path / "cube.obj")
-    objects = [mesh_object(model.name, "cube.obj", mass=model.mass) for model in scene.objects]
-    meshes = replace(load_inline(floor_scene_dict(*objects), tmp_path), search=scene.search)
-    with_meshes = replace(problem, problem=replace(problem.problem, scene=meshes))
-    result, _ = searched(with_meshes)
+    result, _ = searched(row_of_meshes(problem, tmp_path))
     assert result.stats.part_counters["local_settlings"] > 0 and result.stats.part_counters["full_settlings"] > 0
     assert (result.code, result.valid) == (problem.answer, True)
 
