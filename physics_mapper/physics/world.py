@@ -281,6 +281,8 @@ class PhysicsWorld:
         nothing (Bullet skips pairs of two fixed bodies): only the objects whose mass changes are re-entered,
         since contact points do not depend on the order; the next :meth:`simulate_only` puts it right."""
         simulated = set(objects)
+        if self.massless.isdisjoint(simulated) and len(self.massless) + len(simulated) == len(self.object_uids):
+            return  # every other object massless already (a pair's ranks looked up one after another)
         for index, uid in enumerate(self.object_uids):
             parked = index not in simulated
             if parked == (index in self.massless):
