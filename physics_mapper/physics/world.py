@@ -262,9 +262,9 @@ class PhysicsWorld:
         object: each goes massless in scene order, then the simulated ones get their masses back in
         scene order, and the world's order depends on ``objects`` alone.
         """
-        massless = set(self.all_objects).difference(objects)
-        if massless == self.massless and self._entered_in_order:
+        if self._massless_but(objects) and self._entered_in_order:
             return
+        massless = set(self.all_objects).difference(objects)
         client = self.client
         for index, uid in enumerate(self.object_uids):
             if index in self.massless:  # re-entered too: give it its mass for a moment
@@ -280,9 +280,9 @@ class PhysicsWorld:
         """Give ``objects`` their masses and every other object zero mass for a collision pass, which steps
         nothing (Bullet skips pairs of two fixed bodies): only the objects whose mass changes are re-entered,
         since contact points do not depend on the order; the next :meth:`simulate_only` puts it right."""
+        if self._massless_but(objects):
+            return  # nothing to re-enter (a pair's ranks looked up one after another)
         simulated = set(objects)
-        if self.massless.isdisjoint(simulated) and len(self.massless) + len(simulated) == len(self.object_uids):
-            return  # every other object massless already (a pair's ranks looked up one after another)
         for index, uid in enumerate(self.object_uids):
             parked = index not in simulated
             if parked == (index in self.massless):
@@ -295,6 +295,11 @@ class PhysicsWorld:
                 self.massless.discard(index)
             self._entered_in_order = False
             self.entries += 1
+
+    def _massless_but(self, objects: Sequence[int]) -> bool:
+        """Whether every object but ``objects`` (scene indices), and none of them, is massless now."""
+        simulated = set(objects)
+        return self.massless.isdisjoint(simulated) and len(self.massless) + len(simulated) == len(self.object_uids)
 
     def _give_mass(self, index: int) -> None:
         mass, inertia = self._dynamics[index]
