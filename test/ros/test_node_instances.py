@@ -4,6 +4,7 @@ frame. vision_msgs comes from ``make .venv/.vision_msgs`` (``test/vision_msgs/``
 
 from __future__ import annotations
 
+from collections import defaultdict
 from pathlib import Path
 
 import numpy as np
@@ -77,30 +78,27 @@ def test_a_bin_of_identical_boxes_keeps_every_identity_over_shuffled_arrays(tmp_
     parameters = {"rate_hz": 4.0, "deadline": 0.2, "max_age": 60.0, "association_gate": 0.04, "confirm_hits": 2}
     node = NodeProcess(scene, parameters, tmp_path / "node.log", NAMESPACE)
     client = RosClient(NAMESPACE)
-    maps: dict[int, list[Detection3DArray]] = {stamp_of(index): [] for index in range(FRAMES)}
+    maps: defaultdict[int, list[Detection3DArray]] = defaultdict(list)
     rng = np.random.default_rng(31)
     try:
         publisher = client.node.create_publisher(Detection3DArray, "detections", 10)
 
         def on_objects(msg: Detection3DArray) -> None:
-            maps.setdefault(nanoseconds_from_stamp(msg.header.stamp), []).append(msg)
-
-        def whole(index: int) -> bool:
-            return any(len(msg.detections) == len(BOXES) for msg in maps[stamp_of(index)])
+            maps[nanoseconds_from_stamp(msg.header.stamp)].append(msg)
 
         client.node.create_subscription(Detection3DArray, output_topic(OBJECTS_TOPIC, NAMESPACE), on_objects, MAP_QOS)
         for index in range(FRAMES):
             message = frame(index, rng)
             client.keep_publishing(
                 lambda message=message: publisher.publish(message),  # type: ignore[misc]
-                lambda index=index: whole(index),  # type: ignore[misc]
+                lambda index=index: bool(whole_maps(maps[stamp_of(index)])),  # type: ignore[misc]
                 f"a map of frame {index} holding every box",
             )
     finally:
         client.close()
         assert node.stop() == 0, node.output()
     assert "unknown parameters" not in node.output()  # the association's parameters are the node's
-    first = next(msg for msg in maps[stamp_of(0)] if len(msg.detections) == len(BOXES))
+    first = whole_maps(maps[stamp_of(0)])[0]
     identities = {d.id: nearest_box(d) for d in first.detections}
     assert sorted(identities) == sorted(f"box_{k}" for k in range(1, 13))
     assert sorted(identities.values()) == list(range(12))  # each box one instance
@@ -112,6 +110,11 @@ def test_a_bin_of_identical_boxes_keeps_every_identity_over_shuffled_arrays(tmp_
     assert first.detections[0].results[0].hypothesis.class_id == "box"
     size = first.detections[0].bbox.size
     assert (size.x, size.y, size.z) == (0.1, 0.1, 0.1)
+
+
+def whole_maps(maps: list[Detection3DArray]) -> list[Detection3DArray]:
+    """The maps that hold every box."""
+    return [msg for msg in maps if len(msg.detections) == len(BOXES)]
 
 
 SUNK_SCENE = box_scene(1, "search:\n  fallback: refine\n")
