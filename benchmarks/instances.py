@@ -24,9 +24,11 @@ so with the same particle-filter hypotheses (the faults draw from a stream of th
 
 Each bag is replayed offline as the node would tick (``replay_offline``: each snapshot searched to the scene's
 deadline, 0.2 s, the node's default, or with ``--scaled`` to that deadline scaled to this machine, 0.2 s x
-reference / 6.3 ms, or with ``--deadline S`` for S seconds (a long search tells which snapshots' hypotheses
-hold a valid configuration at all); the next snapshots following the map chosen: the map remembered, instances
-confirmed by valid maps, left-out tentative ones ended) and scored by identity
+reference / 6.3 ms, the reference measured again just before each bag's replay (this machine's speed drifts: its
+reference went from 8 to 15 ms within a second, and from 7 to 13 ms between two days), or with ``--deadline S``
+for S seconds (a long search tells which snapshots' hypotheses hold a valid configuration at all); the next
+snapshots following the map chosen: the map remembered, instances confirmed by valid maps, left-out tentative
+ones ended) and scored by identity
 (:mod:`physics_mapper.evaluation.identity`, matched within :func:`identity_gate`). Printed per bin: identity
 switches, IDF1, MOTA, false positives in the map (map objects matched to no true object within the gate) and
 among them the false objects (matched to none within the object's largest extent: a false detection or a second
@@ -37,9 +39,9 @@ all), those with the refined map instead (``fallback: refine``: a physically con
 configuration of the hypotheses was found valid) and among them those that keep Rule 1 and Rule 2 (the map's
 deepest overlap, and a settling from rest at the map: :func:`within_rules`), the position error by identity
 of the faulty, the identified and the named bag, and the share of ticks whose search finished within the
-deadline (else it stopped there with its best so far). The reference settling (``crowded.py``'s: Rule 2 on the
-shipped ``stack`` problem's three cubes with pybullet's own solver, the median of 9, measured in this run) is
-printed first: deadlines scale with it (0.2 s at 6.3 ms).
+deadline (else it stopped there with its best so far), and each bag's deadline. The reference settling
+(``crowded.py``'s: Rule 2 on the shipped ``stack`` problem's three cubes with pybullet's own solver, the median of
+9, measured in this run) is printed first: deadlines scale with it (0.2 s at 6.3 ms).
 """
 
 from __future__ import annotations
@@ -176,6 +178,7 @@ def replay(scene: Scene, bag: Path, deadline: float) -> dict[str, Any]:
     with PhysicsChecker(scene) as checker:
         refined_within_rules = sum(1 for r in refined if within_rules(checker, r))
     return {
+        "deadline": deadline,
         "snapshots": len(results),
         "valid": sum(1 for r in results if r.search is not None and r.search.valid),
         "refined": len(refined),
@@ -185,6 +188,12 @@ def replay(scene: Scene, bag: Path, deadline: float) -> dict[str, Any]:
         "identity": identity,
         "false_objects": loose["false_positives"],
     }
+
+
+def bag_deadline(reference: ReferenceSettling | None, fixed: float) -> float:
+    """Seconds each snapshot of a bag is searched: ``fixed``, or with a ``reference``, the node's deadline scaled to
+    the reference settling measured now, just before the bag's replay (module docstring)."""
+    return fixed if reference is None else scaled_deadline(reference.measure())
 
 
 def within_rules(checker: PhysicsChecker, result: SnapshotResult) -> bool:
@@ -234,20 +243,20 @@ def main() -> None:
     unknown = [shape for shape in args.shapes if shape not in shapes]
     if unknown:
         parser.error(f"unknown shapes {unknown}: {sorted(shapes)} (or one more with --object)")
-    with ReferenceSettling() as settling:
+    with ReferenceSettling() as settling, tempfile.TemporaryDirectory() as temporary:
         reference = settling.measure()
-    scaled = scaled_deadline(reference)
-    deadline = scaled if args.scaled else args.deadline or DEADLINE
-    print(f"reference settling (stack, Rule 2): {reference * 1000:.1f} ms; the {DEADLINE} s deadline scaled to "
-          f"this machine is {scaled:.2f} s; each snapshot searched for {deadline:.2f} s")  # fmt: skip
-    header = (
-        "| bin | objects | switches | IDF1 | MOTA | FP in map (false objects) | misses | valid maps (previous map's) "
-        "| valid maps, named | refined maps (within Rules 1 and 2) "
-        "| error by identity, faulty / identified / named [cm] | ticks finished within the deadline |"
-    )
-    print(header)
-    print("| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |")
-    with tempfile.TemporaryDirectory() as temporary:
+        fixed = args.deadline or DEADLINE
+        each = "to that deadline scaled to a reference measured beside each bag" if args.scaled else f"{fixed:g} s"
+        print(f"reference settling (stack, Rule 2): {reference * 1000:.1f} ms; the {DEADLINE} s deadline scaled to "
+              f"this machine is {scaled_deadline(reference):.2f} s; each snapshot searched {each}")  # fmt: skip
+        header = (
+            "| bin | objects | switches | IDF1 | MOTA | FP in map (false objects) | misses "
+            "| valid maps (previous map's) | valid maps, named | refined maps (within Rules 1 and 2) "
+            "| error by identity, faulty / identified / named [cm] | ticks finished within the deadline "
+            "| deadline, faulty / identified / named [s] |"
+        )
+        print(header)
+        print("| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |")
         folder = args.output or Path(temporary)
         folder.mkdir(parents=True, exist_ok=True)
         for shape in args.shapes:
@@ -260,9 +269,13 @@ def main() -> None:
                     scene = load_scene(scene_file)
                     for bag, extra in BAGS.items():
                         _generate(scene_file, folder / f"{name}_{bag}", extra, args.frames, args.particles, args.seed)
-                    faulty = replay(scene, folder / f"{name}_faulty", deadline)
-                    references = [replay(scene, folder / f"{name}_{bag}", deadline) for bag in ("identified", "named")]
-                    errors = " / ".join(_cm(r["identity"]["identity_error_m"]) for r in (faulty, *references))
+                    replays = [
+                        replay(scene, folder / f"{name}_{bag}", bag_deadline(settling if args.scaled else None, fixed))
+                        for bag in ("faulty", "identified", "named")
+                    ]
+                    faulty, references = replays[0], replays[1:]
+                    errors = " / ".join(_cm(r["identity"]["identity_error_m"]) for r in replays)
+                    deadlines = " / ".join(f"{r['deadline']:.2f}" for r in replays)
                     i, n = faulty["identity"], faulty["snapshots"]
                     print(
                         f"| {shape}, {layers} layer(s) | {count} | {i['switches']} | {i['idf1']:.3f} | "
@@ -270,7 +283,7 @@ def main() -> None:
                         f"{faulty['valid']}/{n} ({faulty['previous_map']}) | "
                         f"{references[1]['valid']}/{references[1]['snapshots']} | "
                         f"{faulty['refined']} ({faulty['refined_within_rules']}) | {errors} | "
-                        f"{faulty['finished']}/{n} |",
+                        f"{faulty['finished']}/{n} | {deadlines} |",
                         flush=True,
                     )
 

@@ -24,6 +24,7 @@ from crowded import (
     suite_cases,
     targets_text,
 )
+from instances import bag_deadline
 from physics_costs import measure
 from with_package import run_with_package
 
@@ -94,6 +95,14 @@ def test_each_search_is_judged_against_the_deadline_scaled_to_the_reference_meas
     slow, fast = problem(0.0126), problem(0.0063)
     assert slow.answered_in_time("conflict") and not fast.answered_in_time("conflict")
     assert "worst layout: 50%" in targets_text([slow, fast], [])
+
+
+def test_a_bin_s_bags_are_searched_to_the_deadline_scaled_to_a_reference_measured_beside_each() -> None:
+    assert bag_deadline(None, 0.35) == 0.35  # --deadline, or the node's 0.2 s: as given
+    with ReferenceSettling() as reference:
+        deadlines = {bag_deadline(reference, 0.35) for _ in range(3)}
+    # Each bag's is measured anew: 0.2 s x its reference / 6.3 ms, whatever the fixed deadline.
+    assert 0.35 not in deadlines and all(deadline > 0.0 for deadline in deadlines)
 
 
 def test_bench_crowded_searches_only_the_layouts_asked_for() -> None:
