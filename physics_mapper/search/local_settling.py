@@ -65,6 +65,8 @@ class LocalSettling:
         #: with the neighbours held fixed), so there the neighbours are simulated too, a ring further out held.
         self.holds_meshes = any(isinstance(shape, Mesh) for shape in blame.shapes)
         self._neighbours: tuple[tuple[int, ...], ...] | None = None
+        # Per position, it and its neighbours in position order: a context's positions (made on first use).
+        self._contexts: tuple[tuple[int, ...], ...] | None = None
         self._stable: set[Context] = set()
 
     @property
@@ -75,8 +77,9 @@ class LocalSettling:
         return self._neighbours
 
     def context(self, position: int, code: Sequence[int]) -> Context:
-        around = (position, *self.neighbours[position])
-        return position, tuple(code[p] for p in sorted(around))
+        if self._contexts is None:
+            self._contexts = tuple(tuple(sorted((p, *around))) for p, around in enumerate(self.neighbours))
+        return position, tuple(map(code.__getitem__, self._contexts[position]))
 
     def plan(self, code: Sequence[int]) -> LocalPlan | None:
         """The settling that tries ``code``: its unsettled objects (and, in a group holding a mesh, their
