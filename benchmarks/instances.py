@@ -25,7 +25,7 @@ so with the same particle-filter hypotheses (the faults draw from a stream of th
 Each bag is replayed offline as the node would tick (``replay_offline``: each snapshot searched to the scene's
 deadline, 0.2 s, the node's default, or with ``--scaled`` to that deadline scaled to this machine, 0.2 s x
 reference / 6.3 ms, the reference measured again just before each bag's replay (this machine's speed drifts: its
-reference went from 8 to 15 ms within a second, and from 7 to 13 ms between two days), or with ``--deadline S``
+reference went from 8 to 15 ms within a second, and from 13 to 7 ms within minutes), or with ``--deadline S``
 for S seconds (a long search tells which snapshots' hypotheses hold a valid configuration at all); the next
 snapshots following the map chosen: the map remembered, instances confirmed by valid maps, left-out tentative
 ones ended) and scored by identity
