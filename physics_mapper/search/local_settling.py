@@ -65,7 +65,6 @@ class LocalSettling:
         #: with the neighbours held fixed), so there the neighbours are simulated too, a ring further out held.
         self.holds_meshes = any(isinstance(shape, Mesh) for shape in blame.shapes)
         self._neighbours: tuple[tuple[int, ...], ...] | None = None
-        # Per position, it and its neighbours in position order: a context's positions (made on first use).
         self._contexts: tuple[tuple[int, ...], ...] | None = None
         self._stable: set[Context] = set()
 
@@ -76,10 +75,15 @@ class LocalSettling:
             self._neighbours = neighbours(self.blame)
         return self._neighbours
 
-    def context(self, position: int, code: Sequence[int]) -> Context:
+    @property
+    def context_positions(self) -> tuple[tuple[int, ...], ...]:
+        """Per position, it and its neighbours in position order: whose ranks make its context (made on first use)."""
         if self._contexts is None:
             self._contexts = tuple(tuple(sorted((p, *around))) for p, around in enumerate(self.neighbours))
-        return position, tuple(map(code.__getitem__, self._contexts[position]))
+        return self._contexts
+
+    def context(self, position: int, code: Sequence[int]) -> Context:
+        return position, tuple(map(code.__getitem__, self.context_positions[position]))
 
     def plan(self, code: Sequence[int]) -> LocalPlan | None:
         """The settling that tries ``code``: its unsettled objects (and, in a group holding a mesh, their
@@ -113,11 +117,11 @@ class LocalSettling:
         hypotheses changed); how many."""
         kept = 0
         for position, ranks in old._stable:
-            around = sorted((position, *old.neighbours[position]))
+            around = old.context_positions[position]
             if any(p in changed or p not in moved for p in around):
                 continue
             here = moved[position]
-            if sorted(moved[p] for p in around) != sorted((here, *self.neighbours[here])):
+            if tuple(sorted(moved[p] for p in around)) != self.context_positions[here]:
                 continue
             by_position = dict(zip((moved[p] for p in around), ranks, strict=True))
             self._stable.add((here, tuple(by_position[p] for p in sorted(by_position))))
