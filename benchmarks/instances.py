@@ -30,7 +30,9 @@ for S seconds (a long search tells which snapshots' hypotheses hold a valid conf
 snapshots following the map chosen: the map remembered, instances confirmed by valid maps, left-out tentative
 ones ended) and scored by identity
 (:mod:`physics_mapper.evaluation.identity`, matched within :func:`identity_gate`). Printed per bin: identity
-switches, IDF1, MOTA, false positives in the map (map objects matched to no true object within the gate) and
+switches, IDF1 of the faulty, the identified and the named bag (the last two name every object for the map: what
+positions and misses alone leave of IDF1, with no identity to lose), MOTA, false positives in the map (map objects
+matched to no true object within the gate) and
 among them the false objects (matched to none within the object's largest extent: a false detection or a second
 instance of one object; the others are true objects placed beyond the gate), misses, snapshots with a valid map
 (and among them the previous map's, :mod:`physics_mapper.mapping.previous_map`), those of the named bag (the
@@ -250,8 +252,8 @@ def main() -> None:
         print(f"reference settling (stack, Rule 2): {reference * 1000:.1f} ms; the {DEADLINE} s deadline scaled to "
               f"this machine is {scaled_deadline(reference):.2f} s; each snapshot searched {each}")  # fmt: skip
         header = (
-            "| bin | objects | switches | IDF1 | MOTA | FP in map (false objects) | misses "
-            "| valid maps (previous map's) | valid maps, named | refined maps (within Rules 1 and 2) "
+            "| bin | objects | switches | IDF1, faulty / identified / named | MOTA | FP in map (false objects) "
+            "| misses | valid maps (previous map's) | valid maps, named | refined maps (within Rules 1 and 2) "
             "| error by identity, faulty / identified / named [cm] | ticks finished within the deadline "
             "| deadline, faulty / identified / named [s] |"
         )
@@ -275,10 +277,11 @@ def main() -> None:
                     ]
                     faulty, references = replays[0], replays[1:]
                     errors = " / ".join(_cm(r["identity"]["identity_error_m"]) for r in replays)
+                    idf1 = " / ".join(f"{r['identity']['idf1']:.3f}" for r in replays)
                     deadlines = " / ".join(f"{r['deadline']:.2f}" for r in replays)
                     i, n = faulty["identity"], faulty["snapshots"]
                     print(
-                        f"| {shape}, {layers} layer(s) | {count} | {i['switches']} | {i['idf1']:.3f} | "
+                        f"| {shape}, {layers} layer(s) | {count} | {i['switches']} | {idf1} | "
                         f"{i['mota']:.3f} | {i['false_positives']} ({faulty['false_objects']}) | {i['misses']} | "
                         f"{faulty['valid']}/{n} ({faulty['previous_map']}) | "
                         f"{references[1]['valid']}/{references[1]['snapshots']} | "
