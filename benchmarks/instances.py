@@ -30,9 +30,9 @@ for S seconds (a long search tells which snapshots' hypotheses hold a valid conf
 snapshots following the map chosen: the map remembered, instances confirmed by valid maps, left-out tentative
 ones ended) and scored by identity
 (:mod:`physics_mapper.evaluation.identity`, matched within :func:`identity_gate`). Printed per bin: identity
-switches, IDF1 of the faulty, the identified and the named bag (the last two name every object for the map: what
-positions and misses alone leave of IDF1, with no identity to lose), MOTA, false positives in the map (map objects
-matched to no true object within the gate) and
+switches, IDF1 of the faulty, the identified and the named bag (the identified bag is the faulty one with a
+tracker's ids: what the faulty bag's IDF1 falls short of it is identity lost in association), MOTA, false positives
+in the map (map objects matched to no true object within the gate) and
 among them the false objects (matched to none within the object's largest extent: a false detection or a second
 instance of one object; the others are true objects placed beyond the gate), misses, snapshots with a valid map
 (and among them the previous map's, :mod:`physics_mapper.mapping.previous_map`), those of the named bag (the
