@@ -121,10 +121,11 @@ class LocalSettling:
             if any(p in changed or p not in moved for p in around):
                 continue
             here = moved[position]
-            if tuple(sorted(moved[p] for p in around)) != self.context_positions[here]:
+            positions = self.context_positions[here]
+            if tuple(sorted(moved[p] for p in around)) != positions:
                 continue
             by_position = dict(zip((moved[p] for p in around), ranks, strict=True))
-            self._stable.add((here, tuple(by_position[p] for p in sorted(by_position))))
+            self._stable.add((here, tuple(by_position[p] for p in positions)))
             kept += 1
         return kept
 
