@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import time
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from functools import partial
 from typing import Generic, Literal, TypeVar
 
 from physics_mapper.model.geometry import Pose
@@ -88,17 +90,34 @@ def search_until_answer(
     problem: Problem, params: SearchParams, answer: tuple[Code | None, bool], slice_seconds: float, cap: float
 ) -> tuple[float | None, float, SearchResult]:
     """Search ``problem`` afresh in slices of ``slice_seconds`` until its result is ``answer`` (code,
-    validity), the search ends or ``cap`` seconds pass: (seconds to the answer, building the search
-    included, None if not reached; seconds in all; the last result). Assembling results between
-    slices is not counted."""
+    validity), the search ends or ``cap`` seconds pass (:func:`search_until`)."""
     with PhysicsChecker(problem.scene) as checker:
-        started = time.perf_counter()
-        search = make_search(checker, problem.hypotheses, params)
-        build = time.perf_counter() - started
-        while True:
-            result = search.run(slice_seconds)
-            elapsed = build + result.stats.search_time
-            if (result.code, result.valid) == answer:
-                return elapsed, elapsed, result
-            if search.done or elapsed >= cap:
-                return None, elapsed, result
+        return search_until(checker, problem.hypotheses, params, partial(_is_answer, answer), slice_seconds, cap)
+
+
+def _is_answer(answer: tuple[Code | None, bool], result: SearchResult) -> bool:
+    return (result.code, result.valid) == answer
+
+
+def search_until(
+    checker: PhysicsChecker,
+    hypotheses: Sequence[RankedHypotheses],
+    params: SearchParams,
+    reached: Callable[[SearchResult], bool],
+    slice_seconds: float,
+    cap: float,
+) -> tuple[float | None, float, SearchResult]:
+    """Search ``hypotheses`` afresh in ``checker``'s world, in slices of ``slice_seconds``, until its result
+    is ``reached``, the search ends or ``cap`` seconds pass: (seconds until then, building the search
+    included, None if not reached; seconds in all; the last result). Assembling results between slices
+    is not counted."""
+    started = time.perf_counter()
+    search = make_search(checker, hypotheses, params)
+    build = time.perf_counter() - started
+    while True:
+        result = search.run(slice_seconds)
+        elapsed = build + result.stats.search_time
+        if reached(result):
+            return elapsed, elapsed, result
+        if search.done or elapsed >= cap:
+            return None, elapsed, result

@@ -25,6 +25,7 @@ from crowded import (
     targets_text,
 )
 from instances import bag_deadline
+from mesh_scenes import TimedValid, counts
 from physics_costs import measure
 from with_package import run_with_package
 
@@ -103,6 +104,16 @@ def test_a_bin_s_bags_are_searched_to_the_deadline_scaled_to_a_reference_measure
         deadlines = {bag_deadline(reference, 0.35) for _ in range(3)}
     # Each bag's is measured anew: 0.2 s x its reference / 6.3 ms, whatever the fixed deadline.
     assert 0.35 not in deadlines and all(deadline > 0.0 for deadline in deadlines)
+
+
+def test_a_mesh_scene_s_searches_are_judged_against_its_tick_scaled_to_the_reference_beside_each() -> None:
+    searches = [
+        TimedValid(0.3, 0.0042),  # 0.4 s x 4.2 / 6.3 ms: 267 ms on a machine this fast, too late
+        TimedValid(0.3, 0.0126),  # 800 ms on a machine this slow: in time
+        TimedValid(0.45, 0.0126),  # beyond the fixed 0.4 s, within the scaled
+        TimedValid(None, 0.0063),  # no valid map within the budget
+    ]
+    assert counts(0.4, searches) == (4, 3, 2, 2)
 
 
 def test_bench_crowded_searches_only_the_layouts_asked_for() -> None:
