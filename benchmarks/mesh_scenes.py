@@ -13,8 +13,9 @@ scene: the searches, those with a valid map within ``--budget`` (*have one*), wi
 clock, and within the scaled tick; and the references' median and range. The target: a valid map at the scaled
 tick in every search that has one.
 
-Run: ``.venv/bin/python benchmarks/mesh_scenes.py [--runs N] [--seed S] [--budget SECONDS]`` (about 2 minutes at
-the default 5 runs and 4 s). Progress goes to stderr.
+Run: ``.venv/bin/python benchmarks/mesh_scenes.py [--runs N] [--seed S] [--budget SECONDS]``, or
+``physics-mapper bench mesh_scenes`` with the same options (40 s at the default 5 runs and 4 s on the machine of
+BENCHMARKS.md's round). Progress goes to stderr.
 """
 
 from __future__ import annotations
