@@ -108,6 +108,8 @@ def main() -> None:
         "--budget", type=float, default=BUDGET, help=f"seconds a search may take to a valid map (default {BUDGET:g})"
     )
     args = parser.parse_args()
+    if args.runs < 1 or not args.budget > 0.0:
+        parser.error(f"--runs must be at least 1 and --budget positive (got {args.runs} and {args.budget:g})")
     options = ExperimentOptions(output_dir=Path("."), seed=args.seed)  # writes nothing
     settings = tracker_settings(options, SIGMA_POSITION, SIGMA_ROTATION)
     print(f"a valid map within {args.budget:g} s (have one), within the scene's tick, and within that tick scaled")

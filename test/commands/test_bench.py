@@ -78,6 +78,9 @@ def test_bench_refuses_bad_repeats_missing_files_and_unknown_benchmarks() -> Non
     completed = cli("bench", "scale", "--no-such-option")
     assert completed.returncode == 2
     assert "unrecognized arguments: --no-such-option" in completed.stderr
+    completed = cli("bench", "mesh_scenes", "--runs", "0")
+    assert completed.returncode == 2
+    assert "--runs must be at least 1 and --budget positive (got 0 and 4)" in completed.stderr
 
 
 def test_each_search_is_judged_against_the_deadline_scaled_to_the_reference_measured_beside_it() -> None:
