@@ -98,7 +98,10 @@ def test_each_search_is_judged_against_the_deadline_scaled_to_the_reference_meas
     # 0.2 s x 12.6 / 6.3 ms = 400 ms on a machine as slow as that then; 200 ms at 6.3 ms.
     slow, fast = problem(0.0126), problem(0.0063)
     assert slow.answered_in_time("conflict") and not fast.answered_in_time("conflict")
-    assert "worst layout: 50%" in targets_text([slow, fast], [])
+    text = targets_text([slow, fast], [])
+    assert "worst layout: 50%" in text
+    # The miss is named, with its time and its deadline; the one in time is not.
+    assert text.count(f"{case.label} (") == 1 and f"{case.label} (300 ms / 200 ms)" in text
 
 
 def test_a_bin_s_bags_are_searched_to_the_deadline_scaled_to_a_reference_measured_beside_each() -> None:
