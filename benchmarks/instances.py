@@ -35,7 +35,8 @@ tracker's ids: what the faulty bag's IDF1 falls short of it is identity lost in 
 in the map (map objects matched to no true object within the gate) and
 among them the false objects (matched to none within the object's largest extent: a false detection or a second
 instance of one object; the others are true objects placed beyond the gate), misses, snapshots with a valid map
-(and among them the previous map's, :mod:`physics_mapper.mapping.previous_map`), those of the named bag (the
+(and among them the previous map's, :mod:`physics_mapper.mapping.previous_map`) and the snapshots without one
+(numbered from 0, in spans: ``0-4, 12``), those of the named bag (the
 same hypotheses without the estimator's faults: how many snapshots they allow a valid map within the deadline at
 all), those with the refined map instead (``fallback: refine``: a physically consistent map where no
 configuration of the hypotheses was found valid) and among them those that keep Rule 1 and Rule 2 (the map's
@@ -183,6 +184,7 @@ def replay(scene: Scene, bag: Path, deadline: float) -> dict[str, Any]:
         "deadline": deadline,
         "snapshots": len(results),
         "valid": sum(1 for r in results if r.search is not None and r.search.valid),
+        "without_valid": [k for k, r in enumerate(results) if r.search is None or not r.search.valid],
         "refined": len(refined),
         "refined_within_rules": refined_within_rules,
         "previous_map": sum(1 for r in results if r.search is not None and r.search.previous_map),
@@ -190,6 +192,17 @@ def replay(scene: Scene, bag: Path, deadline: float) -> dict[str, Any]:
         "identity": identity,
         "false_objects": loose["false_positives"],
     }
+
+
+def spans(indices: list[int]) -> str:
+    """Ascending indices as spans, ``0-4, 12, 14``; ``none`` for no index."""
+    runs: list[list[int]] = []
+    for index in indices:
+        if runs and index == runs[-1][-1] + 1:
+            runs[-1].append(index)
+        else:
+            runs.append([index])
+    return ", ".join(f"{run[0]}-{run[-1]}" if len(run) > 1 else f"{run[0]}" for run in runs) or "none"
 
 
 def bag_deadline(reference: ReferenceSettling | None, fixed: float) -> float:
@@ -253,12 +266,13 @@ def main() -> None:
               f"this machine is {scaled_deadline(reference):.2f} s; each snapshot searched {each}")  # fmt: skip
         header = (
             "| bin | objects | switches | IDF1, faulty / identified / named | MOTA | FP in map (false objects) "
-            "| misses | valid maps (previous map's) | valid maps, named | refined maps (within Rules 1 and 2) "
+            "| misses | valid maps (previous map's) | snapshots without one | valid maps, named "
+            "| refined maps (within Rules 1 and 2) "
             "| error by identity, faulty / identified / named [cm] | ticks finished within the deadline "
             "| deadline, faulty / identified / named [s] |"
         )
         print(header)
-        print("| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |")
+        print("| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | --- | ---: | ---: | ---: | ---: | ---: |")
         folder = args.output or Path(temporary)
         folder.mkdir(parents=True, exist_ok=True)
         for shape in args.shapes:
@@ -283,7 +297,7 @@ def main() -> None:
                     print(
                         f"| {shape}, {layers} layer(s) | {count} | {i['switches']} | {idf1} | "
                         f"{i['mota']:.3f} | {i['false_positives']} ({faulty['false_objects']}) | {i['misses']} | "
-                        f"{faulty['valid']}/{n} ({faulty['previous_map']}) | "
+                        f"{faulty['valid']}/{n} ({faulty['previous_map']}) | {spans(faulty['without_valid'])} | "
                         f"{references[1]['valid']}/{references[1]['snapshots']} | "
                         f"{faulty['refined']} ({faulty['refined_within_rules']}) | {errors} | "
                         f"{faulty['finished']}/{n} | {deadlines} |",

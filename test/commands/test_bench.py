@@ -24,7 +24,7 @@ from crowded import (
     suite_cases,
     targets_text,
 )
-from instances import bag_deadline
+from instances import bag_deadline, spans
 from mesh_scenes import TimedValid, counts
 from physics_costs import measure
 from with_package import run_with_package
@@ -110,6 +110,11 @@ def test_a_bin_s_bags_are_searched_to_the_deadline_scaled_to_a_reference_measure
         deadlines = {bag_deadline(reference, 0.35) for _ in range(3)}
     # Each bag's is measured anew: 0.2 s x its reference / 6.3 ms, whatever the fixed deadline.
     assert 0.35 not in deadlines and all(deadline > 0.0 for deadline in deadlines)
+
+
+def test_a_bin_s_snapshots_without_a_valid_map_are_listed_in_spans() -> None:
+    assert spans([0, 1, 2, 3, 4, 12, 14]) == "0-4, 12, 14"
+    assert spans([7]) == "7" and spans([]) == "none"
 
 
 def test_a_mesh_scene_s_searches_are_judged_against_its_tick_scaled_to_the_reference_beside_each() -> None:
