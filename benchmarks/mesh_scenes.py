@@ -45,10 +45,12 @@ BUDGET = 4.0
 
 @dataclass(frozen=True)
 class TimedValid:
-    """One search: seconds to its first valid map (None: not within the budget) and the reference beside it (s)."""
+    """One search: seconds to its first valid map (None: not within the budget), the reference beside it (s), and
+    which search of its scene it is (``run 2 iteration 3``, both from 1)."""
 
     seconds: float | None
     reference: float
+    search: str = ""
 
 
 def _is_valid(result: SearchResult) -> bool:
@@ -71,11 +73,11 @@ def scene_searches(
     with PhysicsChecker(scene) as checker:
         for run, rng in enumerate(run_generators(options.seed, runs)):
             print(f"mesh scenes: {scene_file} run {run + 1}/{runs}", file=sys.stderr, flush=True)
-            for hypotheses in track(scene, truth, settings, rng):
+            for iteration, hypotheses in enumerate(track(scene, truth, settings, rng)):
                 (seconds, _, _), beside = beside_reference(
                     reference, partial(search_until, checker, hypotheses, params, _is_valid, SLICE, budget)
                 )
-                searches.append(TimedValid(seconds, beside))
+                searches.append(TimedValid(seconds, beside, f"run {run + 1} iteration {iteration + 1}"))
     return scene.search.deadline, searches
 
 
@@ -88,8 +90,18 @@ def counts(tick: float, searches: list[TimedValid]) -> tuple[int, int, int, int]
     return len(searches), len(times), fixed, scaled
 
 
+def late(tick: float, searches: list[TimedValid]) -> list[str]:
+    """The searches with a valid map within the budget but not within the scaled tick: which, when (ms) and the
+    scaled tick (ms)."""
+    return [
+        f"{s.search} ({s.seconds * 1000:.0f} ms / {tick * s.reference / REFERENCE_SETTLING * 1000:.0f} ms)"
+        for s in searches
+        if s.seconds is not None and s.seconds > tick * s.reference / REFERENCE_SETTLING
+    ]
+
+
 def scene_row(scene_file: str, tick: float, searches: list[TimedValid]) -> tuple[int, int, int, int]:
-    """Print one scene's line; return its :func:`counts`."""
+    """Print one scene's line, and the searches it has late; return its :func:`counts`."""
     row = counts(tick, searches)
     references = [s.reference * 1000 for s in searches]
     print(
@@ -97,6 +109,8 @@ def scene_row(scene_file: str, tick: float, searches: list[TimedValid]) -> tuple
         f"{statistics.median(references):.1f} ms, {min(references):.1f}-{max(references):.1f} ms",
         flush=True,
     )
+    for search in late(tick, searches):
+        print(f"{'':16} a valid map after the scaled tick: {search}")
     return row
 
 

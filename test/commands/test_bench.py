@@ -25,7 +25,7 @@ from crowded import (
     targets_text,
 )
 from instances import bag_deadline, spans
-from mesh_scenes import TimedValid, counts
+from mesh_scenes import TimedValid, counts, late
 from physics_costs import measure
 from with_package import run_with_package
 
@@ -125,6 +125,8 @@ def test_a_mesh_scene_s_searches_are_judged_against_its_tick_scaled_to_the_refer
         TimedValid(None, 0.0063),  # no valid map within the budget
     ]
     assert counts(0.4, searches) == (4, 3, 2, 2)
+    late_search = TimedValid(0.3, 0.0042, "run 2 iteration 3")
+    assert late(0.4, [late_search, *searches[1:]]) == ["run 2 iteration 3 (300 ms / 267 ms)"]
 
 
 def test_bench_crowded_searches_only_the_layouts_asked_for() -> None:
