@@ -300,10 +300,11 @@ def scale_check(
         problem = scale_problem(case)
         (run, _), measured = beside_reference(reference, partial(time_to_answer, problem, "conflict"))
         references.append(measured)
-        in_time = run.solved_within(scaled_deadline(measured))
+        deadline = scaled_deadline(measured)
+        in_time = run.solved_within(deadline)
         answered += in_time
         if not in_time:
-            misses.append(miss_text(case.label, run.answer_time, scaled_deadline(measured)))
+            misses.append(miss_text(case.label, run.answer_time, deadline))
         done, same = exhaustive_agreement(problem)
         finished += done
         agreed += bool(same)
@@ -364,9 +365,10 @@ class ReferenceSettling:
         )
 
 
-def scaled_deadline(reference: float) -> float:
-    """The node's 0.2 s deadline scaled to a machine whose reference settling takes ``reference`` seconds."""
-    return NODE_DEADLINE * reference / REFERENCE_SETTLING
+def scaled_deadline(reference: float, deadline: float = NODE_DEADLINE) -> float:
+    """``deadline`` seconds (the node's 0.2 s unless given) scaled to a machine whose reference settling takes
+    ``reference`` seconds."""
+    return deadline * reference / REFERENCE_SETTLING
 
 
 def _references(problems: Sequence[ProblemRun]) -> list[float]:

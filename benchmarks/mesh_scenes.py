@@ -27,7 +27,7 @@ from dataclasses import dataclass, replace
 from functools import partial
 from pathlib import Path
 
-from crowded import REFERENCE_SETTLING, ReferenceSettling, beside_reference
+from crowded import REFERENCE_SETTLING, ReferenceSettling, beside_reference, scaled_deadline
 
 from physics_mapper.experiments.clutter import DEFAULT_RUNS, SCENE_FILES, SIGMA_POSITION, SIGMA_ROTATION
 from physics_mapper.experiments.common import ExperimentOptions, load_experiment_scene
@@ -50,7 +50,11 @@ class TimedValid:
 
     seconds: float | None
     reference: float
-    search: str = ""
+    search: str
+
+    def late(self, tick: float) -> bool:
+        """Whether its valid map came after ``tick`` seconds scaled to its reference (False: none came at all)."""
+        return self.seconds is not None and self.seconds > scaled_deadline(self.reference, tick)
 
 
 def _is_valid(result: SearchResult) -> bool:
@@ -84,19 +88,18 @@ def scene_searches(
 def counts(tick: float, searches: list[TimedValid]) -> tuple[int, int, int, int]:
     """(searches, those with a valid map within the budget, within ``tick`` seconds, within ``tick`` scaled to the
     reference beside each search: tick x reference / 6.3 ms)."""
-    times = [(s.seconds, s.reference) for s in searches if s.seconds is not None]
-    fixed = sum(1 for seconds, _ in times if seconds <= tick)
-    scaled = sum(1 for seconds, reference in times if seconds <= tick * reference / REFERENCE_SETTLING)
-    return len(searches), len(times), fixed, scaled
+    have = [s for s in searches if s.seconds is not None]
+    fixed = sum(1 for s in have if s.seconds is not None and s.seconds <= tick)
+    return len(searches), len(have), fixed, sum(1 for s in have if not s.late(tick))
 
 
 def late(tick: float, searches: list[TimedValid]) -> list[str]:
     """The searches with a valid map within the budget but not within the scaled tick: which, when (ms) and the
     scaled tick (ms)."""
     return [
-        f"{s.search} ({s.seconds * 1000:.0f} ms / {tick * s.reference / REFERENCE_SETTLING * 1000:.0f} ms)"
+        f"{s.search} ({s.seconds * 1000:.0f} ms / {scaled_deadline(s.reference, tick) * 1000:.0f} ms)"
         for s in searches
-        if s.seconds is not None and s.seconds > tick * s.reference / REFERENCE_SETTLING
+        if s.seconds is not None and s.late(tick)
     ]
 
 
