@@ -58,7 +58,7 @@ def stop_once(command: list[str], folder: Path, stop_signal: int, rng: random.Ra
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--runs", type=int, default=5)
+    parser.add_argument("--runs", type=int, default=5, help="stops per command and signal (default: 5)")
     args = parser.parse_args()
     rng = random.Random(0)
     with tempfile.TemporaryDirectory() as name:

@@ -97,10 +97,12 @@ def by_cp_sat(weights: list[list[float]], store: ConflictStore, count: int) -> l
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("scene", type=Path)
-    parser.add_argument("bag", type=Path)
-    parser.add_argument("snapshot", type=int)
-    parser.add_argument("--candidates", type=int, default=20)
+    parser.add_argument("scene", type=Path, help="scene file that benchmarks/instances.py -o DIR wrote")
+    parser.add_argument("bag", type=Path, help="its faulty bag")
+    parser.add_argument("snapshot", type=int, help="the snapshot whose search's conflicts are kept (from 0)")
+    parser.add_argument(
+        "--candidates", type=int, default=20, help="conflict-free configurations made each way (default: 20)"
+    )
     args = parser.parse_args()
     weights, store = learned(args.scene, args.bag, args.snapshot)
     timed = {}

@@ -134,7 +134,13 @@ def node_at(objects: int, folder: Path) -> None:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--objects", type=int, nargs="+", default=[64, MAX_OBJECTS])
+    parser.add_argument(
+        "--objects",
+        type=int,
+        nargs="+",
+        default=[64, MAX_OBJECTS],
+        help=f"cubes of the node's scenes (default: 64 {MAX_OBJECTS})",
+    )
     args = parser.parse_args()
     isolate_ros()
     print(f"python {sys.version.split()[0]}, load average {load_average()}")

@@ -28,8 +28,8 @@ reference / 6.3 ms, the reference measured again just before each bag's replay (
 reference went from 8 to 15 ms within a second, and from 13 to 7 ms within minutes), or with ``--deadline S``
 for S seconds (a long search tells which snapshots' hypotheses hold a valid configuration at all); the next
 snapshots following the map chosen: the map remembered, instances confirmed by valid maps, left-out tentative
-ones ended) and scored by identity
-(:mod:`physics_mapper.evaluation.identity`, matched within :func:`identity_gate`). Printed per bin: identity
+ones ended) and scored by identity (:mod:`physics_mapper.evaluation.identity`, matched within its gate, half the
+spacing of the lego parts). Printed per bin: identity
 switches, IDF1 of the faulty, the identified and the named bag (the identified bag is the faulty one with a
 tracker's ids: what the faulty bag's IDF1 falls short of it is identity lost in association), MOTA, false positives
 in the map (map objects matched to no true object within the gate) and
@@ -62,7 +62,8 @@ from crowded import ReferenceSettling, scaled_deadline
 
 from physics_mapper.bags.storage import read_bag
 from physics_mapper.cli import main as cli_main
-from physics_mapper.evaluation.identity import IDENTITY_GATE, identity_metrics, record_frames
+from physics_mapper.evaluation.identity import identity_metrics, record_frames
+from physics_mapper.evaluation.scoring import ObjectClasses
 from physics_mapper.evaluation.snapshot_results import SnapshotResult, replay_offline, snapshot_result_dict
 from physics_mapper.evaluation.snapshots import input_topics
 from physics_mapper.model.extents import body_box, shape_extents
@@ -145,16 +146,6 @@ def bin_scene(shape: str, entry: dict[str, Any], count: int, layers: int) -> dic
     }
 
 
-def identity_gate(scene: Scene) -> float:
-    """Metres within which a map object matches a true one: 5 cm, or half the least distance between two
-    true objects' centres where that is less (lego parts lie 3.1-4.2 cm apart: with a 5 cm gate the metric
-    may pair an instance with its neighbour, and the error by identity is then the spacing, not the map's)."""
-    assert scene.ground_truth is not None
-    centres = np.array([pose.position for pose in scene.ground_truth])
-    spacing = min(float(np.linalg.norm(a - b)) for k, a in enumerate(centres) for b in centres[k + 1 :])
-    return min(IDENTITY_GATE, spacing / 2.0)
-
-
 def _generate(scene_file: Path, bag: Path, extra: list[str], frames: int, particles: int, seed: int) -> None:
     arguments = [
         "generate", str(scene_file), "-o", str(bag), "--iterations", str(frames), "--particles", str(particles),
@@ -170,11 +161,12 @@ def _generate(scene_file: Path, bag: Path, extra: list[str], frames: int, partic
 def replay(scene: Scene, bag: Path, deadline: float) -> dict[str, Any]:
     """The offline replay's figures of one bag, each snapshot searched for ``deadline`` seconds (module docstring)."""
     results = replay_offline(read_bag(bag, input_topics(scene)), scene, deadline)
-    records = [snapshot_result_dict(r, scene.object_names) for r in results]
+    objects = ObjectClasses.of(scene)
+    records = [snapshot_result_dict(r, objects) for r in results]
     frames = record_frames(records)
-    identity = identity_metrics(frames, identity_gate(scene))
+    identity = identity_metrics(frames, objects)
     size = max(float(np.max(shape_extents(o.shape))) for o in scene.objects)
-    loose = identity_metrics(frames, size)
+    loose = identity_metrics(frames, objects, size)
     assert identity is not None and loose is not None
     finished = sum(1 for r in results if r.search is not None and not r.search.stats.stopped_at_deadline)
     refined = [r for r in results if r.search is not None and r.search.fallback == "refine"]
@@ -225,12 +217,18 @@ def within_rules(checker: PhysicsChecker, result: SnapshotResult) -> bool:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--frames", type=int, default=30)
-    parser.add_argument("--particles", type=int, default=300)
-    parser.add_argument("--sizes", type=int, nargs="+", default=[6, 12, 24])
+    parser.add_argument("--frames", type=int, default=30, help="frames per bag (default: 30, at 2 Hz)")
+    parser.add_argument(
+        "--particles", type=int, default=300, help="particles of the simulated estimator per object (default: 300)"
+    )
+    parser.add_argument("--sizes", type=int, nargs="+", default=[6, 12, 24], help="objects per bin (default: 6 12 24)")
     parser.add_argument("--shapes", nargs="+", help=f"of {', '.join(SHAPES)} (default: all, or --object's alone)")
-    parser.add_argument("--layers", type=int, nargs="+", default=[1, 2])
-    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument(
+        "--layers", type=int, nargs="+", default=[1, 2], help="layers of objects per bin (default: 1 2)"
+    )
+    parser.add_argument(
+        "--seed", type=int, default=0, help="seed of the simulated estimator and its faults (default: 0)"
+    )
     searched = parser.add_mutually_exclusive_group()
     searched.add_argument(
         "--scaled", action="store_true", help="search each snapshot to the deadline scaled to this machine's reference"

@@ -52,7 +52,7 @@ def stop_once(bag: Path, output: Path, settings: int, workers: int) -> tuple[flo
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--runs", type=int, default=3)
+    parser.add_argument("--runs", type=int, default=3, help="interrupted sweeps per grid (default: 3)")
     parser.add_argument("--settings", type=int, default=10000, help="grid size, a multiple of 100")
     parser.add_argument("--workers", type=int, default=0, help="sweep's --workers (0: in the command's process)")
     args = parser.parse_args()

@@ -43,8 +43,10 @@ def scene_verdicts(
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
-    parser.add_argument("--runs", type=int, default=DEFAULT_RUNS)
-    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument(
+        "--runs", type=int, default=DEFAULT_RUNS, help=f"clutter runs per scene (default: {DEFAULT_RUNS})"
+    )
+    parser.add_argument("--seed", type=int, default=0, help="seed of the particle filter (default: 0)")
     args = parser.parse_args()
     options = ExperimentOptions(output_dir=Path("."), seed=args.seed)  # writes nothing
     settings = tracker_settings(options, SIGMA_POSITION, SIGMA_ROTATION)

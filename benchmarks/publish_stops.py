@@ -41,8 +41,8 @@ def stop_once(rng: random.Random) -> tuple[int, str]:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--runs", type=int, default=120)
-    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--runs", type=int, default=120, help="publish commands stopped (default: 120)")
+    parser.add_argument("--seed", type=int, default=0, help="seed of the signals' random times (default: 0)")
     args = parser.parse_args()
     os.environ.setdefault("ROS_DOMAIN_ID", "73")
     rng = random.Random(args.seed)

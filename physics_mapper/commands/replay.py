@@ -20,6 +20,7 @@ from physics_mapper.model.limits import MAX_KEY_TEXT, clipped, printable
 
 if TYPE_CHECKING:
     from physics_mapper.bags.storage import Bag
+    from physics_mapper.evaluation.scoring import ObjectClasses
     from physics_mapper.evaluation.snapshot_results import SnapshotResult
     from physics_mapper.evaluation.snapshots import BagSnapshot
     from physics_mapper.model.scene import Scene
@@ -98,6 +99,7 @@ def _progress(text: str) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from physics_mapper.bags.storage import BagError, check_hypothesis_topics, read_bag
+    from physics_mapper.evaluation.scoring import ObjectClasses
     from physics_mapper.evaluation.snapshot_results import evaluation_summary
     from physics_mapper.evaluation.snapshots import bag_snapshots, input_topics, no_snapshot_reason
     from physics_mapper.model.scene_files import load_scene
@@ -131,11 +133,12 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(str(error)) from None
     if results is None:
         return EXIT_FAILURE
-    print(evaluation_summary(results, scene.object_names))
+    objects = ObjectClasses.of(scene)
+    print(evaluation_summary(results, objects))
     if args.json is not None:
-        _write_json(args.json, "offline" if args.offline else "live", results, scene.object_names)
+        _write_json(args.json, "offline" if args.offline else "live", results, objects)
     if args.identity_plot is not None:
-        _write_identity_plot(args.identity_plot, args.bag, results, scene.object_names)
+        _write_identity_plot(args.identity_plot, args.bag, results, objects)
     return 0
 
 
@@ -238,27 +241,27 @@ def _live(
     return recorded_results(snapshots, output_bag, scene)
 
 
-def _write_identity_plot(path: Path, bag: Path, results: Sequence[SnapshotResult], names: Sequence[str]) -> None:
+def _write_identity_plot(path: Path, bag: Path, results: Sequence[SnapshotResult], objects: ObjectClasses) -> None:
     import io
 
     from physics_mapper.evaluation.plots import identity_timeline
     from physics_mapper.evaluation.snapshot_results import snapshot_result_dict
     from physics_mapper.model.atomic_files import write_atomically
 
-    records = [snapshot_result_dict(result, names) for result in results]
+    records = [snapshot_result_dict(result, objects) for result in results]
     buffer = io.BytesIO()
-    identity_timeline(records, names, bag.name).savefig(buffer, format="png", dpi=120)
+    identity_timeline(records, objects, bag.name).savefig(buffer, format="png", dpi=120)
     write_atomically(path, buffer.getvalue())
 
 
-def _write_json(path: Path, mode: str, results: Sequence[SnapshotResult], object_names: Sequence[str]) -> None:
+def _write_json(path: Path, mode: str, results: Sequence[SnapshotResult], objects: ObjectClasses) -> None:
     from physics_mapper.evaluation.snapshot_results import mean_errors, result_identity, snapshot_result_dict
 
     data = {
         "mode": mode,
-        "objects": list(object_names),
-        "mean_errors": mean_errors(results),
-        "identity": result_identity(results, object_names),
-        "snapshots": [snapshot_result_dict(o, object_names) for o in results],
+        "objects": list(objects.names),
+        "mean_errors": mean_errors(results, objects),
+        "identity": result_identity(results, objects),
+        "snapshots": [snapshot_result_dict(o, objects) for o in results],
     }
     write_output(path, json.dumps(data, indent=1) + "\n")

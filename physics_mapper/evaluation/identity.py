@@ -5,9 +5,15 @@ bin's identical boxes have no names of their own). Frame by frame, each named ma
 to the true objects by position, as multiple-object-tracking benchmarks do, with ``motmetrics``
 (the CLEAR MOT and ID measures of the MOTChallenge):
 
-* **Matching**: a map object and a true object may match when their centres are at most ``gate``
-  metres apart (:data:`IDENTITY_GATE`); within a frame, pairs that matched in the frame before are
-  kept while inside the gate, the rest are matched by minimum total distance (Hungarian).
+* **Matching**: a map object and a true object may match when they are of one class (a named object
+  is its own class, identical instances share theirs: :class:`~physics_mapper.evaluation.scoring.ObjectClasses`)
+  and their centres are at most the *gate* apart; within a frame, pairs that matched in the frame
+  before are kept while inside the gate, the rest are matched by minimum total distance (Hungarian).
+* **Gate** (:func:`identity_gate`): :data:`IDENTITY_GATE`, or half the least distance between two true
+  objects of one class in any frame where that is less. IDF1 counts a frame as an identity's when the
+  name is within the gate of the object; were a name within the gate of two true objects of its class,
+  any permutation of neighbours would score alike (parts 3 cm apart with a 5 cm gate), and the error by
+  identity would be the spacing, not the map's.
 * **Identity switches**: a true object matched to another map name than the last time it was matched
   (a swap of two names counts once for each of the two objects).
 * **MOTA** = 1 - (misses + false positives + switches) / true objects summed over frames; a *miss*
@@ -32,7 +38,10 @@ from typing import Any
 import motmetrics
 import numpy as np
 
-#: Metres between a map object's and a true object's centres beyond which they are never matched.
+from physics_mapper.evaluation.scoring import ObjectClasses
+
+#: Metres between a map object's and a true object's centres beyond which they are never matched (at most:
+#: :func:`identity_gate`).
 IDENTITY_GATE = 0.05
 
 #: motmetrics' names of the figures reported, and ours.
@@ -66,18 +75,40 @@ class IdentityFrame:
     estimate: Mapping[str, Position] | None
 
 
-def _distances(truth: np.ndarray, estimate: np.ndarray, gate: float) -> np.ndarray:
-    """[true object, map object] centre distances in metres, NaN beyond ``gate`` (never matched)."""
+def identity_gate(frames: Sequence[IdentityFrame], objects: ObjectClasses | None = None) -> float:
+    """Metres within which a map object matches a true one (module docstring): :data:`IDENTITY_GATE`, or half the
+    least distance between two true objects' centres of one class (``objects``; None: all of one) in any frame."""
+    least = 2.0 * IDENTITY_GATE
+    for frame in frames:
+        truth = np.asarray(frame.truth, dtype=float).reshape(-1, 3)
+        groups = [list(range(len(truth)))] if objects is None else objects.groups()
+        for group in groups:
+            members = [i for i in group if i < len(truth)]
+            if len(members) > 1:
+                centres = truth[members]
+                distances = np.linalg.norm(centres[:, None, :] - centres[None, :, :], axis=2)
+                least = min(least, float(np.min(distances[np.triu_indices(len(members), 1)])))
+    return least / 2.0
+
+
+def _distances(truth: np.ndarray, estimate: np.ndarray, gate: float, apart: np.ndarray | None = None) -> np.ndarray:
+    """[true object, map object] centre distances in metres, NaN beyond ``gate`` or where ``apart`` (the
+    same shape) is True: never matched."""
     if len(truth) == 0 or len(estimate) == 0:
         return np.empty((len(truth), len(estimate)))
     distances: np.ndarray = np.linalg.norm(truth[:, None, :] - estimate[None, :, :], axis=2)
     distances[distances > gate] = np.nan
+    if apart is not None:
+        distances[apart] = np.nan
     return distances
 
 
-def _accumulate(frames: Sequence[IdentityFrame], gate: float) -> tuple[motmetrics.MOTAccumulator, list[str]]:
+def _accumulate(
+    frames: Sequence[IdentityFrame], gate: float, objects: ObjectClasses | None
+) -> tuple[motmetrics.MOTAccumulator, list[str]]:
     """The frames as motmetrics events; map names are numbered in order of first appearance (motmetrics
-    takes numbers), the list gives each number's name."""
+    takes numbers), the list gives each number's name. With ``objects``, a name matches only true objects of
+    its class."""
     accumulator = motmetrics.MOTAccumulator(auto_id=True)
     names: list[str] = []
     number: dict[str, int] = {}
@@ -89,10 +120,19 @@ def _accumulate(frames: Sequence[IdentityFrame], gate: float) -> tuple[motmetric
                 names.append(name)
         truth = np.asarray(frame.truth, dtype=float).reshape(-1, 3)
         positions = np.asarray(list(estimate.values()), dtype=float).reshape(-1, 3)
+        apart = None if objects is None else _apart(objects, len(truth), estimate)
         accumulator.update(
-            list(range(len(truth))), [number[name] for name in estimate], _distances(truth, positions, gate)
+            list(range(len(truth))), [number[name] for name in estimate], _distances(truth, positions, gate, apart)
         )
     return accumulator, names
+
+
+def _apart(objects: ObjectClasses, truth_count: int, names: Iterable[str]) -> np.ndarray:
+    """[true object, map object] True where the two are of different classes."""
+    class_of = objects.class_of()
+    true_classes = np.array(objects.classes[:truth_count], dtype=object)
+    map_classes = np.array([class_of.get(name) for name in names], dtype=object)
+    return np.asarray(true_classes[:, None] != map_classes[None, :], dtype=bool)
 
 
 def _figures(computed: Mapping[str, Any]) -> dict[str, Any]:
@@ -104,14 +144,21 @@ def _figures(computed: Mapping[str, Any]) -> dict[str, Any]:
 
 
 def _identities(
-    frames: Sequence[IdentityFrame], names: Sequence[str], assignment: Mapping[str, Any]
+    frames: Sequence[IdentityFrame],
+    names: Sequence[str],
+    assignment: Mapping[str, Any],
+    objects: ObjectClasses | None,
 ) -> list[dict[str, Any]]:
-    """Per true object: its globally assigned map name and their mean distance (m) where both are present."""
+    """Per true object: its globally assigned map name (of its class) and their mean distance (m) where both are
+    present."""
     truth_count = max((len(frame.truth) for frame in frames), default=0)
+    class_of = {} if objects is None else objects.class_of()
     assigned: dict[int, str] = {}
     for row, column in zip(assignment["rids"], assignment["cids"], strict=True):
         if row < truth_count and column < len(names):
-            assigned[int(row)] = names[int(column)]
+            named = names[int(column)]
+            if objects is None or class_of.get(named) == objects.classes[int(row)]:
+                assigned[int(row)] = named
     identities = []
     for index in range(truth_count):
         name = assigned.get(index)
@@ -131,20 +178,24 @@ def _identities(
     return identities
 
 
-def identity_metrics(frames: Iterable[IdentityFrame], gate: float = IDENTITY_GATE) -> dict[str, Any] | None:
+def identity_metrics(
+    frames: Iterable[IdentityFrame], objects: ObjectClasses | None = None, gate: float | None = None
+) -> dict[str, Any] | None:
     """The module's figures over ``frames`` (None without any): counts, MOTA, MOTP (m), IDF1 with its
     precision and recall, and per true object (``identities``) its name and position error by identity,
-    with their mean (``identity_error_m``, over true objects that have a name)."""
+    with their mean (``identity_error_m``, over true objects that have a name). ``objects``: the scene's
+    classes (None: any name may be any true object); ``gate`` (m): :func:`identity_gate` unless given."""
     scored = list(frames)
     if not scored:
         return None
-    accumulator, names = _accumulate(scored, gate)
+    gate = identity_gate(scored, objects) if gate is None else gate
+    accumulator, names = _accumulate(scored, gate, objects)
     computed = motmetrics.metrics.create().compute(
         accumulator, metrics=[*_FIGURES, "id_global_assignment"], return_dataframe=False
     )
     figures = _figures(computed)
     figures["gate_m"] = gate
-    figures["identities"] = _identities(scored, names, computed["id_global_assignment"])
+    figures["identities"] = _identities(scored, names, computed["id_global_assignment"], objects)
     errors = [i["mean_error_m"] for i in figures["identities"] if i["mean_error_m"] is not None]
     figures["identity_error_m"] = float(np.mean(errors)) if errors else None
     return figures
@@ -171,7 +222,7 @@ def identity_text(figures: Mapping[str, Any] | None) -> str:
 
     return (
         f"identity over {figures['frames']} snapshots with ground truth (matched within "
-        f"{figures['gate_m'] * 100:g} cm): {figures['switches']} identity switches, IDF1 {value('idf1')}, "
+        f"{figures['gate_m'] * 100:.3g} cm): {figures['switches']} identity switches, IDF1 {value('idf1')}, "
         f"MOTA {value('mota')}, MOTP {value('motp_m', 100.0, ' cm')}\n"
         f"  {figures['misses']} misses, {figures['false_positives']} false positives in "
         f"{figures['true_objects']} true object-snapshots; position error by identity "
@@ -180,12 +231,14 @@ def identity_text(figures: Mapping[str, Any] | None) -> str:
 
 
 def overall_identity_metrics(
-    bags: Sequence[Sequence[IdentityFrame]], gate: float = IDENTITY_GATE
+    bags: Sequence[Sequence[IdentityFrame]], objects: ObjectClasses | None = None
 ) -> dict[str, Any] | None:
     """The figures of several bags together: counts summed, MOTA, MOTP and IDF1 over every frame (each bag
     its own sequence: a name in two bags is two tracks), ``identity_error_m`` the mean over every bag's true
-    objects; ``switches_max`` the most switches in one bag."""
-    per_bag = [(list(frames), _accumulate(list(frames), gate)) for frames in bags if frames]
+    objects; ``switches_max`` the most switches in one bag. One gate for all: :func:`identity_gate` of every
+    bag's frames."""
+    gate = identity_gate([frame for frames in bags for frame in frames], objects)
+    per_bag = [(list(frames), _accumulate(list(frames), gate, objects)) for frames in bags if frames]
     if not per_bag:
         return None
     host = motmetrics.metrics.create()
@@ -204,7 +257,7 @@ def overall_identity_metrics(
         switches.append(int(one["num_switches"]))
         errors += [
             i["mean_error_m"]
-            for i in _identities(frames, names, one["id_global_assignment"])
+            for i in _identities(frames, names, one["id_global_assignment"], objects)
             if i["mean_error_m"] is not None
         ]
     figures["identity_error_m"] = float(np.mean(errors)) if errors else None

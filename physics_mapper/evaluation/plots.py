@@ -13,6 +13,7 @@ from matplotlib.image import AxesImage
 from matplotlib.patches import Rectangle
 
 from physics_mapper.evaluation.outputs import COLOR_WITH_PHYSICS, COLOR_WITHOUT_PHYSICS, new_figure
+from physics_mapper.evaluation.scoring import ObjectClasses
 from physics_mapper.evaluation.settings import value_text
 
 #: Colours of the three estimates (C11..1 and chosen as in the paper's plots) and of the map kinds.
@@ -216,18 +217,20 @@ def sweep_figure(data: dict[str, Any]) -> Figure:
     return figure
 
 
-def identity_timeline(records: Sequence[dict[str, Any]], names: Sequence[str], title: str) -> Figure:
+def identity_timeline(records: Sequence[dict[str, Any]], objects: ObjectClasses, title: str) -> Figure:
     """Frames on one axis, instances on the other: each cell coloured by the detection the instance took in
     that frame's array (its index there, which changes as the estimator reorders them), and labelled with
-    the true object its map pose lies on (nearest within
-    :data:`~physics_mapper.evaluation.identity.IDENTITY_GATE`; ``x``: none). Grey: the instance took no
+    the true object its map pose lies on (the nearest of its class within the identity gate,
+    :func:`~physics_mapper.evaluation.identity.identity_gate`; ``x``: none). Grey: the instance took no
     detection in that frame; no label: the map leaves it out (or there is no map). A row with one label is
     an identity kept whatever the order; a label changing within a row is an identity switch."""
     from matplotlib.colors import ListedColormap
 
-    from physics_mapper.evaluation.identity import IDENTITY_GATE
+    from physics_mapper.evaluation.identity import identity_gate, record_frames
 
     scored = [r for r in records if r["positions"]["truth"] is not None]
+    gate = identity_gate(record_frames(scored), objects)
+    names = objects.names
     most = max((max(r["detections"].values(), default=-1) for r in scored), default=-1) + 1
     palette = [(0.85, 0.85, 0.85)] + [tuple(float(c) for c in colour[:3]) for colour in _qualitative(most)]
     cells = np.zeros((len(names), len(scored)), dtype=int)  # 0: no detection taken, 1 + i: detection i
@@ -239,6 +242,7 @@ def identity_timeline(records: Sequence[dict[str, Any]], names: Sequence[str], t
     axes = figure.add_subplot()
     axes.imshow(cells, aspect="auto", interpolation="nearest", cmap=ListedColormap(palette), vmin=0,
                 vmax=len(palette) - 1)  # fmt: skip
+    classes = np.array(objects.classes, dtype=object)
     for column, record in enumerate(scored):
         truth = np.asarray(record["positions"]["truth"], dtype=float)
         for row, name in enumerate(names):
@@ -246,14 +250,15 @@ def identity_timeline(records: Sequence[dict[str, Any]], names: Sequence[str], t
             if position is None:
                 continue
             distances = np.linalg.norm(truth - np.asarray(position, dtype=float), axis=1)
+            distances[classes[: len(truth)] != objects.classes[row]] = np.inf
             nearest = int(np.argmin(distances))
-            label = str(nearest + 1) if distances[nearest] <= IDENTITY_GATE else "x"
+            label = str(nearest + 1) if distances[nearest] <= gate else "x"
             axes.text(column, row, label, ha="center", va="center", fontsize=7)
     axes.set_yticks(range(len(names)), list(names))
     axes.set_xticks(range(len(scored)), [str(i + 1) for i in range(len(scored))])
     axes.set_xlabel("frame (snapshot)")
     axes.set_ylabel("instance")
-    axes.set_title(f"{title}: colour = detection taken, label = true object", fontsize=8)
+    axes.set_title(f"{title}: colour = detection taken, label = true object (within {gate * 100:.3g} cm)", fontsize=8)
     return figure
 
 

@@ -20,6 +20,7 @@ from typing import Any, Literal
 from physics_mapper.evaluation.outputs import ReportFiles, write_outputs
 from physics_mapper.evaluation.plots import evaluation_figure, sweep_figure
 from physics_mapper.evaluation.runner import BatchRun
+from physics_mapper.evaluation.scoring import ObjectClasses
 from physics_mapper.evaluation.settings import Setting, node_parameters_yaml, value_text
 from physics_mapper.evaluation.summary import bag_summary, overall_summary, time_summary
 from physics_mapper.evaluation.tasks import TaskOutput
@@ -86,7 +87,7 @@ def _bag_entry(run: BatchRun, setting: int, bag: int, *, records: bool) -> dict[
         "status": status,
         "error": error,
         "snapshots": None if output is None else len(output.records),
-        "summary": None if output is None else bag_summary(output.records, run.scene.object_names),
+        "summary": None if output is None else bag_summary(output.records, ObjectClasses.of(run.scene)),
     }
     if records and output is not None:
         entry["records"] = list(output.records)
@@ -146,7 +147,7 @@ def evaluation_data(run: BatchRun, context: ReportContext) -> dict[str, Any]:
     return _header(run, context, "physics-mapper evaluate") | {
         "search": asdict(run.settings[0].params),
         "counts": _counts(run, 0),
-        "overall": overall_summary(evaluated, run.scene.object_names) if evaluated else None,
+        "overall": overall_summary(evaluated, ObjectClasses.of(run.scene)) if evaluated else None,
         "bags": bags,
         "run": _run_section(run, context, times),
     }
@@ -453,7 +454,7 @@ def sweep_data(run: BatchRun, context: ReportContext, criterion: Criterion) -> d
                 "association": asdict(setting.association),
                 "counts": _counts(run, index),
                 "complete": all((index, b) in run.outputs for b in readable),
-                "overall": overall_summary(evaluated, run.scene.object_names) if evaluated else None,
+                "overall": overall_summary(evaluated, ObjectClasses.of(run.scene)) if evaluated else None,
                 "bags": [_bag_entry(run, index, b, records=False) for b in range(len(run.bags))],
             }
         )

@@ -5,7 +5,8 @@ configuration chosen for it, by the offline search here or by a live node (read 
 recorded outputs, matched by stamp: the node stamps its outputs with the newest input stamp
 used). Errors are position errors in metres against the bag's ``/ground_truth``: per object,
 and in total (the sum over objects, the paper's "total configuration error"), for C111 (every
-object's top hypothesis), the chosen hypotheses and their settled poses.
+object's top hypothesis), the chosen hypotheses and their settled poses; identical instances against the
+true object of their class matched to them (:mod:`~physics_mapper.evaluation.scoring`).
 """
 
 from __future__ import annotations
@@ -26,7 +27,7 @@ from physics_mapper.bags.storage import (
     pose_array_from_cdr,
 )
 from physics_mapper.evaluation.identity import identity_metrics, identity_text, record_frames
-from physics_mapper.evaluation.scoring import position_errors, rank_one_poses
+from physics_mapper.evaluation.scoring import ObjectClasses, matched_errors, rank_one_poses
 from physics_mapper.evaluation.snapshots import BagSnapshot, bag_snapshots
 from physics_mapper.mapping.association import AssociationSettings
 from physics_mapper.mapping.existence import with_held
@@ -231,9 +232,12 @@ def _estimates(result: SnapshotResult) -> tuple[tuple[Pose, ...] | None, ...]:
 EstimateErrors = Mapping[str, Sequence[float | None] | None]
 
 
-def estimate_errors(result: SnapshotResult) -> dict[str, tuple[float | None, ...] | None] | None:
+def estimate_errors(
+    result: SnapshotResult, objects: ObjectClasses
+) -> dict[str, tuple[float | None, ...] | None] | None:
     """Each estimate's per-object position errors in metres, keyed by :data:`ESTIMATES`; None for an object
-    the estimate leaves out of the map (its *absent* hypothesis).
+    the estimate leaves out of the map (its *absent* hypothesis). Instances are scored against the true object of
+    their class they are matched to in the snapshot (:func:`~physics_mapper.evaluation.scoring.matched_errors`).
 
     ``chosen`` and ``settled`` are None where nothing was chosen (``top``, C11..1, always exists);
     the whole is None without a ground truth.
@@ -242,7 +246,7 @@ def estimate_errors(result: SnapshotResult) -> dict[str, tuple[float | None, ...
     if truth is None:
         return None
     return {
-        name: None if poses is None else _present_errors(position_errors(poses, truth), ranks, result)
+        name: None if poses is None else matched_errors(poses, truth, objects, _present(ranks, result))
         for name, poses, ranks in zip(ESTIMATES, _estimates(result), _estimate_codes(result), strict=True)
     }
 
@@ -252,14 +256,12 @@ def _estimate_codes(result: SnapshotResult) -> tuple[Code | None, ...]:
     return tuple(1 for _ in result.snapshot.hypotheses), result.code, result.code
 
 
-def _present_errors(errors: tuple[float, ...], code: Code | None, result: SnapshotResult) -> tuple[float | None, ...]:
-    """``errors`` with None for each object whose hypothesis of ``code`` is *absent* (not in the map)."""
-    if code is None:
-        return errors
+def _present(code: Code | None, result: SnapshotResult) -> tuple[bool, ...]:
+    """Per object, whether ``code`` puts it in the map (its hypothesis is not *absent*)."""
     hypotheses = result.snapshot.hypotheses
-    return tuple(
-        None if ranked.is_absent(rank) else error for error, ranked, rank in zip(errors, hypotheses, code, strict=True)
-    )
+    if code is None:
+        return tuple(True for _ in hypotheses)
+    return tuple(not ranked.is_absent(rank) for ranked, rank in zip(hypotheses, code, strict=True))
 
 
 def is_complete(errors: Sequence[float | None] | None) -> bool:
@@ -269,7 +271,7 @@ def is_complete(errors: Sequence[float | None] | None) -> bool:
 
 def is_scored(errors: EstimateErrors | None) -> bool:
     """Whether a snapshot's :func:`estimate_errors` count in the means: a ground truth and a chosen configuration
-    holding every object (errors by name; a map leaving some instance out is scored by identity alone)."""
+    holding every object (a map leaving some instance out is scored by identity alone)."""
     return errors is not None and all(is_complete(errors[name]) for name in ESTIMATES)
 
 
@@ -286,16 +288,17 @@ def mean_scored_errors(errors: Iterable[EstimateErrors | None]) -> dict[str, tup
     return {name: tuple(row.tolist()) for name, row in zip(ESTIMATES, means, strict=True)}
 
 
-def mean_errors(results: Sequence[SnapshotResult]) -> dict[str, tuple[float, ...]] | None:
+def mean_errors(results: Sequence[SnapshotResult], objects: ObjectClasses) -> dict[str, tuple[float, ...]] | None:
     """:func:`mean_scored_errors` of the results: averaged over those with a ground truth and a chosen configuration."""
-    return mean_scored_errors(map(estimate_errors, results))
+    return mean_scored_errors(estimate_errors(result, objects) for result in results)
 
 
-def evaluation_summary(results: Sequence[SnapshotResult], object_names: Sequence[str]) -> str:
+def evaluation_summary(results: Sequence[SnapshotResult], objects: ObjectClasses) -> str:
     """Snapshot counts, how often C11..1 was kept, and the error table (centimetres) when there is ground truth.
 
     The total of a column is the sum over objects (the paper's total configuration error).
     """
+    object_names = objects.names
     top = code_text((1,) * len(object_names))
     chosen = [o.code for o in results if o.code is not None]
     kept_top = sum(1 for code in chosen if all(rank == 1 for rank in code))
@@ -303,29 +306,32 @@ def evaluation_summary(results: Sequence[SnapshotResult], object_names: Sequence
         f"{len(results)} snapshots, {len(chosen)} with a configuration: "
         f"{top} in {kept_top}, another configuration in {len(chosen) - kept_top}"
     ]
-    errors = mean_errors(results)
+    errors = mean_errors(results, objects)
     if errors is None:
         lines.append(
-            "no error by name against ground truth (no /ground_truth in the bag, or no configuration holding "
+            "no position error against ground truth (no /ground_truth in the bag, or no configuration holding "
             "every object)"
         )
-        lines.append(identity_text(result_identity(results, object_names)))
+        lines.append(identity_text(result_identity(results, objects)))
         return "\n".join(lines)
     width = max(len(name) for name in (*object_names, "total"))
-    scored = sum(1 for o in results if is_scored(estimate_errors(o)))
-    lines.append(f"mean position error against ground truth over the {scored} snapshots with a configuration [cm]:")
+    scored = sum(1 for o in results if is_scored(estimate_errors(o, objects)))
+    matched = " (instances against the true object matched to them in each)" if objects.classes != objects.names else ""
+    lines.append(
+        f"mean position error against ground truth over the {scored} snapshots with a configuration{matched} [cm]:"
+    )
     labels = (top, "chosen", "settled")  # the names of ESTIMATES, for people
     lines.append(f"{'object':<{width}}" + "".join(f"{label:>10}" for label in labels))
     for index, name in enumerate(object_names):
         lines.append(f"{name:<{width}}" + "".join(f"{e[index] * 100:10.2f}" for e in errors.values()))
     lines.append(f"{'total':<{width}}" + "".join(f"{sum(e) * 100:10.2f}" for e in errors.values()))
-    lines.append(identity_text(result_identity(results, object_names)))
+    lines.append(identity_text(result_identity(results, objects)))
     return "\n".join(lines)
 
 
-def result_identity(results: Sequence[SnapshotResult], object_names: Sequence[str]) -> dict[str, Any] | None:
+def result_identity(results: Sequence[SnapshotResult], objects: ObjectClasses) -> dict[str, Any] | None:
     """The identity metrics (:func:`~physics_mapper.evaluation.identity.identity_metrics`) of the results."""
-    return identity_metrics(record_frames(snapshot_result_dict(r, object_names) for r in results))
+    return identity_metrics(record_frames(snapshot_result_dict(r, objects) for r in results), objects)
 
 
 def map_positions(result: SnapshotResult, names: Sequence[str]) -> dict[str, list[float]] | None:
@@ -340,7 +346,7 @@ def map_positions(result: SnapshotResult, names: Sequence[str]) -> dict[str, lis
     return {name: list(pose.position) for name, pose, ranked, rank in placed if not ranked.is_absent(rank)}
 
 
-def snapshot_result_dict(result: SnapshotResult, names: Sequence[str]) -> dict[str, Any]:
+def snapshot_result_dict(result: SnapshotResult, objects: ObjectClasses) -> dict[str, Any]:
     """One snapshot's result as plain data: times, code, per-object position errors (m) of each estimate
     (:func:`estimate_errors`), the detection each instance took in the snapshot's last array (``detections``:
     name -> its index there), the map's and the truth's positions (``positions``: ``map`` by object name,
@@ -360,10 +366,10 @@ def snapshot_result_dict(result: SnapshotResult, names: Sequence[str]) -> dict[s
         "previous_map": None if search is None else search.previous_map,
         "visited": None if search is None else search.stats.visited,
         "stopped_at_deadline": None if search is None else search.stats.stopped_at_deadline,
-        "errors": estimate_errors(result),
+        "errors": estimate_errors(result, objects),
         "detections": dict(snapshot.detections),
         "positions": {
-            "map": map_positions(result, names),
+            "map": map_positions(result, objects.names),
             "truth": None if truth is None else [list(pose.position) for pose in truth],
         },
     }

@@ -34,6 +34,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from physics_mapper.evaluation.identity import identity_metrics, overall_identity_metrics, record_frames
+from physics_mapper.evaluation.scoring import ObjectClasses
 from physics_mapper.evaluation.snapshot_results import ESTIMATES, is_complete, is_scored, mean_scored_errors
 from physics_mapper.evaluation.statistics import paired_wilcoxon
 
@@ -104,20 +105,22 @@ def _map_errors(records: Sequence[Record]) -> dict[str, Any] | None:
     return result
 
 
-def bag_summary(records: Sequence[Record], names: Sequence[str]) -> dict[str, Any]:
+def bag_summary(records: Sequence[Record], objects: ObjectClasses) -> dict[str, Any]:
     """One bag's figures (see the module's docstring)."""
+    names = objects.names
     summary = _counts(records)
     means = mean_scored_errors(r["errors"] for r in records)
     summary["scored"] = sum(1 for r in records if is_scored(r["errors"]))
     summary["mean_m"] = None if means is None else _errors_by_object(means, names)
     summary["tests"] = None if means is None else _tests(_scored_arrays(records), "snapshot", names)
     summary["map_error_m"] = _map_errors(records)
-    summary["identity"] = identity_metrics(record_frames(records))
+    summary["identity"] = identity_metrics(record_frames(records), objects)
     return summary
 
 
-def overall_summary(bags: Sequence[Sequence[Record]], names: Sequence[str]) -> dict[str, Any]:
+def overall_summary(bags: Sequence[Sequence[Record]], objects: ObjectClasses) -> dict[str, Any]:
     """The figures of several bags together (see the module's docstring); ``bags`` holds each bag's records."""
+    names = objects.names
     records = list(itertools.chain.from_iterable(bags))
     summary = _counts(records)
     summary["bags"] = len(bags)
@@ -131,7 +134,7 @@ def overall_summary(bags: Sequence[Sequence[Record]], names: Sequence[str]) -> d
     else:
         summary["tests"] = None if means is None else _tests(_scored_arrays(records), "snapshot", names)
     summary["map_error_m"] = _map_errors(records)
-    summary["identity"] = overall_identity_metrics([record_frames(bag) for bag in bags])
+    summary["identity"] = overall_identity_metrics([record_frames(bag) for bag in bags], objects)
     return summary
 
 

@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from physics_mapper.bags.storage import Bag, BagError, BagMismatch
+from physics_mapper.evaluation.scoring import ObjectClasses
 from physics_mapper.evaluation.snapshot_results import OfflineSearch, SnapshotResult, snapshot_result_dict
 from physics_mapper.evaluation.sources import UnreadableBag, load_snapshots
 from physics_mapper.mapping.association import AssociationSettings
@@ -71,9 +72,9 @@ def evaluate_bag(
         except BagError as error:
             unusable = isinstance(error, BagMismatch)
             return TaskOutput((), (), time.monotonic() - started, worker, str(error), unusable)
-    results = search.results
+    results, objects = search.results, ObjectClasses.of(scene)
     return TaskOutput(
-        records=tuple(snapshot_result_dict(result, scene.object_names) for result in results),
+        records=tuple(snapshot_result_dict(result, objects) for result in results),
         search_times=tuple(map(_search_time, results)),
         busy_time=time.monotonic() - started,
         worker=worker,

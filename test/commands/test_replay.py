@@ -36,6 +36,7 @@ from scipy.spatial.transform import Rotation
 from physics_mapper.bags import storage
 from physics_mapper.bags.read_ahead import ReadAhead
 from physics_mapper.evaluation import snapshot_results
+from physics_mapper.evaluation.scoring import ObjectClasses
 from physics_mapper.evaluation.snapshots import BagSnapshot, bag_snapshots
 from physics_mapper.mapping import topics
 from physics_mapper.model.geometry import Pose, Quaternion, make_pose, rotation_angle
@@ -474,7 +475,9 @@ def test_on_the_shipped_bag_physics_lowers_the_error() -> None:
     """
     scene = load_scene(SCENE)
     snapshots = bag_snapshots(storage.read_bag(REPO / "test" / "data" / "pyramid"), scene)
-    mean = snapshot_results.mean_errors(snapshot_results.search_offline(snapshots, scene, None))
+    mean = snapshot_results.mean_errors(
+        snapshot_results.search_offline(snapshots, scene, None), ObjectClasses.of(scene)
+    )
     assert mean is not None
     assert sum(mean["chosen"]) < sum(mean["top"])
     assert sum(mean["settled"]) < sum(mean["chosen"])

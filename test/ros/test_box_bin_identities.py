@@ -14,6 +14,7 @@ from vision_msgs.msg import Detection3DArray
 
 from physics_mapper.bags.storage import pose_array_from_cdr, read_bag
 from physics_mapper.evaluation.identity import IDENTITY_GATE
+from physics_mapper.evaluation.scoring import ObjectClasses
 from physics_mapper.evaluation.snapshot_results import replay_offline, snapshot_result_dict
 from physics_mapper.mapping.detections import RECORDED_DETECTIONS_TOPIC
 from physics_mapper.mapping.topics import GROUND_TRUTH_TOPIC, OBJECTS_TOPIC, output_topic
@@ -39,7 +40,7 @@ def test_offline_and_live_replay_of_the_shipped_bag_give_the_same_identities(tmp
     scene = load_scene(SCENE)
     offline: dict[int, dict[str, int | None]] = {}
     for result in replay_offline(bag, scene, scene.search.deadline):
-        placed = snapshot_result_dict(result, scene.object_names)["positions"]["map"] or {}
+        placed = snapshot_result_dict(result, ObjectClasses.of(scene))["positions"]["map"] or {}
         offline[result.snapshot.stamp_ns] = {n: on_cube(np.asarray(p), truth) for n, p in placed.items()}
     arrays = [deserialize_message(m.raw, Detection3DArray) for m in bag.on(RECORDED_DETECTIONS_TOPIC)]
     node = NodeProcess(SCENE, {"rate_hz": 2.0, "max_age": 60.0}, tmp_path / "node.log", NAMESPACE)
