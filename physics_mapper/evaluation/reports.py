@@ -128,6 +128,8 @@ def _header(run: BatchRun, context: ReportContext, tool: str) -> dict[str, Any]:
         "tool": tool,
         "scene": str(context.scene_file),
         "objects": list(run.scene.object_names),
+        # Each object's class for scoring: identical instances share one (matched to true objects, not by name).
+        "classes": list(ObjectClasses.of(run.scene).classes),
         "search_mode": _mode(run),
         "interrupted": run.interrupted,
     }
@@ -238,7 +240,7 @@ def _error_table(summary: dict[str, Any], names: Sequence[str]) -> list[str]:
     return lines
 
 
-def _summary_lines(summary: dict[str, Any], names: Sequence[str]) -> list[str]:
+def _summary_lines(summary: dict[str, Any], names: Sequence[str], classes: Sequence[str]) -> list[str]:
     """An overall summary for people: map shares, error table, tests, errors over every snapshot."""
     n = summary["snapshots"]
     lines = [
@@ -249,7 +251,11 @@ def _summary_lines(summary: dict[str, Any], names: Sequence[str]) -> list[str]:
     ]
     if summary["mean_m"] is None:
         return [*lines, "No error against ground truth (no `/ground_truth` in the bags, or no map)."]
-    lines += [f"Mean position error over the {summary['scored']} snapshots with a map and ground truth [cm]:", ""]
+    matched = " (identical instances against the true object matched to them in each)" if classes != names else ""
+    lines += [
+        f"Mean position error over the {summary['scored']} snapshots with a map and ground truth{matched} [cm]:",
+        "",
+    ]
     lines += [*_error_table(summary, names), "", _tests_text(summary["tests"]) + " (per object: in the JSON).", ""]
     maps = summary["map_error_m"]
     lines.append(
@@ -324,7 +330,7 @@ def evaluation_markdown(data: dict[str, Any], png_name: str) -> str:
     if overall is None:
         lines.append("No bag was evaluated.")
     else:
-        lines += _summary_lines(overall, names)
+        lines += _summary_lines(overall, names, data["classes"])
         lines += ["", f"Time to answer (search time per snapshot): {_times_text(run['time_to_answer']['overall'])}."]
         lines += ["", f"![evaluation plots]({png_name})", "", "## Per bag", ""]
         lines += _bag_table(data["bags"], run["time_to_answer"]["bags"])

@@ -126,13 +126,19 @@ def test_instances_are_scored_against_the_true_object_they_are_matched_to() -> N
 
 def test_the_shipped_box_bin_s_errors_are_those_of_each_box_s_true_cube(tmp_path: Path) -> None:
     """The box bin's instances take their names from the order their tracks began, not from the truth's: scored
-    by name, the replay's mean errors were the spacing of the cubes (11-16 cm); matched, each is the
-    estimator's (its 5 mm noise per axis, under 2 cm)."""
+    by name, the mean errors of replay and evaluate were the spacing of the cubes (11-16 cm); matched, each is the
+    estimator's (5 mm of noise per axis; under 1 cm at the default deadline, a wrong pose chosen now and then
+    adds to it)."""
     data = tmp_path / "replay.json"
     bag, scene = str(REPO / "test" / "data" / "box_bin"), str(SCENES / "box_bin.yaml")
-    assert main(["replay", bag, "--scene", scene, "--offline", "--exhaustive", "--json", str(data)]) == 0
+    assert main(["replay", bag, "--scene", scene, "--offline", "--json", str(data)]) == 0
     means = json.loads(data.read_text())["mean_errors"]
-    assert all(error < 0.02 for estimate in ("top", "chosen", "settled") for error in means[estimate])
+    assert all(error < 0.05 for estimate in ("top", "chosen", "settled") for error in means[estimate])
+    assert main(["evaluate", bag, "--scene", scene, "--workers", "0", "-o", str(tmp_path / "e")]) == 0
+    report = json.loads((tmp_path / "e" / "report.json").read_text())
+    assert report["classes"] == ["box"] * 6
+    assert all(error < 0.05 for error in report["overall"]["mean_m"]["settled"]["per_object"].values())
+    assert "identical instances against the true object matched" in (tmp_path / "e" / "report.md").read_text()
 
 
 def test_replay_and_evaluate_report_identity(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
