@@ -17,7 +17,7 @@ from pathlib import Path
 from types import FrameType
 from typing import TYPE_CHECKING
 
-from physics_mapper.commands.files import input_file
+from physics_mapper.commands.files import input_file, load_scene_file
 from physics_mapper.model.errors import EXIT_FAILURE, EXIT_INCOMPLETE, EXIT_INTERRUPTED, InputError
 from physics_mapper.model.limits import printable
 
@@ -103,10 +103,8 @@ def run(args: argparse.Namespace) -> int:
 def load_scene_and_search(args: argparse.Namespace) -> tuple[Scene, SearchParams]:
     """The scene and its search parameters with ``--set`` applied; the output folder checked."""
     from physics_mapper.evaluation.settings import with_overrides
-    from physics_mapper.model.scene_files import load_scene
-    from physics_mapper.model.scene_loading import load_stoppably
 
-    scene = load_stoppably(args.scene, load_scene)
+    scene = load_scene_file(args.scene, args.command)
     params = with_overrides(scene.search, args.set)
     if args.output is None:
         args.output = Path(f"{args.command}_{time.strftime('%Y_%m_%d-%H_%M_%S')}")

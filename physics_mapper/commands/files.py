@@ -1,18 +1,19 @@
-"""What the subcommands share: input files named by path or URL, a problem file loaded with its warnings,
-and the output files users name."""
+"""What the subcommands share: input files named by path or URL, problem and scene files loaded with their
+warnings, and the output files users name."""
 
 from __future__ import annotations
 
 import argparse
 import sys
+from collections.abc import Sequence
 from pathlib import Path
 
 from physics_mapper.model.atomic_files import write_atomically
 from physics_mapper.model.errors import InputError
 from physics_mapper.model.limits import printable
 from physics_mapper.model.resources import ResourceError, file_problem, resolve_resource
-from physics_mapper.model.scene import Problem
-from physics_mapper.model.scene_files import load_problem
+from physics_mapper.model.scene import Problem, Scene
+from physics_mapper.model.scene_files import load_problem, load_scene
 from physics_mapper.model.scene_loading import load_stoppably
 
 
@@ -29,9 +30,21 @@ def load_problem_file(path: Path, command: str) -> Problem:
     """Load a problem file for subcommand ``command``, stoppable by a signal at any moment (in a thread
     of its own); what loading changed goes to stderr as warnings."""
     problem = load_stoppably(path, load_problem)
-    for note in problem.notes:
-        print(f"physics-mapper {command}: warning: {printable(note)}", file=sys.stderr)
+    _warn(command, problem.notes)
     return problem
+
+
+def load_scene_file(path: Path, command: str) -> Scene:
+    """Load a scene file for subcommand ``command`` as :func:`load_problem_file` loads a problem file, its
+    warnings (a mass ratio Bullet cannot stack, a mesh too large to be in metres) on stderr."""
+    scene = load_stoppably(path, load_scene)
+    _warn(command, scene.notes)
+    return scene
+
+
+def _warn(command: str, notes: Sequence[str]) -> None:
+    for note in notes:
+        print(f"physics-mapper {command}: warning: {printable(note)}", file=sys.stderr)
 
 
 def check_output_folder(path: Path) -> None:

@@ -9,7 +9,7 @@ from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from physics_mapper.commands.files import input_file
+from physics_mapper.commands.files import input_file, load_scene_file
 from physics_mapper.model.errors import InputError
 
 if TYPE_CHECKING:
@@ -158,12 +158,10 @@ _SETTING_OPTIONS = {
 
 def run(args: argparse.Namespace) -> int:
     from physics_mapper.bags.storage import BagError, BagWriter
-    from physics_mapper.model.scene_files import load_scene
-    from physics_mapper.model.scene_loading import load_stoppably
     from physics_mapper.perception.detection_faults import DetectionSimulator
     from physics_mapper.perception.particle_filter import fault_generator, run_generators, settle_ground_truth
 
-    scene = load_stoppably(args.scene, load_scene)
+    scene = load_scene_file(args.scene, "generate")
     if scene.ground_truth is None:
         raise InputError(f"{args.scene}: ground_truth: missing: generate needs every object's true pose")
     settings = _settings(args)

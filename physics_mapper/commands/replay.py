@@ -14,7 +14,7 @@ from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from physics_mapper.commands.files import check_output_folder, input_file, write_output
+from physics_mapper.commands.files import check_output_folder, input_file, load_scene_file, write_output
 from physics_mapper.model.errors import EXIT_FAILURE, InputError
 from physics_mapper.model.limits import MAX_KEY_TEXT, clipped, printable
 
@@ -102,8 +102,6 @@ def run(args: argparse.Namespace) -> int:
     from physics_mapper.evaluation.scoring import ObjectClasses
     from physics_mapper.evaluation.snapshot_results import evaluation_summary
     from physics_mapper.evaluation.snapshots import bag_snapshots, input_topics, no_snapshot_reason
-    from physics_mapper.model.scene_files import load_scene
-    from physics_mapper.model.scene_loading import load_stoppably
 
     if not 0.0 < args.rate < math.inf:
         raise InputError(f"--rate must be positive and finite, got {args.rate}")
@@ -119,7 +117,7 @@ def run(args: argparse.Namespace) -> int:
     for path in (args.json, args.identity_plot):
         if path is not None:
             check_output_folder(path)
-    scene = load_stoppably(args.scene, load_scene)
+    scene = load_scene_file(args.scene, "replay")
     try:
         # Only the scene's topics are read into memory; a live replay streams what it plays.
         bag = read_bag(args.bag, input_topics(scene))

@@ -29,6 +29,11 @@ MAX_DENSITY = 1e5
 #: 10, 0.004 at 30, 0.010 (the default jitter threshold) at 60 and 0.023 at 100: Bullet's contact
 #: solver lets a heavy body sink through a light one, so a valid stack is rejected as unstable.
 MAX_MASS_RATIO = 30.0
+#: Metres a movable mesh may span (its largest extent) before a loaded scene gets a warning: the household
+#: objects the product maps are smaller, and a file in centimetres or millimetres read as metres (no
+#: ``scale``) is 100 or 1000 times too large: pybullet_data's duck, 1.65 m across without the 0.05 its URDF
+#: gives, made a bin of 12 whose every tick had its refined map, 40 cm from the truth.
+MAX_UNWARNED_MESH_EXTENT = 1.0
 #: Hypotheses per object that a problem file may bring; more keep the heaviest, as the node's
 #: ``max_hypotheses_per_object`` (default the same) does with messages.
 MAX_HYPOTHESES_PER_OBJECT = 100

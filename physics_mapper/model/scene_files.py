@@ -15,6 +15,8 @@ from dataclasses import dataclass, fields, replace
 from pathlib import Path
 from typing import Any, TypeVar
 
+import numpy as np
+
 from physics_mapper.model.decomposition import (
     DECOMPOSITION_METHODS,
     THRESHOLD_LIMITS,
@@ -22,6 +24,7 @@ from physics_mapper.model.decomposition import (
     Progress,
     stderr_progress,
 )
+from physics_mapper.model.extents import shape_extents
 from physics_mapper.model.geometry import IDENTITY, ORIGIN, Pose, make_pose
 from physics_mapper.model.hypotheses import Hypothesis, RankedHypotheses
 from physics_mapper.model.limits import (
@@ -34,6 +37,7 @@ from physics_mapper.model.limits import (
     MAX_OBJECTS,
     MAX_QUOTED_TEXT,
     MAX_STATIC_BODIES,
+    MAX_UNWARNED_MESH_EXTENT,
     MIN_DENSITY,
     MIN_MASS,
 )
@@ -557,6 +561,7 @@ def scene_from_dict(
         first, second, topic = clash
         raise reader.fail("objects", f"objects {first!r} and {second!r} would share the node's topic {topic!r}")
     _note_mass_ratio(reader, objects)
+    _note_large_meshes(reader, objects)
     search = _read_search(reader, top.get("search", {}), "search")
     truth = None
     if "ground_truth" in top:
@@ -595,6 +600,22 @@ def _note_mass_ratio(reader: _Reader, objects: Sequence[ObjectModel]) -> None:
             f"({lightest.mass:g} kg): beyond a ratio of {MAX_MASS_RATIO:g}, a heavy object resting on a light one "
             "sinks into it in Bullet and a valid stack can be rejected as unstable",
         )
+
+
+def _note_large_meshes(reader: _Reader, objects: Sequence[ObjectModel]) -> None:
+    """Warn, once per shape, of a movable mesh larger than household objects are: a file not in metres."""
+    noted: set[Mesh] = set()
+    for model in objects:
+        if not isinstance(model.shape, Mesh) or model.shape in noted:
+            continue
+        noted.add(model.shape)
+        extent = float(np.max(shape_extents(model.shape)))
+        if extent > MAX_UNWARNED_MESH_EXTENT:
+            reader.note(
+                "objects",
+                f"{model.name}'s mesh is {extent:.3g} m across: if its file is not in metres, give it a scale "
+                "(0.01 for centimetres, 0.001 for millimetres)",
+            )
 
 
 def _check_inside(reader: _Reader, workspace: Workspace, pose: Pose, key: str) -> None:

@@ -219,6 +219,36 @@ def test_a_mass_ratio_bullet_cannot_stack_is_warned(tmp_path: Path) -> None:
     assert run_cli("solve", str(problem)).stderr == ""
 
 
+def test_a_mesh_too_large_to_be_in_metres_is_warned_once_per_shape(tmp_path: Path) -> None:
+    """A 10 cm box written in centimetres, read without a scale, is a 10 m box: solve warns, once for the two
+    instances; given its scale, nothing."""
+    import trimesh
+
+    write_mesh(trimesh.creation.box((10.0, 10.0, 10.0)), tmp_path / "box_cm.obj")
+    problem = tmp_path / "problem.yaml"
+    parts = {"shape": "mesh", "file": "box_cm.obj", "mass": 0.2}
+    problem.write_text(problem_text([{"name": "a", **parts}, {"name": "b", **parts}], [5.0, 5.0]), encoding="utf-8")
+    completed = run_cli("solve", str(problem))
+    assert completed.returncode == 0, completed.stderr
+    warning = "a's mesh is 10 m across: if its file is not in metres, give it a scale"
+    assert completed.stderr.startswith("physics-mapper solve: warning: ") and completed.stderr.count(warning) == 1
+    # A scene file warns alike where a command loads one (generate, replay, evaluate, sweep).
+    scene = tmp_path / "scene.yaml"
+    document = {
+        "static": [{"name": "floor", "shape": "plane"}],
+        "objects": [{"name": "a", **parts}],
+        "ground_truth": {"a": {"position": [0.0, 0.0, 5.0]}},
+    }
+    scene.write_text(yaml.safe_dump(document), encoding="utf-8")
+    generated = run_cli("generate", str(scene), "-o", str(tmp_path / "bag"), "--iterations", "1", "--particles", "10")
+    assert generated.returncode == 0 and f"physics-mapper generate: warning: {scene}: objects: {warning}" in (
+        generated.stderr
+    )
+    parts["scale"] = 0.01
+    problem.write_text(problem_text([{"name": "a", **parts}, {"name": "b", **parts}]), encoding="utf-8")
+    assert run_cli("solve", str(problem)).stderr == ""
+
+
 # --- the decomposition cache ---------------------------------------------------------------------------------
 
 
