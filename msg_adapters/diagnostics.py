@@ -91,7 +91,8 @@ def _search_level_and_message(report: TickReport) -> tuple[Level, str]:
             text += "; the previous map's configuration (the search found no valid one of its own)"
         return Level.OK, text
     if result.refinement is not None:
-        refined = f"{code_text(result.code)} refined ({refinement_text(result.refinement)}) and settled"
+        settled = "and settled" if result.refinement.settled else "(the deadline came before its settling)"
+        refined = f"{code_text(result.code)} refined ({refinement_text(result.refinement)}) {settled}"
         return Level.WARN, f"no valid configuration; fallback refine: {refined}, J={result.jitter:.4g}"
     if result.code is not None:
         return Level.WARN, f"no valid configuration; fallback settled {code_text(result.code)}"

@@ -112,7 +112,7 @@ class MapMemory:
         if result.code is None or result.poses is None or result.settled_poses is None:
             return
         if not result.valid:
-            if result.fallback == "refine" and not self.poses:
+            if result.fallback == "refine" and not result.unsettled and not self.poses:
                 chosen = zip(names, hypotheses, result.code, result.settled_poses, strict=True)
                 self.settled = {name: settled for name, ranked, rank, settled in chosen if not ranked.is_absent(rank)}
             return
@@ -267,7 +267,7 @@ def holding_others_up(
 ) -> tuple[str, ...]:
     """The objects of a result's map, valid or not, that hold another object of it up where it came to rest
     (:func:`~physics_mapper.physics.support.holding_up`); ``names`` are ``scene``'s objects, in its order."""
-    if result is None or result.code is None:
+    if result is None or result.code is None or result.unsettled:
         return ()
     poses = result.settled_poses or result.poses
     if poses is None:

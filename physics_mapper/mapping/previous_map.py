@@ -434,7 +434,7 @@ def _run_leaving(search: Search, stop_at: float, reserve: float) -> SearchResult
     it has no map by then. In one run, not in slices: each slice that cuts a settling saves the world's state,
     7 ms for 24 mugs (slices there left ticks with no map at all)."""
     result = search.run(max(0.0, stop_at - time.monotonic() - reserve))
-    if result.valid or result.fallback is not None or search.done:
+    if result.valid or (result.fallback is not None and not result.unsettled) or search.done:
         return result
     return search.run(max(0.0, stop_at - time.monotonic()))
 

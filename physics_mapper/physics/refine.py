@@ -58,7 +58,8 @@ rule, the refinement repairs the most probable configuration instead of rejectin
 The map is the settled poses; each object's J_i is measured from its most likely hypothesis.
 Only the given objects take part (a subset of the scene's, e.g. one interaction group); the
 checker's other objects stay parked, far from everything. :class:`Refinement` is resumable: it
-stops at a deadline and goes on where it stopped, as the search does.
+stops at a deadline and goes on where it stopped, as the search does; stopped within its settling, its map
+so far is the depenetrated poses (:meth:`Refinement.so_far`, ``settled`` False).
 """
 
 from __future__ import annotations
@@ -77,7 +78,7 @@ from physics_mapper.model.hypotheses import RankedHypotheses
 from physics_mapper.model.scene import SearchParams
 from physics_mapper.physics.checker import PhysicsChecker
 from physics_mapper.physics.collision import Proximity
-from physics_mapper.physics.settling import PartialSettling, Settling, early_exit_rule
+from physics_mapper.physics.settling import PartialSettling, early_exit_rule
 from physics_mapper.physics.world import TIME_STEP
 
 FloatArray = NDArray[np.float64]
@@ -126,14 +127,15 @@ def refinement_start(hypotheses: RankedHypotheses, radius: float) -> Pose:
 
 @dataclass(frozen=True)
 class RefinedMap:
-    """A finished refinement of ``objects`` (scene indices); every pose tuple is in that order.
+    """A refinement of ``objects`` (scene indices); every pose tuple is in that order.
 
     ``start_poses``: where it started; ``depenetrated_poses``: after the depenetration;
     ``settled_poses``: the map. ``jitters``: each object's J_i from its most likely hypothesis
     to the map (metres + ``angular_weight`` x radians). ``iterations``: depenetration
     iterations; ``converged``: whether they removed every overlap (to :data:`OVERLAP_TOLERANCE`);
     ``initial_overlap`` and ``remaining_overlap``: the deepest overlap, metres, at the start and
-    after the depenetration.
+    after the depenetration. ``settled``: False for the map so far of a refinement a deadline stopped in its
+    settling (:meth:`Refinement.so_far`): ``settled_poses`` are then the depenetrated ones.
     """
 
     objects: tuple[int, ...]
@@ -145,6 +147,7 @@ class RefinedMap:
     converged: bool
     initial_overlap: float
     remaining_overlap: float
+    settled: bool = True
 
     @property
     def total_jitter(self) -> float:
@@ -283,6 +286,15 @@ class Refinement:
                 return None
         return self._result
 
+    def so_far(self) -> RefinedMap | None:
+        """The map so far: the finished one, else, once the depenetration has ended, its poses unsettled
+        (``settled`` False: overlapping nothing, where the objects were seen, not yet where they come to rest);
+        None while it depenetrates."""
+        if self._result is not None or self._depenetrated is None:
+            return self._result
+        poses, converged, overlap = self._depenetrated
+        return self._map(poses, poses, converged, overlap, settled_map=False)
+
     def _depenetrate(self, stop_at: float | None) -> bool:
         """Iterate the depenetration until it ends (True) or ``stop_at`` passes (False).
 
@@ -374,27 +386,33 @@ class Refinement:
         if isinstance(outcome, PartialSettling):
             self._settling = outcome
             return False
-        self._result = self._finish(outcome, poses, converged, overlap)
+        self._result = self._map(poses, outcome.settled_poses, converged, overlap)
         return True
 
-    def _finish(
-        self, settling: Settling, depenetrated: tuple[Pose, ...], converged: bool, overlap: float
+    def _map(
+        self,
+        depenetrated: tuple[Pose, ...],
+        settled: tuple[Pose, ...],
+        converged: bool,
+        overlap: float,
+        settled_map: bool = True,
     ) -> RefinedMap:
         assert self._initial_overlap is not None
         jitters = tuple(
-            pose_displacement(reference, settled, self.params.angular_weight)
-            for reference, settled in zip(self.reference, settling.settled_poses, strict=True)
+            pose_displacement(reference, pose, self.params.angular_weight)
+            for reference, pose in zip(self.reference, settled, strict=True)
         )
         return RefinedMap(
             objects=self.objects,
             start_poses=self.start,
             depenetrated_poses=depenetrated,
-            settled_poses=settling.settled_poses,
+            settled_poses=settled,
             jitters=jitters,
             iterations=self._iterations,
             converged=converged,
             initial_overlap=self._initial_overlap,
             remaining_overlap=overlap,
+            settled=settled_map,
         )
 
 

@@ -313,6 +313,8 @@ class BestFirst(Generic[G, R]):
         self._root: Code = tuple(1 for _ in self.hypotheses)
         self._refined_root: Code = self._root  # the code the refined map starts from
         self._refined_candidate: Candidate | None = None  # the map it makes, displaced objects left out
+        # The refinement's map so far where a deadline stopped it in its settling (the depenetrated poses).
+        self._unsettled: tuple[RefinedMap, Candidate] | None = None
         self._absent_weights = tuple(ranked.absent_weight() for ranked in self.hypotheses)
 
     def probability(self, code: Code) -> float:
@@ -447,6 +449,9 @@ class BestFirst(Generic[G, R]):
             self._refinement = Refinement(self.checker, self.objects, start, self.poses(root), params)
         refined = self._refined = self._refinement.run(stop_at)
         if refined is None:
+            so_far = self._refinement.so_far()
+            if so_far is not None and self._unsettled is None:
+                self._unsettled = (so_far, self._map_of(so_far, shapes))
             return False
         for observe in self._on_refined:
             observe(refined)
@@ -568,6 +573,8 @@ class BestFirst(Generic[G, R]):
         if self._best is not None:
             return self._best, True
         if self.params.fallback == "refine":
+            if self._refined_candidate is None and self._unsettled is not None:
+                return self._unsettled[1], False
             return self._refined_candidate, False
         candidate = self._first_collision_free
         if candidate is None or self.params.fallback != "settled":
@@ -604,7 +611,10 @@ class BestFirst(Generic[G, R]):
 
     @property
     def refined(self) -> RefinedMap | None:
-        """The root's refined map, once made (``fallback: refine``)."""
+        """The root's refined map, once made (``fallback: refine``), else its map so far once depenetrated
+        (unsettled: :meth:`~physics_mapper.physics.refine.Refinement.so_far`)."""
+        if self._refined is None and self._unsettled is not None:
+            return self._unsettled[0]
         return self._refined
 
     def result(self) -> SearchResult:
@@ -615,7 +625,7 @@ class BestFirst(Generic[G, R]):
         stats = self.stats
         if chosen is None:
             return SearchResult(False, None, None, None, None, None, None, False, stats, trace, groups=groups)
-        refinement = self._refined if not valid and self.params.fallback == "refine" else None
+        refinement = self.refined if not valid and self.params.fallback == "refine" else None
         return SearchResult(
             valid=valid,
             code=chosen.code,

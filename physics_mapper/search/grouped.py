@@ -535,6 +535,7 @@ def combined_refinement(refined: Sequence[RefinedMap]) -> RefinedMap | None:
         converged=all(r.converged for r in refined),
         initial_overlap=max(r.initial_overlap for r in refined),
         remaining_overlap=max(r.remaining_overlap for r in refined),
+        settled=all(r.settled for r in refined),
     )
 
 

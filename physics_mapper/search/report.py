@@ -85,6 +85,7 @@ def refinement_dict(refined: RefinedMap, names: tuple[str, ...]) -> dict[str, An
         "converged": refined.converged,
         "initial_overlap": refined.initial_overlap,
         "remaining_overlap": refined.remaining_overlap,
+        "settled": refined.settled,
     }
 
 

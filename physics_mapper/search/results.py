@@ -181,7 +181,8 @@ class SearchResult:
     ``code`` is the fallback's (the collision-free one of highest p(C), when the fallback
     is ``settled``; the root, when it is ``refine``) or None; ``poses`` are the chosen
     hypotheses, ``settled_poses`` the same objects after settling (for ``refine``: the refined
-    map), ``object_jitters`` each object's J_i (their sum is ``jitter``). ``fallback`` names the
+    map, or where the deadline stopped its settling the depenetrated poses: :attr:`unsettled`),
+    ``object_jitters`` each object's J_i (their sum is ``jitter``). ``fallback`` names the
     fallback that gave the map (None for a valid one or none), and ``refinement`` tells how the
     refined map was made. ``groups`` are the interaction groups searched (one, with every
     object, for a joint search). ``previous_map``: the map is the previous map's configuration,
@@ -203,6 +204,11 @@ class SearchResult:
     refinement: RefinedMap | None = None
     groups: tuple[GroupResult, ...] = ()
     previous_map: bool = False
+
+    @property
+    def unsettled(self) -> bool:
+        """Whether the map is a refined map the deadline stopped in its settling (its depenetrated poses)."""
+        return self.refinement is not None and not self.refinement.settled
 
     @property
     def ruled_out(self) -> tuple[RuledOut, ...]:

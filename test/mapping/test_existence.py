@@ -11,7 +11,14 @@ import numpy as np
 from core_builders import CUBE_SIZE, ON_FLOOR, cube, floor_scene, ranked, unrotated
 from detection_builders import array, detection, result
 
-from physics_mapper.mapping.existence import HELD_SHARE, left_out_by_physics, silent_absent_weight, with_held
+from physics_mapper.mapping.existence import (
+    HELD_SHARE,
+    MapMemory,
+    holding_others_up,
+    left_out_by_physics,
+    silent_absent_weight,
+    with_held,
+)
 from physics_mapper.mapping.inputs import InputSettings, check_poses, check_weights
 from physics_mapper.mapping.mapper import Mapper, MapperSettings, TickReport
 from physics_mapper.mapping.previous_map import NEAR
@@ -20,7 +27,7 @@ from physics_mapper.model.hypotheses import Hypothesis, RankedHypotheses, absent
 from physics_mapper.model.scene import Scene, SearchParams
 from physics_mapper.model.scene_files import scene_from_dict
 from physics_mapper.physics.checker import PhysicsChecker
-from physics_mapper.search.strategy import make_search
+from physics_mapper.search.strategy import make_search, paper_search
 
 BOX = {"shape": "box", "size": [0.1, 0.1, 0.1], "mass": 0.2}
 FLOOR = {"name": "floor", "shape": "plane"}
@@ -289,6 +296,38 @@ def test_an_instance_the_refined_map_keeps_under_another_is_not_placeless() -> N
     assert [(r.object, r.rank) for r in result.ruled_out] == [("bottom", 1)]
     assert left_out_by_physics(("bottom", "top"), hypotheses, result) == ((), ())
     assert left_out_by_physics(("bottom", "top"), hypotheses, replace(result, code=(2, 1))) == (("bottom",), ())
+
+
+def test_a_refined_map_stopped_in_its_settling_holds_nothing_up_and_is_not_remembered() -> None:
+    """A box 1 cm over another, nothing valid: the refined map the deadline stopped within its settling (driven
+    a piece at a time) is the depenetrated poses, which say nothing of what rests on what; the finished one says
+    the bottom box holds the top one up, and its rests are remembered for the next tick's check."""
+    scene = floor_scene(cube("bottom"), cube("top"))
+    names = ("bottom", "top")
+    hypotheses = (
+        ranked([unrotated(0.0, 0.0, ON_FLOOR)], [1]),
+        ranked([unrotated(0.0, 0.0, ON_FLOOR + CUBE_SIZE + 0.01)], [1]),
+    )
+    params = SearchParams(fallback="refine")
+    with PhysicsChecker(scene) as checker:
+        search = paper_search(checker, hypotheses, params)
+        while search.result().code is None:
+            search.step(0.0)  # a deadline already past: one piece of the refinement
+        unsettled = search.result()
+        finished = paper_search(checker, hypotheses, params).run(None)
+    assert unsettled.unsettled and unsettled.settled_poses == hypotheses_poses(hypotheses)
+    assert not finished.unsettled and finished.fallback == "refine"
+    assert holding_others_up(names, hypotheses, unsettled, scene) == ()
+    assert holding_others_up(names, hypotheses, finished, scene) == ("bottom",)
+    memory = MapMemory()
+    memory.remember(names, hypotheses, unsettled)
+    assert memory.settled == {}
+    memory.remember(names, hypotheses, finished)
+    assert memory.refined and set(memory.settled) == set(names)
+
+
+def hypotheses_poses(hypotheses: Sequence[RankedHypotheses]) -> tuple[Pose, ...]:
+    return tuple(h.pose(1) for h in hypotheses)
 
 
 def test_misses_do_not_end_a_track_seen_once_on_which_the_map_holds_another_up() -> None:

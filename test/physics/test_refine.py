@@ -321,10 +321,37 @@ def test_an_interrupted_refinement_goes_on_where_it_stopped_and_ends_the_same(
         whole = paper_search(checker, hypotheses, params).run(None)
         search = paper_search(checker, hypotheses, params)
         runs = [search.run(0.0002) for _ in range(1000)]
-    pieces = [r for r in runs if r.settled_poses is not None]
+    pieces = [r for r in runs if r.settled_poses is not None and not r.unsettled]
     assert runs[0].code is None and pieces, "the first run stops early; a later one ends the refinement"
     assert pieces[0].settled_poses == whole.settled_poses and pieces[0].refinement == whole.refinement
     assert whole.fallback == "refine" and whole.refinement is not None and whole.refinement.iterations > 1
+
+
+def test_a_refinement_stopped_in_its_settling_has_its_depenetrated_poses_as_its_map_so_far() -> None:
+    """Driven one piece at a time (a deadline already past): no map while it depenetrates; within the settling,
+    the depenetrated poses, marked unsettled; at the end the settled map. The search reports the same: its
+    unsettled map is the tick's map (``settled_poses``, ``unsettled``), the finished one replaces it."""
+    scene, hypotheses = pyramid_c111()
+    poses = tuple(h.pose(1) for h in hypotheses)
+    params = replace(scene.search, fallback="refine")
+    with PhysicsChecker(scene) as checker:
+        refinement = Refinement(checker, range(3), poses, poses, params)
+        so_far = []
+        while refinement.run(PAST) is None:
+            so_far.append(refinement.so_far())
+        made = refinement.so_far()
+        search = paper_search(checker, hypotheses, params)
+        results = []
+        while search.refinement_due:
+            search.step(PAST)
+            results.append(search.result())
+    assert made is not None and made.settled and so_far[0] is None
+    unsettled = [m for m in so_far if m is not None]
+    assert unsettled and all(not m.settled and m.settled_poses == made.depenetrated_poses for m in unsettled)
+    assert unsettled[0].jitters != made.jitters  # measured at the depenetrated poses
+    maps = [r for r in results if r.code is not None]
+    assert results[0].code is None and maps[-1].refinement == made and not maps[-1].unsettled
+    assert all(r.unsettled and r.settled_poses == made.depenetrated_poses for r in maps[:-1]) and len(maps) > 1
 
 
 # --- the search and its outputs ------------------------------------------------------------------------
