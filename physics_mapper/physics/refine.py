@@ -293,7 +293,7 @@ class Refinement:
         if self._result is not None or self._depenetrated is None:
             return self._result
         poses, converged, overlap = self._depenetrated
-        return self._map(poses, poses, converged, overlap, settled_map=False)
+        return self._map(poses, poses, converged, overlap, settled=False)
 
     def _depenetrate(self, stop_at: float | None) -> bool:
         """Iterate the depenetration until it ends (True) or ``stop_at`` passes (False).
@@ -392,27 +392,28 @@ class Refinement:
     def _map(
         self,
         depenetrated: tuple[Pose, ...],
-        settled: tuple[Pose, ...],
+        map_poses: tuple[Pose, ...],
         converged: bool,
         overlap: float,
-        settled_map: bool = True,
+        settled: bool = True,
     ) -> RefinedMap:
+        """The map of ``map_poses`` (the settled poses, or with ``settled`` False the depenetrated ones)."""
         assert self._initial_overlap is not None
         jitters = tuple(
             pose_displacement(reference, pose, self.params.angular_weight)
-            for reference, pose in zip(self.reference, settled, strict=True)
+            for reference, pose in zip(self.reference, map_poses, strict=True)
         )
         return RefinedMap(
             objects=self.objects,
             start_poses=self.start,
             depenetrated_poses=depenetrated,
-            settled_poses=settled,
+            settled_poses=map_poses,
             jitters=jitters,
             iterations=self._iterations,
             converged=converged,
             initial_overlap=self._initial_overlap,
             remaining_overlap=overlap,
-            settled=settled_map,
+            settled=settled,
         )
 
 
