@@ -397,7 +397,7 @@ def test_solve_json_reports_the_refined_map(tmp_path: Path) -> None:
     assert not result["valid"] and result["fallback_used"] and result["fallback"] == "refine"
     assert result["code"] == [1, 1, 1] and result["stats"]["collisions"] == 1
     refinement = result["refinement"]
-    assert refinement["converged"] and refinement["remaining_overlap"] <= OVERLAP_TOLERANCE
+    assert refinement["converged"] and refinement["remaining_overlap"] <= OVERLAP_TOLERANCE and refinement["settled"]
     assert (
         set(result["settled_poses"]) == set(refinement["depenetrated_poses"]) == {"cube_left", "cube_right", "cube_top"}
     )
