@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from physics_mapper.commands.files import input_file
+from physics_mapper.commands.files import input_file, load_scene_file
 
 HELP = "compute the convex decompositions of a scene's meshes into the cache now (the first load can take minutes)"
 
@@ -17,12 +17,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     from physics_mapper.model.decomposition import cache_directory
     from physics_mapper.model.scene import Mesh
-    from physics_mapper.model.scene_files import load_scene
-    from physics_mapper.model.scene_loading import load_stoppably
 
     print(f"decomposition cache: {cache_directory()}")
     for path in args.scenes:
-        scene = load_stoppably(path, load_scene)
+        scene = load_scene_file(path, "decompose")
         bodies = [(o.name, o.shape) for o in scene.objects] + [(b.name, b.shape) for b in scene.static]
         meshes = [(name, shape) for name, shape in bodies if isinstance(shape, Mesh)]
         decomposed = [(name, shape) for name, shape in meshes if shape.geometry.decomposition is not None]
