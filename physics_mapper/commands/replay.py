@@ -12,7 +12,7 @@ from collections.abc import Sequence
 from contextlib import ExitStack
 from dataclasses import replace
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from physics_mapper.commands.files import check_output_folder, input_file, load_scene_file, write_output
 from physics_mapper.model.errors import EXIT_FAILURE, InputError
@@ -100,7 +100,7 @@ def _progress(text: str) -> None:
 def run(args: argparse.Namespace) -> int:
     from physics_mapper.bags.storage import BagError, check_hypothesis_topics, read_bag
     from physics_mapper.evaluation.scoring import ObjectClasses
-    from physics_mapper.evaluation.snapshot_results import evaluation_summary
+    from physics_mapper.evaluation.snapshot_results import evaluation_summary, snapshot_result_dict
     from physics_mapper.evaluation.snapshots import bag_snapshots, input_topics, no_snapshot_reason
 
     if not 0.0 < args.rate < math.inf:
@@ -132,11 +132,12 @@ def run(args: argparse.Namespace) -> int:
     if results is None:
         return EXIT_FAILURE
     objects = ObjectClasses.of(scene)
-    print(evaluation_summary(results, objects))
+    records = [snapshot_result_dict(result, objects) for result in results]
+    print(evaluation_summary(records, objects))
     if args.json is not None:
-        _write_json(args.json, "offline" if args.offline else "live", results, objects)
+        _write_json(args.json, "offline" if args.offline else "live", records, objects)
     if args.identity_plot is not None:
-        _write_identity_plot(args.identity_plot, args.bag, results, objects)
+        _write_identity_plot(args.identity_plot, args.bag, records, objects)
     return 0
 
 
@@ -239,27 +240,26 @@ def _live(
     return recorded_results(snapshots, output_bag, scene)
 
 
-def _write_identity_plot(path: Path, bag: Path, results: Sequence[SnapshotResult], objects: ObjectClasses) -> None:
+def _write_identity_plot(path: Path, bag: Path, records: Sequence[dict[str, Any]], objects: ObjectClasses) -> None:
     import io
 
     from physics_mapper.evaluation.plots import identity_timeline
-    from physics_mapper.evaluation.snapshot_results import snapshot_result_dict
     from physics_mapper.model.atomic_files import write_atomically
 
-    records = [snapshot_result_dict(result, objects) for result in results]
     buffer = io.BytesIO()
     identity_timeline(records, objects, bag.name).savefig(buffer, format="png", dpi=120)
     write_atomically(path, buffer.getvalue())
 
 
-def _write_json(path: Path, mode: str, results: Sequence[SnapshotResult], objects: ObjectClasses) -> None:
-    from physics_mapper.evaluation.snapshot_results import mean_errors, result_identity, snapshot_result_dict
+def _write_json(path: Path, mode: str, records: Sequence[dict[str, Any]], objects: ObjectClasses) -> None:
+    from physics_mapper.evaluation.identity import identity_metrics, record_frames
+    from physics_mapper.evaluation.snapshot_results import mean_scored_errors
 
     data = {
         "mode": mode,
         "objects": list(objects.names),
-        "mean_errors": mean_errors(results, objects),
-        "identity": result_identity(results, objects),
-        "snapshots": [snapshot_result_dict(o, objects) for o in results],
+        "mean_errors": mean_scored_errors(r["errors"] for r in records),
+        "identity": identity_metrics(record_frames(records), objects),
+        "snapshots": list(records),
     }
     write_output(path, json.dumps(data, indent=1) + "\n")

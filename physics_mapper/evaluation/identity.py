@@ -81,7 +81,7 @@ def identity_gate(frames: Sequence[IdentityFrame], objects: ObjectClasses | None
     least = 2.0 * IDENTITY_GATE
     for frame in frames:
         truth = np.asarray(frame.truth, dtype=float).reshape(-1, 3)
-        groups = [list(range(len(truth)))] if objects is None else objects.groups()
+        groups = [tuple(range(len(truth)))] if objects is None else objects.groups
         for group in groups:
             members = [i for i in group if i < len(truth)]
             if len(members) > 1:
@@ -129,7 +129,7 @@ def _accumulate(
 
 def _apart(objects: ObjectClasses, truth_count: int, names: Iterable[str]) -> np.ndarray:
     """[true object, map object] True where the two are of different classes."""
-    class_of = objects.class_of()
+    class_of = objects.class_of
     true_classes = np.array(objects.classes[:truth_count], dtype=object)
     map_classes = np.array([class_of.get(name) for name in names], dtype=object)
     return np.asarray(true_classes[:, None] != map_classes[None, :], dtype=bool)
@@ -152,7 +152,7 @@ def _identities(
     """Per true object: its globally assigned map name (of its class) and their mean distance (m) where both are
     present."""
     truth_count = max((len(frame.truth) for frame in frames), default=0)
-    class_of = {} if objects is None else objects.class_of()
+    class_of = {} if objects is None else objects.class_of
     assigned: dict[int, str] = {}
     for row, column in zip(assignment["rids"], assignment["cids"], strict=True):
         if row < truth_count and column < len(names):

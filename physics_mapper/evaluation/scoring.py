@@ -14,6 +14,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 from scipy.optimize import linear_sum_assignment
@@ -42,16 +43,18 @@ class ObjectClasses:
         """Objects each its own class: scored by name."""
         return cls(tuple(names), tuple(names))
 
+    @cached_property
     def class_of(self) -> dict[str, str]:
         """Each object's name -> its class entry."""
         return dict(zip(self.names, self.classes, strict=True))
 
-    def groups(self) -> list[list[int]]:
+    @cached_property
+    def groups(self) -> tuple[tuple[int, ...], ...]:
         """The objects' indices by class, classes in order of first appearance."""
         indices: dict[str, list[int]] = {}
         for index, key in enumerate(self.classes):
             indices.setdefault(key, []).append(index)
-        return list(indices.values())
+        return tuple(tuple(group) for group in indices.values())
 
 
 def rank_one_poses(hypotheses: Sequence[RankedHypotheses]) -> tuple[Pose, ...]:
@@ -71,7 +74,7 @@ def matched_errors(
     instance's the one of its class the least-total-distance matching of the class's ``present`` instances
     gives it. None for an object not present (left out of the map)."""
     errors: list[float | None] = [None] * len(estimate)
-    for group in objects.groups():
+    for group in objects.groups:
         placed = [i for i in group if present[i]]
         if len(group) == 1:
             errors[group[0]] = translation_distance(estimate[group[0]], truth[group[0]]) if placed else None

@@ -288,34 +288,31 @@ def mean_scored_errors(errors: Iterable[EstimateErrors | None]) -> dict[str, tup
     return {name: tuple(row.tolist()) for name, row in zip(ESTIMATES, means, strict=True)}
 
 
-def mean_errors(results: Sequence[SnapshotResult], objects: ObjectClasses) -> dict[str, tuple[float, ...]] | None:
-    """:func:`mean_scored_errors` of the results: averaged over those with a ground truth and a chosen configuration."""
-    return mean_scored_errors(estimate_errors(result, objects) for result in results)
-
-
-def evaluation_summary(results: Sequence[SnapshotResult], objects: ObjectClasses) -> str:
-    """Snapshot counts, how often C11..1 was kept, and the error table (centimetres) when there is ground truth.
+def evaluation_summary(records: Sequence[Mapping[str, Any]], objects: ObjectClasses) -> str:
+    """Snapshot counts, how often C11..1 was kept, and the error table (centimetres) when there is ground truth,
+    of the snapshots' :func:`snapshot_result_dict` records.
 
     The total of a column is the sum over objects (the paper's total configuration error).
     """
     object_names = objects.names
     top = code_text((1,) * len(object_names))
-    chosen = [o.code for o in results if o.code is not None]
+    chosen = [r["code"] for r in records if r["code"] is not None]
     kept_top = sum(1 for code in chosen if all(rank == 1 for rank in code))
     lines = [
-        f"{len(results)} snapshots, {len(chosen)} with a configuration: "
+        f"{len(records)} snapshots, {len(chosen)} with a configuration: "
         f"{top} in {kept_top}, another configuration in {len(chosen) - kept_top}"
     ]
-    errors = mean_errors(results, objects)
+    identity = identity_text(identity_metrics(record_frames(records), objects))
+    errors = mean_scored_errors(r["errors"] for r in records)
     if errors is None:
         lines.append(
             "no position error against ground truth (no /ground_truth in the bag, or no configuration holding "
             "every object)"
         )
-        lines.append(identity_text(result_identity(results, objects)))
+        lines.append(identity)
         return "\n".join(lines)
     width = max(len(name) for name in (*object_names, "total"))
-    scored = sum(1 for o in results if is_scored(estimate_errors(o, objects)))
+    scored = sum(1 for r in records if is_scored(r["errors"]))
     matched = " (instances against the true object matched to them in each)" if objects.classes != objects.names else ""
     lines.append(
         f"mean position error against ground truth over the {scored} snapshots with a configuration{matched} [cm]:"
@@ -325,13 +322,8 @@ def evaluation_summary(results: Sequence[SnapshotResult], objects: ObjectClasses
     for index, name in enumerate(object_names):
         lines.append(f"{name:<{width}}" + "".join(f"{e[index] * 100:10.2f}" for e in errors.values()))
     lines.append(f"{'total':<{width}}" + "".join(f"{sum(e) * 100:10.2f}" for e in errors.values()))
-    lines.append(identity_text(result_identity(results, objects)))
+    lines.append(identity)
     return "\n".join(lines)
-
-
-def result_identity(results: Sequence[SnapshotResult], objects: ObjectClasses) -> dict[str, Any] | None:
-    """The identity metrics (:func:`~physics_mapper.evaluation.identity.identity_metrics`) of the results."""
-    return identity_metrics(record_frames(snapshot_result_dict(r, objects) for r in results), objects)
 
 
 def map_positions(result: SnapshotResult, names: Sequence[str]) -> dict[str, list[float]] | None:

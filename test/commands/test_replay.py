@@ -475,9 +475,9 @@ def test_on_the_shipped_bag_physics_lowers_the_error() -> None:
     """
     scene = load_scene(SCENE)
     snapshots = bag_snapshots(storage.read_bag(REPO / "test" / "data" / "pyramid"), scene)
-    mean = snapshot_results.mean_errors(
-        snapshot_results.search_offline(snapshots, scene, None), ObjectClasses.of(scene)
-    )
+    results = snapshot_results.search_offline(snapshots, scene, None)
+    objects = ObjectClasses.of(scene)
+    mean = snapshot_results.mean_scored_errors(snapshot_results.estimate_errors(r, objects) for r in results)
     assert mean is not None
     assert sum(mean["chosen"]) < sum(mean["top"])
     assert sum(mean["settled"]) < sum(mean["chosen"])
