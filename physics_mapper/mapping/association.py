@@ -34,7 +34,19 @@ saw, and keeps no order across frames. The rules that give each detection of a *
   measurements; pairs farther apart than the class's *gate* are never matched. The gate is
   ``gate`` metres, or by default half the largest extent of the class's shape: wide enough for a
   first estimate that is still a centimetre off on a 3 cm part, and the assignment, not the gate,
-  tells neighbours apart (gates of neighbours overlap).
+  tells neighbours apart (gates of neighbours overlap). Nor is a pair matched beyond the track's
+  *reach*, where its filter gives a detection of its instance less than a 1 % chance
+  (:data:`GATE_PROBABILITY`): sqrt(chi2_3(0.99) s) = 3.37 sqrt(s) metres, s the largest variance of
+  S = P + R, 4.8 cm for a track seen every half second with the default noises. Half a jenga block's
+  length (7.5 cm) reaches its neighbours and, from a block the estimator missed, a false detection in
+  the floor beneath it; matched, its poses were the block's, all impossible, and the map invalid.
+- **One body, one match.** Two detections the assignment matched whose measurements lie within the
+  *same-body distance* (below) of each other are one body seen twice: the pair matched from farther is
+  undone, so that detection is left for the rules below (a second detection) and its instance misses
+  the array. The gate of a long part reaches its neighbours: a jenga block's is 7.5 cm, its neighbour
+  lies 5 cm away, and where the estimator missed a block and saw the next one twice, the optimal
+  assignment gave the second detection to the missed block's instance, which then stood in its
+  neighbour's place (12 jenga blocks in two layers: identity switches at every such frame).
 - **Second detections.** A detection matched to no instance whose results come within the *same-body
   distance* of an instance another detection of the same array matched is a second detection of
   that instance (an estimator that reports one object twice): counted as a *double*, not used. The
@@ -93,6 +105,7 @@ the whole array, and ties in cost go to the lower instance and detection index.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from functools import cached_property
@@ -102,6 +115,7 @@ from filterpy.kalman import KalmanFilter
 from numpy.typing import NDArray
 from scipy.optimize import linear_sum_assignment
 from scipy.spatial.distance import cdist
+from scipy.stats import chi2
 
 from physics_mapper.model.extents import body_box, inside_static, may_overlap_static, shape_extents
 from physics_mapper.model.geometry import Pose
@@ -121,6 +135,9 @@ CAME_BACK_HITS = 2
 #: track would start again with one detection's evidence, its *absent* then likelier than any one pose, so
 #: that the next maps leave it out too.
 CUT_SHORT_LEAVINGS = 2
+#: Probability with which a detection of an instance lies within its track's reach (:meth:`Track.reach`).
+GATE_PROBABILITY = 0.99
+_GATE_CHI2 = float(chi2.ppf(GATE_PROBABILITY, 3))
 #: Cost of a pair outside the gate: never chosen over a gated pair (distances are metres, ≤ 1e7).
 _FORBIDDEN = 1e12
 
@@ -216,6 +233,12 @@ class Track:
         self.filter.predict()
         self.updated = now
         return self.position
+
+    def reach(self) -> float:
+        """Metres from the predicted position within which a measurement lies with probability
+        :data:`GATE_PROBABILITY`: sqrt(chi2_3(GATE_PROBABILITY) * s), s the largest variance of S = P + R."""
+        covariance = np.asarray(self.filter.P + self.filter.R, dtype=np.float64)
+        return math.sqrt(_GATE_CHI2 * float(np.linalg.eigvalsh(covariance).max()))
 
     def absent_weight(self) -> float:
         """prod_k (1 - c_k) over the matched detections' confidences (module docstring)."""
@@ -534,7 +557,9 @@ class InstanceTracks:
         self, observations: list[Observation], names: list[str], class_id: str, now: float
     ) -> list[tuple[Observation, str, int | None]]:
         """Pairs by key, then by gated optimal assignment on distance, each with the index of the
-        observation's result nearest the instance's predicted position where it was measured."""
+        observation's result nearest the instance's predicted position where it was measured; of two
+        assigned pairs whose measurements lie within the same-body distance, the one matched from farther
+        is dropped (module docstring, one body)."""
         pairs: list[tuple[Observation, str, int | None]] = []
         keyed = {self.tracks[n].key: n for n in names if self.tracks[n].key}
         rest: list[Observation] = []
@@ -551,10 +576,16 @@ class InstanceTracks:
         predicted = np.array([self.tracks[n].predicted(now, self.settings.process_noise) for n in free])
         gate = self.gate(class_id)
         costs, nearest = _nearest_distances(predicted, rest, gate)
-        costs[costs > gate] = _FORBIDDEN
+        gates = np.minimum(gate, [self.tracks[n].reach() for n in free])
+        costs[costs > gates[:, None]] = _FORBIDDEN
         rows, columns = linear_sum_assignment(costs)
-        for row, column in zip(rows.tolist(), columns.tolist(), strict=True):
-            if costs[row, column] < _FORBIDDEN:
+        gated = [(r, c) for r, c in zip(rows.tolist(), columns.tolist(), strict=True) if costs[r, c] < _FORBIDDEN]
+        same_body = self.same_body(class_id)
+        kept: list[NDArray[np.float64]] = []  # the measurements of the pairs kept so far (m)
+        for row, column in sorted(gated, key=lambda pair: (costs[pair], pair)):
+            measured = rest[column].positions[nearest[row, column]]
+            if all(np.linalg.norm(measured - other) > same_body for other in kept):
+                kept.append(measured)
                 pairs.append((rest[column], free[row], int(nearest[row, column])))
         return pairs
 

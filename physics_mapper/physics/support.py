@@ -35,8 +35,9 @@ tau = ``jitter_threshold`` (m):
   reaches stay out: a detection in the air or in a wall holds nothing up, and a second detection of a box
   that stands holds up nothing that box does not.
 
-Once refined, an object that may be absent and that the refinement moved farther than half its shape's
-largest extent from its start (the association's default gate: it is no longer where it was seen), and on
+Once refined, an object that may be absent and that the refinement moved farther from its start than half
+its body's width along the way it moved (its box's at the start, measured along the move; at most half its
+shape's largest extent, the association's default gate: it is no longer where it was seen), and on
 which no object of the map rests, is left out (:func:`leave_out_displaced`), repeated until none is. There
 the objects are at rest, so *rests on* asks the bodies as well as their boxes: B holds X up, and B and X
 touch (closest points within :data:`TOUCHING` m) along a normal that pushes X up, within 60 degrees of the
@@ -64,7 +65,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from physics_mapper.model.extents import FloatArray, body_box, may_overlap_static, meets_box, shape_extents
-from physics_mapper.model.geometry import Pose
+from physics_mapper.model.geometry import Pose, Vector3
 from physics_mapper.model.hypotheses import RankedHypotheses
 from physics_mapper.model.scene import ObjectShape, Plane, StaticBody
 from physics_mapper.physics.collision import Proximity
@@ -170,13 +171,25 @@ def within_reach(
 
 
 def moved_away(shapes: Sequence[ObjectShape], start: Sequence[Pose], settled: Sequence[Pose]) -> frozenset[int]:
-    """The objects (indices) a refinement took from ``start`` to ``settled`` farther than half their shape's
-    largest extent: no longer where they were seen (module docstring)."""
+    """The objects (indices) a refinement took from ``start`` to ``settled`` farther than half their body's
+    width along the way they moved, at most half their shape's largest extent: no longer where they were seen
+    (module docstring)."""
     return frozenset(
-        i
-        for i, shape in enumerate(shapes)
-        if np.linalg.norm(np.subtract(settled[i].position, start[i].position)) > half_size(shape)
+        i for i, shape in enumerate(shapes) if _moved_beyond_half_width(shape, start[i], settled[i].position)
     )
+
+
+def _moved_beyond_half_width(shape: ObjectShape, start: Pose, position: Vector3) -> bool:
+    """Whether ``position`` lies farther from ``start``'s than half the width (m) of the body's box at ``start``
+    along the line between them, or than :func:`half_size`: a flat part falling one layer has moved its own
+    height, a fraction of its largest extent."""
+    moved = np.subtract(position, start.position)
+    distance = float(np.linalg.norm(moved))
+    if distance <= 0.0:
+        return False
+    low, high = body_box(shape, start)
+    width = float(np.abs(moved / distance) @ (high - low))
+    return distance > min(0.5 * width, half_size(shape))
 
 
 def half_size(shape: ObjectShape) -> float:

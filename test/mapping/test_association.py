@@ -434,3 +434,54 @@ def test_the_gate_is_half_the_largest_extent_and_a_part_on_another_is_no_second_
     )
     assert inputs.association is not None and inputs.association.doubles == {}
     assert positions_of(inputs) == {"part_1": below, "part_2": above}
+
+
+def block_scene(settings_count: int = 2) -> Scene:
+    """Jenga-like blocks, 15 x 5 x 3 cm: half their length, the default gate, is 7.5 cm."""
+    block = {"name": "block", "shape": "box", "size": [0.15, 0.05, 0.03], "mass": 0.05, "count": settings_count}
+    return scene_from_dict({"objects": [block], "static": [{"name": "floor", "shape": "plane"}]}, "blocks")
+
+
+def block_detections(*positions: tuple[float, float, float]) -> Any:
+    return array([detection(result(p, class_id="block")) for p in positions])
+
+
+def test_a_detection_beyond_a_tracks_reach_does_not_match_it_though_within_the_gate() -> None:
+    """A block the estimator misses, and a false detection in the floor 6 cm from it: within half the
+    block's length (7.5 cm), beyond where its filter expects a detection (sqrt(chi2_3(0.99) S), S = P + R:
+    4.8 cm for a track seen every half second). Matched, its poses would all be impossible. Silent for
+    seconds, the track's reach grows with its filter's uncertainty."""
+    scene = block_scene()
+    tracks = InstanceTracks(scene)
+    block, in_floor = (0.0, 0.0, 0.015), (0.03, 0.0, -0.037)
+    for time in (0.0, 0.5, 1.0):
+        detection_inputs(block_detections(block), scene, received=time, tracks=tracks)
+    track = tracks.tracks["block_1"]
+    assert np.linalg.norm(np.subtract(in_floor, block)) < tracks.gate("block")
+    assert track.reach() == pytest.approx(
+        math.sqrt(11.345 * float(np.max(np.diag(track.filter.P + track.filter.R)))), rel=1e-4
+    )
+    missed = detection_inputs(block_detections(in_floor), scene, received=1.5, tracks=tracks).association
+    assert missed is not None and missed.assigned.get(0) != "block_1" and tracks.tracks["block_1"].misses == 1
+    assert tracks.tracks["block_1"].position.tolist() == pytest.approx(list(block), abs=1e-9)  # its own state
+    silent = InstanceTracks(scene)
+    detection_inputs(block_detections(block), scene, received=0.0, tracks=silent)
+    later = detection_inputs(block_detections((0.06, 0.0, 0.015)), scene, received=8.0, tracks=silent).association
+    assert later is not None and later.assigned == {0: "block_1"}  # 8 s unseen: S grew, the reach with it
+
+
+def test_two_detections_of_one_body_match_one_instance_not_a_missed_neighbours() -> None:
+    """Two blocks side by side, 5.5 cm apart; one is missed and the other seen twice, the second 6 mm off.
+    With a noisy estimator's measurement noise (3 cm: the reach is wider than the gate) the neighbour's
+    instance lies within the gate of the second detection, and the optimal assignment would give it that
+    detection (each instance one detection): one body, one match, and the missed neighbour keeps its state."""
+    scene = block_scene()
+    tracks = InstanceTracks(scene, AssociationSettings(measurement_noise=0.03))
+    seen, neighbour = (0.0, 0.0, 0.015), (0.0, 0.055, 0.015)
+    detection_inputs(block_detections(seen, neighbour), scene, received=0.0, tracks=tracks)
+    twice = detection_inputs(block_detections((0.0, 0.006, 0.015), seen), scene, received=0.5, tracks=tracks)
+    association = twice.association
+    assert association is not None and association.assigned == {1: "block_1"}
+    assert association.doubles == {"block": 1} and association.born == ()
+    assert tracks.tracks["block_2"].misses == 1
+    assert tracks.tracks["block_2"].position.tolist() == pytest.approx(list(neighbour), abs=1e-9)

@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import math
 
-from core_builders import CUBE_SIZE, ON_FLOOR, cube, floor_scene, ranked, unrotated
+from core_builders import CUBE_SIZE, ON_FLOOR, cube, floor_scene, moved, ranked, unrotated
 
 from physics_mapper.model.geometry import Pose, make_pose
 from physics_mapper.model.hypotheses import Hypothesis, RankedHypotheses, absent_hypothesis
-from physics_mapper.model.scene import Scene
+from physics_mapper.model.scene import Box, Scene
 from physics_mapper.physics.checker import PhysicsChecker
 from physics_mapper.physics.support import (
     TOUCHING,
@@ -156,6 +156,16 @@ def test_what_the_refinement_moved_away_from_where_it_was_seen_is_left_out_if_it
     resting = at_rest(scene, settled)
     assert resting == {(3, 4)}
     assert leave_out_displaced((1, 1, 1, 1, 1), hypotheses, shapes, moved, settled, resting, TAU) == (2, 1, 1, 1, 1)
+
+
+def test_a_flat_object_that_fell_its_own_height_moved_away() -> None:
+    """A flat part, 12 x 9 x 3 cm (half its largest extent 6 cm), that fell one layer (3 cm) is no longer where
+    it was seen: it moved more than half its body's width along the way it went (1.5 cm). Slid 3 cm along its
+    length (half 6 cm), or 3 cm diagonally across its top, it is still there."""
+    shape = Box((0.12, 0.09, 0.03))
+    start = unrotated(0.0, 0.0, 0.045)
+    ends = [moved(start, dz=-0.03), moved(start, dx=0.03), moved(start, dx=0.021, dy=0.021), moved(start, dz=-0.014)]
+    assert moved_away([shape] * 4, [start] * 4, ends) == {0}
 
 
 def at_rest(scene: Scene, poses: list[Pose]) -> frozenset[tuple[int, int]]:
