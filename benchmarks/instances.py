@@ -1,15 +1,16 @@
 """Bins of identical objects as an estimator reports them: identities, maps and time per tick, in one run.
 
 Run: ``.venv/bin/python benchmarks/instances.py [--frames 30] [--particles 300] [--sizes 6 12 24] [--shapes box
-cylinder mesh] [--object YAML] [--layers 1 2] [--seed 0] [--scaled | --deadline S] [-o DIR]``, or
+cylinder mesh jenga flat] [--object YAML] [--layers 1 2] [--seed 0] [--scaled | --deadline S] [-o DIR]``, or
 ``physics-mapper bench instances`` with the same options. ``--object`` bins a part of your own: a scene file's
 object entry, e.g. ``'{name: mug, shape: mesh, file: "package://pybullet_data/objects/mug.obj", collision:
 decomposition, parts: "package://pybullet_data/objects/mug_col.obj", mass: 0.3}'`` (the mesh's frame need
 not be at its centre).
 
 For each bin (N identical objects of one shape, in one or two layers, in a bin of four walls on a
-floor; ``count: N`` in the scene file), ``physics-mapper generate`` writes three bags from the same seed,
-so with the same particle-filter hypotheses (the faults draw from a stream of their own):
+floor; ``count: N`` in the scene file; the shapes: 8 cm cubes, cylinders, pybullet_data's lego parts, its jenga
+blocks, 15 x 5 x 3 cm, and its random object 002, flat, 12 x 9 x 3 cm), ``physics-mapper generate`` writes three
+bags from the same seed, so with the same particle-filter hypotheses (the faults draw from a stream of their own):
 
 * **faulty**: ``--format detections`` at 2 Hz with the estimator's faults: order shuffled, 10 % misses,
   10 % false positives (half in the air, half inside the walls or the floor), 5 % double detections,
@@ -79,7 +80,12 @@ SHAPES: dict[str, dict[str, Any]] = {
     "box": {"shape": "box", "size": [0.08, 0.08, 0.08], "mass": 0.2},
     "cylinder": {"shape": "cylinder", "radius": 0.035, "length": 0.08, "mass": 0.2},
     "mesh": {"shape": "mesh", "file": "package://pybullet_data/lego/lego.obj", "scale": 0.1, "mass": 0.01},
-}
+    # Long and flat parts: half their largest extent reaches past their neighbours and a layer.
+    "jenga": {"shape": "mesh", "file": "package://pybullet_data/jenga/jenga.obj", "scale": [0.15, 0.05, 0.03],
+              "mass": 0.05},
+    "flat": {"shape": "mesh", "file": "package://pybullet_data/random_urdfs/002/002.obj", "scale": 0.015,
+             "collision": "convex_hull", "mass": 0.1},
+}  # fmt: skip
 FAULTS = [
     "--format", "detections", "--shuffle", "--miss", "0.1", "--false-positives", "0.1", "--air-share", "0.5",
     "--double", "0.05", "--results", "3-5", "--wrong-first", "0.25", "--confidence", "0.7-0.95",
