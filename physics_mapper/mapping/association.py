@@ -17,11 +17,7 @@ saw, and keeps no order across frames. The rules that give each detection of a *
   position (an estimator may rank a wrong pose first; the right one is usually among its
   results); a new track starts at the *central* result, the one nearest the median of its results'
   positions (where a wrong pose is ranked first, the detection's other results agree with each
-  other, not with it). After each tick, where the tick's settled map (valid or refined) put an
-  instance is a measurement too (:meth:`InstanceTracks.rest`), where it lies within the gate of the
-  track: a first estimate of a part in a pile may lie half-way between two layers (a jenga block's,
-  1-1.5 cm high, 3 cm below the next), and its track with it, so that the next array's detection of
-  the part above matched it; the map rests the part on what holds it up.
+  other, not with it).
 - **The track's prior.** A matched instance's results are weighted by where its track predicted
   it: each result's score times exp(-(d_r - min_j d_j) / 2), d_r = (p_r - x)ᵀ S⁻¹ (p_r - x) the
   squared Mahalanobis distance of its position p_r from the predicted position x, S = P + R the
@@ -386,17 +382,6 @@ class InstanceTracks:
         held = set(names)
         for name, track in self.tracks.items():
             track.holds_up = name in held
-
-    def rest(self, positions: dict[str, NDArray[np.float64]], now: float) -> None:
-        """Take where a map put each instance of ``positions`` (m) at ``now`` (s) as a measurement of its
-        track's position, where that lies within the gate of the track (module docstring, the measurement)."""
-        for name, position in positions.items():
-            track = self.tracks.get(name)
-            if track is None:
-                continue
-            predicted = track.predicted(now, self.settings.process_noise)
-            if np.linalg.norm(position - predicted) <= self.gate(self.scene.class_of(name)):
-                track.filter.update(np.asarray(position, dtype=np.float64).reshape(3, 1))
 
     def instances_per_class(self) -> dict[str, int]:
         """Tracked classes -> their instances with a track."""

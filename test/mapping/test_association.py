@@ -485,21 +485,3 @@ def test_two_detections_of_one_body_match_one_instance_not_a_missed_neighbours()
     assert association.doubles == {"block": 1} and association.born == ()
     assert tracks.tracks["block_2"].misses == 1
     assert tracks.tracks["block_2"].position.tolist() == pytest.approx(list(neighbour), abs=1e-9)
-
-
-def test_where_the_map_put_an_instance_is_a_measurement_of_its_track() -> None:
-    """A block first estimated 1.5 cm high, half-way between the floor's layer and the next: the next frame
-    sees it and the block above it, and its track matches the upper one. Rested where a map put it, on the
-    floor, it matches its own; a rest beyond the gate (a map that moved it away) is not taken."""
-    scene = block_scene()
-    below, above, first = (0.0, 0.0, 0.015), (0.0, 0.0, 0.045), (0.0, 0.0, 0.031)
-    matches = []
-    for rested in (None, below, (0.2, 0.0, 0.015)):
-        tracks = InstanceTracks(scene)
-        detection_inputs(block_detections(first), scene, received=0.0, tracks=tracks)
-        if rested is not None:
-            tracks.rest({"block_1": np.array(rested)}, 0.2)
-        both = detection_inputs(block_detections(above, below), scene, received=0.5, tracks=tracks).association
-        assert both is not None
-        matches.append(both.assigned)
-    assert matches == [{0: "block_1", 1: "block_2"}, {1: "block_1", 0: "block_2"}, {0: "block_1", 1: "block_2"}]
