@@ -40,13 +40,15 @@ saw, and keeps no order across frames. The rules that give each detection of a *
   S = P + R, 4.8 cm for a track seen every half second with the default noises. Half a jenga block's
   length (7.5 cm) reaches its neighbours and, from a block the estimator missed, a false detection in
   the floor beneath it; matched, its poses were the block's, all impossible, and the map invalid.
-- **One body, one match.** Two detections the assignment matched whose measurements lie within the
-  *same-body distance* (below) of each other are one body seen twice: the pair matched from farther is
-  undone, so that detection is left for the rules below (a second detection) and its instance misses
-  the array. The gate of a long part reaches its neighbours: a jenga block's is 7.5 cm, its neighbour
-  lies 5 cm away, and where the estimator missed a block and saw the next one twice, the optimal
-  assignment gave the second detection to the missed block's instance, which then stood in its
-  neighbour's place (12 jenga blocks in two layers: identity switches at every such frame).
+- **One body, one match.** Two detections the assignment matched whose central results, or whose
+  measurements, lie within the *same-body distance* (below) of each other are one body seen twice: the
+  one matched from farther is left out and the assignment made again without it (until no two are), so
+  that detection is left for the rules below (a second detection). Where the estimator missed a block
+  and saw the next one twice, the optimal assignment (each instance one detection) gave the second
+  detection to the missed block's instance, which then stood in its neighbour's place; and a second
+  detection whose wrong pose (3 cm off, ranked first) lay nearer a neighbour's instance than its own
+  body took that instance, and the neighbour's detection went to the instance above it, missed in
+  that array: three instances each on another's block (jenga blocks in two layers).
 - **Second detections.** A detection matched to no instance whose results come within the *same-body
   distance* of an instance another detection of the same array matched is a second detection of
   that instance (an estimator that reports one object twice): counted as a *double*, not used. The
@@ -112,6 +114,7 @@ from functools import cached_property
 
 import numpy as np
 from filterpy.kalman import KalmanFilter
+from numpy.linalg import norm
 from numpy.typing import NDArray
 from scipy.optimize import linear_sum_assignment
 from scipy.spatial.distance import cdist
@@ -311,6 +314,30 @@ def _nearest_distances(
         nearest[rows, column] = np.argmin(offsets, axis=1)
         distances[rows, column] = offsets[np.arange(len(rows)), nearest[rows, column]]
     return distances, nearest
+
+
+def _assigned(costs: NDArray[np.float64]) -> list[tuple[int, int]]:
+    """The (row, column) pairs of the least-cost assignment on ``costs`` that are not forbidden, cheapest first."""
+    rows, columns = linear_sum_assignment(costs)
+    pairs = [(r, c) for r, c in zip(rows.tolist(), columns.tolist(), strict=True) if costs[r, c] < _FORBIDDEN]
+    return sorted(pairs, key=lambda pair: (costs[pair], pair))
+
+
+def _second_of_a_body(
+    observations: Sequence[Observation], costs: NDArray[np.float64], nearest: NDArray[np.intp], same_body: float
+) -> int | None:
+    """The column of an observation the assignment on ``costs`` matches from farther than another whose central
+    result, or measurement (``nearest``), lies within ``same_body`` metres of its own (one body seen twice),
+    or None."""
+    kept: list[tuple[NDArray[np.float64], NDArray[np.float64]]] = []  # (central result, measurement), m
+    for row, column in _assigned(costs):
+        observation = observations[column]
+        place = observation.positions[observation.central]
+        measured = observation.positions[nearest[row, column]]
+        if any(min(norm(place - p), norm(measured - m)) <= same_body for p, m in kept):
+            return column
+        kept.append((place, measured))
+    return None
 
 
 class InstanceTracks:
@@ -557,9 +584,8 @@ class InstanceTracks:
         self, observations: list[Observation], names: list[str], class_id: str, now: float
     ) -> list[tuple[Observation, str, int | None]]:
         """Pairs by key, then by gated optimal assignment on distance, each with the index of the
-        observation's result nearest the instance's predicted position where it was measured; of two
-        assigned pairs whose measurements lie within the same-body distance, the one matched from farther
-        is dropped (module docstring, one body)."""
+        observation's result nearest the instance's predicted position where it was measured; a detection
+        of a body another matched detection shows is not matched (module docstring, one body)."""
         pairs: list[tuple[Observation, str, int | None]] = []
         keyed = {self.tracks[n].key: n for n in names if self.tracks[n].key}
         rest: list[Observation] = []
@@ -578,15 +604,9 @@ class InstanceTracks:
         costs, nearest = _nearest_distances(predicted, rest, gate)
         gates = np.minimum(gate, [self.tracks[n].reach() for n in free])
         costs[costs > gates[:, None]] = _FORBIDDEN
-        rows, columns = linear_sum_assignment(costs)
-        gated = [(r, c) for r, c in zip(rows.tolist(), columns.tolist(), strict=True) if costs[r, c] < _FORBIDDEN]
-        same_body = self.same_body(class_id)
-        kept: list[NDArray[np.float64]] = []  # the measurements of the pairs kept so far (m)
-        for row, column in sorted(gated, key=lambda pair: (costs[pair], pair)):
-            measured = rest[column].positions[nearest[row, column]]
-            if all(np.linalg.norm(measured - other) > same_body for other in kept):
-                kept.append(measured)
-                pairs.append((rest[column], free[row], int(nearest[row, column])))
+        while (second := _second_of_a_body(rest, costs, nearest, self.same_body(class_id))) is not None:
+            costs[:, second] = _FORBIDDEN
+        pairs.extend((rest[column], free[row], int(nearest[row, column])) for row, column in _assigned(costs))
         return pairs
 
     def _free(

@@ -485,3 +485,28 @@ def test_two_detections_of_one_body_match_one_instance_not_a_missed_neighbours()
     assert association.doubles == {"block": 1} and association.born == ()
     assert tracks.tracks["block_2"].misses == 1
     assert tracks.tracks["block_2"].position.tolist() == pytest.approx(list(neighbour), abs=1e-9)
+
+
+def test_a_second_detection_whose_wrong_pose_ranks_first_takes_no_instance() -> None:
+    """Three blocks: one, its neighbour 5.5 cm away and one on the neighbour; the top one is missed and the
+    first seen twice, the second detection's first result 3.5 cm off towards the neighbour (its other results
+    agree, on the first block). Matched one by one, that pose reaches the missed block's instance (3.6 cm);
+    its central result shows the first block's body, which another detection matched: it is a second
+    detection, and the missed block's instance keeps its state."""
+    scene = block_scene(3)
+    tracks = InstanceTracks(scene)
+    first, neighbour, above = (0.0, 0.0, 0.015), (0.0, 0.055, 0.015), (0.0, 0.055, 0.045)
+    born = detection_inputs(block_detections(above, first, neighbour), scene, received=0.0, tracks=tracks)
+    assert born.association is not None and born.association.born == ("block_1", "block_2", "block_3")
+    assert tracks.tracks["block_3"].position.tolist() == pytest.approx(list(above))
+    again = detection(
+        result((0.0, 0.035, 0.015), 0.6, class_id="block"),
+        result((0.0, 0.006, 0.015), 0.3, class_id="block"),
+        result((0.0, 0.004, 0.015), 0.1, class_id="block"),
+    )
+    seen = array([detection(result(first, class_id="block")), again, detection(result(neighbour, class_id="block"))])
+    association = detection_inputs(seen, scene, received=0.5, tracks=tracks).association
+    assert association is not None and association.assigned == {0: "block_1", 2: "block_2"}
+    assert association.doubles == {"block": 1} and association.born == ()
+    assert tracks.tracks["block_3"].misses == 1
+    assert tracks.tracks["block_3"].position.tolist() == pytest.approx(list(above), abs=1e-9)
