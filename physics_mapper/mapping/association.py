@@ -41,14 +41,15 @@ saw, and keeps no order across frames. The rules that give each detection of a *
   length (7.5 cm) reaches its neighbours and, from a block the estimator missed, a false detection in
   the floor beneath it; matched, its poses were the block's, all impossible, and the map invalid.
 - **One body, one match.** Two detections the assignment matched whose central results, or whose
-  measurements, lie within the *same-body distance* (below) of each other are one body seen twice: the
-  one matched from farther is left out and the assignment made again without it (until no two are), so
-  that detection is left for the rules below (a second detection). Where the estimator missed a block
-  and saw the next one twice, the optimal assignment (each instance one detection) gave the second
-  detection to the missed block's instance, which then stood in its neighbour's place; and a second
-  detection whose wrong pose (3 cm off, ranked first) lay nearer a neighbour's instance than its own
-  body took that instance, and the neighbour's detection went to the instance above it, missed in
-  that array: three instances each on another's block (jenga blocks in two layers).
+  measurements, lie within the *same-body distance* (below) of each other are one body seen twice (and so
+  is one near a detection matched by its id): the one matched from farther is left out and the assignment
+  made again without it (until no two are), so that detection is left for the rules below (a second
+  detection). Where the estimator missed a block and saw the next one twice, the optimal assignment (each
+  instance one detection) gave the second detection to the missed block's instance, which then stood in
+  its neighbour's place; and a second detection whose wrong pose (3 cm off, ranked first) lay nearer a
+  neighbour's instance than its own body took that instance, and the neighbour's detection went to the
+  instance above it, missed in that array: three instances each on another's block (jenga blocks in two
+  layers).
 - **Second detections.** A detection matched to no instance whose results come within the *same-body
   distance* of an instance another detection of the same array matched is a second detection of
   that instance (an estimator that reports one object twice): counted as a *double*, not used. The
@@ -324,12 +325,17 @@ def _assigned(costs: NDArray[np.float64]) -> list[tuple[int, int]]:
 
 
 def _second_of_a_body(
-    observations: Sequence[Observation], costs: NDArray[np.float64], nearest: NDArray[np.intp], same_body: float
+    observations: Sequence[Observation],
+    costs: NDArray[np.float64],
+    nearest: NDArray[np.intp],
+    same_body: float,
+    matched: Sequence[tuple[NDArray[np.float64], NDArray[np.float64]]] = (),
 ) -> int | None:
     """The column of an observation the assignment on ``costs`` matches from farther than another whose central
-    result, or measurement (``nearest``), lies within ``same_body`` metres of its own (one body seen twice),
-    or None."""
-    kept: list[tuple[NDArray[np.float64], NDArray[np.float64]]] = []  # (central result, measurement), m
+    result, or measurement (``nearest``), lies within ``same_body`` metres of its own (one body seen twice), or
+    that lies so near one of ``matched`` (central result, measurement: detections matched before, by key), or
+    None."""
+    kept = list(matched)  # (central result, measurement), m
     for row, column in _assigned(costs):
         observation = observations[column]
         place = observation.positions[observation.central]
@@ -604,7 +610,8 @@ class InstanceTracks:
         costs, nearest = _nearest_distances(predicted, rest, gate)
         gates = np.minimum(gate, [self.tracks[n].reach() for n in free])
         costs[costs > gates[:, None]] = _FORBIDDEN
-        while (second := _second_of_a_body(rest, costs, nearest, self.same_body(class_id))) is not None:
+        matched = [(o.positions[o.central],) * 2 for o, _, _ in pairs]  # by key: a body matched first
+        while (second := _second_of_a_body(rest, costs, nearest, self.same_body(class_id), matched)) is not None:
             costs[:, second] = _FORBIDDEN
         pairs.extend((rest[column], free[row], int(nearest[row, column])) for row, column in _assigned(costs))
         return pairs

@@ -510,3 +510,23 @@ def test_a_second_detection_whose_wrong_pose_ranks_first_takes_no_instance() -> 
     assert association.doubles == {"block": 1} and association.born == ()
     assert tracks.tracks["block_3"].misses == 1
     assert tracks.tracks["block_3"].position.tolist() == pytest.approx(list(above), abs=1e-9)
+
+
+def test_a_second_detection_with_an_id_of_its_own_takes_no_missed_neighbours_instance() -> None:
+    """A tracker's ids: block a seen, its second detection 6 mm off with an id of its own, block b missed. The
+    second detection matches no key; by distance it would reach b's instance (a noisy estimator's reach), and
+    its id would become that instance's key. It shows the body block a's detection, matched by its id, shows."""
+    scene = block_scene()
+    tracks = InstanceTracks(scene, AssociationSettings(measurement_noise=0.03))
+    seen, neighbour = (0.0, 0.0, 0.015), (0.0, 0.055, 0.015)
+    first = array(
+        [detection(result(seen, class_id="block"), key="a"), detection(result(neighbour, class_id="block"), key="b")]
+    )
+    detection_inputs(first, scene, received=0.0, tracks=tracks)
+    second = detection(result((0.0, 0.006, 0.015), class_id="block"), key="c")
+    again = detection_inputs(
+        array([second, detection(result(seen, class_id="block"), key="a")]), scene, received=0.5, tracks=tracks
+    )
+    association = again.association
+    assert association is not None and association.assigned == {1: "block_1"}
+    assert association.doubles == {"block": 1} and tracks.tracks["block_2"].key == "b"
