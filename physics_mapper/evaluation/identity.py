@@ -127,6 +127,22 @@ def _accumulate(
     return accumulator, names
 
 
+def objects_lain_on(
+    truth: np.ndarray, estimate: Mapping[str, Sequence[float]], objects: ObjectClasses | None, gate: float
+) -> dict[str, int | None]:
+    """Each map object's nearest true object (index into ``truth``, N x 3, m) of its class (any, without
+    ``objects``) within ``gate`` metres, the one it lies on; None where none is."""
+    names = list(estimate)
+    truth = np.asarray(truth, dtype=float).reshape(-1, 3)
+    positions = np.asarray([estimate[name] for name in names], dtype=float).reshape(-1, 3)
+    apart = None if objects is None else _apart(objects, len(truth), names)
+    distances = _distances(truth, positions, gate, apart)
+    return {
+        name: None if np.isnan(column).all() else int(np.nanargmin(column))
+        for name, column in zip(names, distances.T, strict=True)
+    }
+
+
 def _apart(objects: ObjectClasses, truth_count: int, names: Iterable[str]) -> np.ndarray:
     """[true object, map object] True where the two are of different classes."""
     class_of = objects.class_of

@@ -226,7 +226,7 @@ def identity_timeline(records: Sequence[dict[str, Any]], objects: ObjectClasses,
     an identity kept whatever the order; a label changing within a row is an identity switch."""
     from matplotlib.colors import ListedColormap
 
-    from physics_mapper.evaluation.identity import identity_gate, record_frames
+    from physics_mapper.evaluation.identity import identity_gate, objects_lain_on, record_frames
 
     scored = [r for r in records if r["positions"]["truth"] is not None]
     gate = identity_gate(record_frames(scored), objects)
@@ -242,18 +242,12 @@ def identity_timeline(records: Sequence[dict[str, Any]], objects: ObjectClasses,
     axes = figure.add_subplot()
     axes.imshow(cells, aspect="auto", interpolation="nearest", cmap=ListedColormap(palette), vmin=0,
                 vmax=len(palette) - 1)  # fmt: skip
-    classes = np.array(objects.classes, dtype=object)
     for column, record in enumerate(scored):
-        truth = np.asarray(record["positions"]["truth"], dtype=float)
+        lain_on = objects_lain_on(record["positions"]["truth"], record["positions"]["map"] or {}, objects, gate)
         for row, name in enumerate(names):
-            position = (record["positions"]["map"] or {}).get(name)
-            if position is None:
-                continue
-            distances = np.linalg.norm(truth - np.asarray(position, dtype=float), axis=1)
-            distances[classes[: len(truth)] != objects.classes[row]] = np.inf
-            nearest = int(np.argmin(distances))
-            label = str(nearest + 1) if distances[nearest] <= gate else "x"
-            axes.text(column, row, label, ha="center", va="center", fontsize=7)
+            if name in lain_on:
+                label = "x" if (true := lain_on[name]) is None else str(true + 1)
+                axes.text(column, row, label, ha="center", va="center", fontsize=7)
     axes.set_yticks(range(len(names)), list(names))
     axes.set_xticks(range(len(scored)), [str(i + 1) for i in range(len(scored))])
     axes.set_xlabel("frame (snapshot)")

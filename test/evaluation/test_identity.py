@@ -6,13 +6,20 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import numpy as np
 import pytest
 import yaml
 from conftest import REPO, SCENES
 
 from physics_mapper.bags.storage import POSE_ARRAY, BagWriter, pose_array_cdr, read_bag
 from physics_mapper.cli import main
-from physics_mapper.evaluation.identity import IdentityFrame, identity_metrics, overall_identity_metrics, record_frames
+from physics_mapper.evaluation.identity import (
+    IdentityFrame,
+    identity_metrics,
+    objects_lain_on,
+    overall_identity_metrics,
+    record_frames,
+)
 from physics_mapper.evaluation.scoring import ObjectClasses, matched_errors
 from physics_mapper.evaluation.settings import PARAMS_FILE_NODE_KEY, grid_settings
 from physics_mapper.evaluation.snapshot_results import replay_offline, snapshot_result_dict
@@ -122,6 +129,16 @@ def test_instances_are_scored_against_the_true_object_they_are_matched_to() -> N
     assert errors[0] == pytest.approx(0.001) and errors[1] == pytest.approx(0.003) and errors[2] is None
     assert errors[3] == pytest.approx(0.01)
     assert matched_errors(estimate, truth, ObjectClasses.named(objects.names), (True,) * 4)[0] == pytest.approx(0.061)
+
+
+def test_a_map_object_lies_on_the_nearest_true_object_of_its_class_within_the_gate() -> None:
+    """part_1 lies on part 3 (1 mm), part_2 nearest the tray's true pose but on no part within the gate (part_3
+    left out of the map), the tray on its own; without classes, part_2 lies on the tray."""
+    objects = ObjectClasses(("part_1", "part_2", "part_3", "tray"), ("part", "part", "part", "tray"))
+    truth = np.array([*ROW, (0.5, 0.0, 0.0)])
+    estimate = {"part_1": [0.061, 0.0, 0.01], "part_2": [0.5, 0.002, 0.0], "tray": [0.5, 0.0, 0.003]}
+    assert objects_lain_on(truth, estimate, objects, 0.02) == {"part_1": 2, "part_2": None, "tray": 3}
+    assert objects_lain_on(truth, estimate, None, 0.02) == {"part_1": 2, "part_2": 3, "tray": 3}
 
 
 def test_the_shipped_box_bin_s_errors_are_those_of_each_box_s_true_cube(tmp_path: Path) -> None:

@@ -13,7 +13,7 @@ from ros_helpers import NodeProcess, RosClient
 from vision_msgs.msg import Detection3DArray
 
 from physics_mapper.bags.storage import pose_array_from_cdr, read_bag
-from physics_mapper.evaluation.identity import IDENTITY_GATE
+from physics_mapper.evaluation.identity import IDENTITY_GATE, objects_lain_on
 from physics_mapper.evaluation.scoring import ObjectClasses
 from physics_mapper.evaluation.snapshot_results import replay_offline, snapshot_result_dict
 from physics_mapper.mapping.detections import RECORDED_DETECTIONS_TOPIC
@@ -27,11 +27,9 @@ SCENE = SCENES / "box_bin.yaml"
 NAMESPACE = "/box_bin"
 
 
-def on_cube(position: np.ndarray, truth: np.ndarray) -> int | None:
-    """The true cube (index) within the identity gate of ``position``, if any."""
-    distances = np.linalg.norm(truth - position, axis=1)
-    nearest = int(np.argmin(distances))
-    return nearest if distances[nearest] <= IDENTITY_GATE else None
+def on_cubes(positions: dict[str, list[float]], truth: np.ndarray) -> dict[str, int | None]:
+    """The true cube (index) within the identity gate of each map object's position, if any."""
+    return objects_lain_on(truth, positions, None, IDENTITY_GATE)
 
 
 def test_offline_and_live_replay_of_the_shipped_bag_give_the_same_identities(tmp_path: Path) -> None:
@@ -41,7 +39,7 @@ def test_offline_and_live_replay_of_the_shipped_bag_give_the_same_identities(tmp
     offline: dict[int, dict[str, int | None]] = {}
     for result in replay_offline(bag, scene, scene.search.deadline):
         placed = snapshot_result_dict(result, ObjectClasses.of(scene))["positions"]["map"] or {}
-        offline[result.snapshot.stamp_ns] = {n: on_cube(np.asarray(p), truth) for n, p in placed.items()}
+        offline[result.snapshot.stamp_ns] = on_cubes(placed, truth)
     arrays = [deserialize_message(m.raw, Detection3DArray) for m in bag.on(RECORDED_DETECTIONS_TOPIC)]
     node = NodeProcess(SCENE, {"rate_hz": 2.0, "max_age": 60.0}, tmp_path / "node.log", NAMESPACE)
     client = RosClient(NAMESPACE)
@@ -64,13 +62,9 @@ def test_offline_and_live_replay_of_the_shipped_bag_give_the_same_identities(tmp
         client.close()
         assert node.stop() == 0, node.output()
     live = {
-        stamp: {
-            d.id: on_cube(np.array([d.results[0].pose.pose.position.x, d.results[0].pose.pose.position.y,
-                                    d.results[0].pose.pose.position.z]), truth)
-            for d in message.detections
-        }
+        stamp: on_cubes({d.id: [(p := d.results[0].pose.pose.position).x, p.y, p.z] for d in message.detections}, truth)
         for stamp, message in maps.items()
-    }  # fmt: skip
+    }
     compared = 0
     for stamp, names in offline.items():
         for name, cube in names.items():
