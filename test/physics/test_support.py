@@ -44,6 +44,16 @@ def test_a_cube_left_out_under_a_cube_of_the_map_is_put_back() -> None:
     assert put_back(hypotheses, (2, 1)) == (1, 1)
 
 
+def test_a_cube_whose_centre_lies_below_the_floor_is_not_put_back() -> None:
+    """A false detection 6 cm into the floor (its centre below it) under a top cube seen 3 cm high: the top cube
+    would land on the floor first, so it stays out (lifted out of the floor, it took a true cube's place)."""
+    hypotheses = [
+        may_be_absent(0, unrotated(0.0, 0.0, ON_FLOOR - 0.06)),
+        ranked([unrotated(0.0, 0.0, ON_FLOOR + 0.03)], [1]),
+    ]
+    assert put_back(hypotheses, (2, 1)) == (2, 1)
+
+
 def test_a_cube_bridging_two_needs_both() -> None:
     """A top cube across two bottom ones, 1 cm apart: on the one kept alone, its centre overhangs the gap."""
     hypotheses = [
