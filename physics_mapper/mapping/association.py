@@ -34,8 +34,8 @@ saw, and keeps no order across frames. The rules that give each detection of a *
   measurements; pairs farther apart than the class's *gate* are never matched. The gate is
   ``gate`` metres, or by default half the largest extent of the class's shape: wide enough for a
   first estimate that is still a centimetre off on a 3 cm part, and the assignment, not the gate,
-  tells neighbours apart (gates of neighbours overlap). Nor is a pair matched beyond the track's
-  *reach*, where its filter gives a detection of its instance less than a 1 % chance
+  tells neighbours apart (gates of neighbours overlap). Nor, with the default gate, is a pair matched
+  beyond the track's *reach*, where its filter gives a detection of its instance less than a 1 % chance
   (:data:`GATE_PROBABILITY`): sqrt(chi2_3(0.99) s) = 3.37 sqrt(s) metres, s the largest variance of
   S = P + R, 4.8 cm for a track seen every half second with the default noises. Half a jenga block's
   length (7.5 cm) reaches its neighbours and, from a block the estimator missed, a false detection in
@@ -608,8 +608,10 @@ class InstanceTracks:
         predicted = np.array([self.tracks[n].predicted(now, self.settings.process_noise) for n in free])
         gate = self.gate(class_id)
         costs, nearest = _nearest_distances(predicted, rest, gate)
-        gates = np.minimum(gate, [self.tracks[n].reach() for n in free])
-        costs[costs > gates[:, None]] = _FORBIDDEN
+        costs[costs > gate] = _FORBIDDEN
+        if self.settings.gate <= 0.0:  # an explicit gate is the user's; the default one stops at the reach
+            reaches = np.array([self.tracks[n].reach() for n in free])
+            costs[costs > reaches[:, None]] = _FORBIDDEN
         matched = [(o.positions[o.central],) * 2 for o, _, _ in pairs]  # by key: a body matched first
         while (second := _second_of_a_body(rest, costs, nearest, self.same_body(class_id), matched)) is not None:
             costs[:, second] = _FORBIDDEN

@@ -70,8 +70,8 @@ PARAMETERS = (
     ParameterSpec("require_weights", "refuse PoseArrays without a weights message instead of uniform weights", False),
     ParameterSpec(
         "association_gate",
-        "metres beyond which a detection never matches an instance (0: half the largest extent of its shape; "
-        "never beyond where the instance's filter gives a detection a 1 % chance either)",
+        "metres beyond which a detection never matches an instance (0: half the largest extent of its shape, "
+        "and never beyond where the instance's filter gives a detection a 1 % chance)",
         0.0,
         (0.0, 10.0),
     ),

@@ -450,7 +450,7 @@ def test_a_detection_beyond_a_tracks_reach_does_not_match_it_though_within_the_g
     """A block the estimator misses, and a false detection in the floor 6 cm from it: within half the
     block's length (7.5 cm), beyond where its filter expects a detection (sqrt(chi2_3(0.99) S), S = P + R:
     4.8 cm for a track seen every half second). Matched, its poses would all be impossible. Silent for
-    seconds, the track's reach grows with its filter's uncertainty."""
+    seconds, the track's reach grows with its filter's uncertainty. A gate the user gives is not cut short."""
     scene = block_scene()
     tracks = InstanceTracks(scene)
     block, in_floor = (0.0, 0.0, 0.015), (0.03, 0.0, -0.037)
@@ -468,6 +468,11 @@ def test_a_detection_beyond_a_tracks_reach_does_not_match_it_though_within_the_g
     detection_inputs(block_detections(block), scene, received=0.0, tracks=silent)
     later = detection_inputs(block_detections((0.06, 0.0, 0.015)), scene, received=8.0, tracks=silent).association
     assert later is not None and later.assigned == {0: "block_1"}  # 8 s unseen: S grew, the reach with it
+    given = InstanceTracks(scene, AssociationSettings(gate=0.1))  # a gate the user gave is the gate alone
+    for time in (0.0, 0.5, 1.0):
+        detection_inputs(block_detections(block), scene, received=time, tracks=given)
+    taken = detection_inputs(block_detections(in_floor), scene, received=1.5, tracks=given).association
+    assert taken is not None and taken.assigned == {0: "block_1"}
 
 
 def test_two_detections_of_one_body_match_one_instance_not_a_missed_neighbours() -> None:
