@@ -38,9 +38,9 @@ tau = ``jitter_threshold`` (m):
   jenga block 4-6 cm into the floor, put back under a block seen 2 cm high, was lifted out of the floor into
   the place of the block below, and the other came to rest a layer up.
 
-Once refined, an object that may be absent and that the refinement moved farther from its start than half
-its body's width along the way it moved (its box's at the start, measured along the move; at most half its
-shape's largest extent, the association's default gate: it is no longer where it was seen), and on
+Once refined, an object that may be absent and that the refinement moved out of the box its body filled at its
+start, or farther than half its shape's largest extent (the association's default gate): it is no longer where it
+was seen, and on
 which no object of the map rests, is left out (:func:`leave_out_displaced`), repeated until none is. There
 the objects are at rest, so *rests on* asks the bodies as well as their boxes: B holds X up, and B and X
 touch (closest points within :data:`TOUCHING` m) along a normal that pushes X up, within 60 degrees of the
@@ -187,25 +187,20 @@ def within_reach(
 
 
 def moved_away(shapes: Sequence[ObjectShape], start: Sequence[Pose], settled: Sequence[Pose]) -> frozenset[int]:
-    """The objects (indices) a refinement took from ``start`` to ``settled`` farther than half their body's
-    width along the way they moved, at most half their shape's largest extent: no longer where they were seen
-    (module docstring)."""
-    return frozenset(
-        i for i, shape in enumerate(shapes) if _moved_beyond_half_width(shape, start[i], settled[i].position)
-    )
+    """The objects (indices) a refinement took from ``start`` to ``settled`` out of the box their body filled at
+    ``start``, or farther than half their shape's largest extent: no longer where they were seen (module
+    docstring)."""
+    return frozenset(i for i, shape in enumerate(shapes) if _left_its_box(shape, start[i], settled[i].position))
 
 
-def _moved_beyond_half_width(shape: ObjectShape, start: Pose, position: Vector3) -> bool:
-    """Whether ``position`` lies farther from ``start``'s than half the width (m) of the body's box at ``start``
-    along the line between them, or than :func:`half_size`: a flat part falling one layer has moved its own
-    height, a fraction of its largest extent."""
-    moved = np.subtract(position, start.position)
-    distance = float(np.linalg.norm(moved))
-    if distance <= 0.0:
-        return False
+def _left_its_box(shape: ObjectShape, start: Pose, position: Vector3) -> bool:
+    """Whether ``position`` lies outside the box of the body at ``start`` along some axis, or farther from
+    ``start``'s than :func:`half_size`: a flat part falling one layer has moved its own height, a fraction of its
+    largest extent (the box, not the distance along the move: a few millimetres along a long block's length
+    widen that by centimetres)."""
+    moved = np.abs(np.subtract(position, start.position))
     low, high = body_box(shape, start)
-    width = float(np.abs(moved / distance) @ (high - low))
-    return distance > min(0.5 * width, half_size(shape))
+    return bool(np.any(moved > (high - low) / 2.0) or np.linalg.norm(moved) > half_size(shape))
 
 
 def half_size(shape: ObjectShape) -> float:

@@ -170,12 +170,19 @@ def test_what_the_refinement_moved_away_from_where_it_was_seen_is_left_out_if_it
 
 def test_a_flat_object_that_fell_its_own_height_moved_away() -> None:
     """A flat part, 12 x 9 x 3 cm (half its largest extent 6 cm), that fell one layer (3 cm) is no longer where
-    it was seen: it moved more than half its body's width along the way it went (1.5 cm). Slid 3 cm along its
-    length (half 6 cm), or 3 cm diagonally across its top, it is still there."""
+    it was seen: its centre left the box its body filled (1.5 cm high either side), and so it did falling with
+    a slide of 7 mm along its length. Slid 3 cm along its length, or 3 cm diagonally across its top, or sunk
+    1.4 cm, it is still there."""
     shape = Box((0.12, 0.09, 0.03))
     start = unrotated(0.0, 0.0, 0.045)
-    ends = [moved(start, dz=-0.03), moved(start, dx=0.03), moved(start, dx=0.021, dy=0.021), moved(start, dz=-0.014)]
-    assert moved_away([shape] * 4, [start] * 4, ends) == {0}
+    ends = [
+        moved(start, dz=-0.03),
+        moved(start, dx=0.007, dy=-0.005, dz=-0.029),
+        moved(start, dx=0.03),
+        moved(start, dx=0.021, dy=0.021),
+        moved(start, dz=-0.014),
+    ]
+    assert moved_away([shape] * 5, [start] * 5, ends) == {0, 1}
 
 
 def at_rest(scene: Scene, poses: list[Pose]) -> frozenset[tuple[int, int]]:
