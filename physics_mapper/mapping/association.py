@@ -324,26 +324,31 @@ def _assigned(costs: NDArray[np.float64]) -> list[tuple[int, int]]:
     return sorted(pairs, key=lambda pair: (costs[pair], pair))
 
 
-def _second_of_a_body(
+def _one_match_per_body(
     observations: Sequence[Observation],
     costs: NDArray[np.float64],
     nearest: NDArray[np.intp],
     same_body: float,
-    matched: Sequence[tuple[NDArray[np.float64], NDArray[np.float64]]] = (),
-) -> int | None:
-    """The column of an observation the assignment on ``costs`` matches from farther than another whose central
-    result, or measurement (``nearest``), lies within ``same_body`` metres of its own (one body seen twice), or
-    that lies so near one of ``matched`` (central result, measurement: detections matched before, by key), or
-    None."""
-    kept = list(matched)  # (central result, measurement), m
-    for row, column in _assigned(costs):
-        observation = observations[column]
-        place = observation.positions[observation.central]
-        measured = observation.positions[nearest[row, column]]
-        if any(min(norm(place - p), norm(measured - m)) <= same_body for p, m in kept):
-            return column
-        kept.append((place, measured))
-    return None
+    matched: Sequence[NDArray[np.float64]] = (),
+) -> list[tuple[int, int]]:
+    """:func:`_assigned` on ``costs``, each observation the assignment matches from farther than another whose
+    central result, or measurement (``nearest``), lies within ``same_body`` metres of its own (one body seen
+    twice), or whose central result or measurement lies so near one of ``matched`` (the central results of the
+    detections matched before, by key), left out (its column forbidden in ``costs``) and the assignment made
+    again, until none is."""
+    while True:
+        pairs = _assigned(costs)
+        kept = [(place, place) for place in matched]  # (central result, measurement), m
+        for row, column in pairs:
+            observation = observations[column]
+            place = observation.positions[observation.central]
+            measured = observation.positions[nearest[row, column]]
+            if any(min(norm(place - p), norm(measured - m)) <= same_body for p, m in kept):
+                costs[:, column] = _FORBIDDEN
+                break
+            kept.append((place, measured))
+        else:
+            return pairs
 
 
 class InstanceTracks:
@@ -612,10 +617,9 @@ class InstanceTracks:
         if self.settings.gate <= 0.0:  # an explicit gate is the user's; the default one stops at the reach
             reaches = np.array([self.tracks[n].reach() for n in free])
             costs[costs > reaches[:, None]] = _FORBIDDEN
-        matched = [(o.positions[o.central],) * 2 for o, _, _ in pairs]  # by key: a body matched first
-        while (second := _second_of_a_body(rest, costs, nearest, self.same_body(class_id), matched)) is not None:
-            costs[:, second] = _FORBIDDEN
-        pairs.extend((rest[column], free[row], int(nearest[row, column])) for row, column in _assigned(costs))
+        keyed_places = [o.positions[o.central] for o, _, _ in pairs]
+        assigned = _one_match_per_body(rest, costs, nearest, self.same_body(class_id), keyed_places)
+        pairs.extend((rest[column], free[row], int(nearest[row, column])) for row, column in assigned)
         return pairs
 
     def _free(
