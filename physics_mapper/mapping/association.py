@@ -17,7 +17,13 @@ saw, and keeps no order across frames. The rules that give each detection of a *
   position (an estimator may rank a wrong pose first; the right one is usually among its
   results); a new track starts at the *central* result, the one nearest the median of its results'
   positions (where a wrong pose is ranked first, the detection's other results agree with each
-  other, not with it).
+  other, not with it). The first map that holds a new instance (a track matched once), valid or
+  refined, once settled, is a second measurement: where that map rested it, within the gate
+  (:meth:`InstanceTracks.first_rests`). A first estimate may lie half-way between two layers (a jenga
+  block's 1.6 cm above the floor, where the estimator missed the block under the one it saw): the map
+  rests the block on what holds it up, and from its first estimate alone the next array's detection of
+  the block above matched it. Only the first map: a track's own measurements follow, and a later map's
+  rest is no independent one (taken from every map, a refined map's misplacement stayed in three tracks).
 - **The track's prior.** A matched instance's results are weighted by where its track predicted
   it: each result's score times exp(-(d_r - min_j d_j) / 2), d_r = (p_r - x)ᵀ S⁻¹ (p_r - x) the
   squared Mahalanobis distance of its position p_r from the predicted position x, S = P + R the
@@ -109,7 +115,7 @@ the whole array, and ties in cost go to the lower instance and detection index.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from functools import cached_property
 
@@ -224,6 +230,7 @@ class Track:
     confidences: list[float] = field(default_factory=list)
     kept: bool = False  # some valid map held its instance
     holds_up: bool = False  # the last map held another object up on its instance
+    rested: bool = False  # the first map that held its instance was taken as a measurement
 
     @property
     def position(self) -> NDArray[np.float64]:
@@ -420,6 +427,17 @@ class InstanceTracks:
         held = set(names)
         for name, track in self.tracks.items():
             track.holds_up = name in held
+
+    def first_rests(self, rests: Mapping[str, NDArray[np.float64]]) -> None:
+        """Take where the first map holding each new instance rested it (``rests``, m) as a second
+        measurement of its track, where within the gate (module docstring, the measurement)."""
+        for name, position in rests.items():
+            track = self.tracks.get(name)
+            if track is None or track.hits != 1 or track.rested:
+                continue
+            track.rested = True
+            if norm(position - track.position) <= self.gate(self.scene.class_of(name)):
+                track.filter.update(position.reshape(3, 1))
 
     def instances_per_class(self) -> dict[str, int]:
         """Tracked classes -> their instances with a track."""

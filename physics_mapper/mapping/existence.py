@@ -45,6 +45,9 @@ import math
 from dataclasses import dataclass, field
 from typing import NamedTuple
 
+import numpy as np
+from numpy.typing import NDArray
+
 from physics_mapper.mapping.association import InstanceTracks
 from physics_mapper.mapping.inputs import InputSnapshot
 from physics_mapper.mapping.previous_map import nearby_ranks
@@ -278,6 +281,20 @@ def holding_others_up(
     return tuple(names[i] for i in holding_up(in_map, shapes, scene.search.jitter_threshold))
 
 
+def map_rests(
+    names: tuple[str, ...], hypotheses: tuple[RankedHypotheses, ...], result: SearchResult
+) -> dict[str, NDArray[np.float64]]:
+    """Where a result's settled map put each object it holds (none for an unsettled one)."""
+    if result.code is None or result.unsettled or result.settled_poses is None:
+        return {}
+    left_out = set(absent_objects(names, hypotheses, result))
+    return {
+        name: np.asarray(pose.position, dtype=np.float64)
+        for name, pose in zip(names, result.settled_poses, strict=True)
+        if name not in left_out
+    }
+
+
 def learn_from_result(
     memory: MapMemory,
     tracks: InstanceTracks,
@@ -288,6 +305,7 @@ def learn_from_result(
 ) -> tuple[str, ...]:
     """What a tick's search teaches the next ticks: its map remembered if valid, the instances a valid map
     holds confirmed, those on which its map (any) holds another object up noted (misses do not end them),
+    where it rested new instances taken as measurements of their tracks (:func:`map_rests`),
     and the tentative ones physics leaves out (:func:`left_out_by_physics`) ended at ``now`` (s), those
     valid maps cut short leave out once repeated, and one track of each pair of :func:`twins`. Returns the
     names whose tracks ended (their inputs are to be forgotten)."""
@@ -296,6 +314,7 @@ def learn_from_result(
     memory.remember(names, hypotheses, result)
     tracks.keep(held_by_valid_map(names, hypotheses, result))
     tracks.hold_up(holding_others_up(names, hypotheses, result, tracks.scene))
+    tracks.first_rests(map_rests(names, hypotheses, result))
     left_out = left_out_by_physics(names, hypotheses, result)
     ended = tracks.reject(left_out.placeless, left_out.cut_short, now)
     return (*ended, *tracks.end_twins(twins(names, hypotheses, result, tracks), now))

@@ -535,3 +535,23 @@ def test_a_second_detection_with_an_id_of_its_own_takes_no_missed_neighbours_ins
     association = again.association
     assert association is not None and association.assigned == {1: "block_1"}
     assert association.doubles == {"block": 1} and tracks.tracks["block_2"].key == "b"
+
+
+def test_only_the_first_map_holding_a_new_instance_is_a_measurement_and_within_the_gate() -> None:
+    """The first map's rest is a second measurement of a track matched once (a Kalman update: P = R + Q dt =
+    1.5e-4 m² after half a second, R = 1e-4 m², so its position moves 0.6 of the way to the rest); a later
+    map's is not, nor one beyond the gate, nor any for a track matched twice."""
+    scene = block_scene(3)
+    tracks = InstanceTracks(scene)
+    first, beside, far = (0.0, 0.0, 0.031), (0.0, 0.2, 0.015), (0.3, 0.0, 0.015)
+    detection_inputs(block_detections(first, beside, far), scene, received=0.0, tracks=tracks)
+    detection_inputs(block_detections(beside), scene, received=0.5, tracks=tracks)  # beside: matched twice
+    names = {tuple(np.round(t.position, 3).tolist()): name for name, t in tracks.tracks.items()}
+    new, twice, away = names[first], names[beside], names[far]
+    rests = {new: np.array([0.0, 0.0, 0.015]), twice: np.array([0.0, 0.2, 0.0]), away: np.array([0.4, 0.0, 0.015])}
+    tracks.first_rests(rests)
+    assert tracks.tracks[new].position.tolist() == pytest.approx([0.0, 0.0, 0.031 - 0.6 * 0.016])
+    assert tracks.tracks[twice].position.tolist() == pytest.approx(list(beside))
+    assert tracks.tracks[away].position.tolist() == pytest.approx(list(far))  # 10 cm: beyond the 7.5 cm gate
+    tracks.first_rests({new: np.array([0.0, 0.0, 0.0])})
+    assert tracks.tracks[new].position.tolist() == pytest.approx([0.0, 0.0, 0.031 - 0.6 * 0.016])

@@ -347,3 +347,25 @@ def test_misses_do_not_end_a_track_seen_once_on_which_the_map_holds_another_up()
     assert names[bottom] in mapper.tracks.tracks and mapper.tracks.tentative(names[bottom])
     assert report.result is not None and report.result.valid
     assert present(report) == {names[bottom]: bottom, names[top]: top}
+
+
+def test_a_track_born_between_two_layers_follows_where_the_map_rests_its_part() -> None:
+    """Two jenga-like blocks (15 x 5 x 3 cm), one on the other. The first array misses the bottom one and
+    estimates the top one half-way down, 1.6 cm above the floor, a little nearer the top block's place than
+    the bottom one's: the map rests it on the floor, in the bottom block's place. The next array sees both:
+    the name the map gave the block on the floor stays on the block on the floor (from its first estimate
+    alone, its track would take the top block's detection, and the name would jump a layer up)."""
+    block = {"name": "block", "shape": "box", "size": [0.15, 0.05, 0.03], "mass": 0.05, "count": {"max": 2}}
+    mapper = Mapper(make_scene(block))
+    settings = replace(SETTINGS, search=SearchParams(deadline=5.0, jitter_threshold=0.02))
+    bottom, top = (0.0, 0.0, 0.015), (0.0, 0.0, 0.045)
+    mapper.add_detections(array([detection(result((0.0, 0.0, 0.031), 0.9, class_id="block"))]), received=0.0)
+    first = mapper.tick(0.1, settings)
+    assert first.result is not None and first.result.valid and first.result.settled_poses is not None
+    (on_floor,) = present(first)  # the other instance was never seen
+    assert first.result.settled_poses[0].position[2] < bottom[2] + 0.003  # at rest on the floor
+    seen = [detection(result(p, 0.9, class_id="block")) for p in (top, bottom)]
+    mapper.add_detections(array(seen), received=0.5)
+    second = mapper.tick(0.6, settings)
+    assert second.result is not None and second.result.valid
+    assert present(second)[on_floor] == bottom
