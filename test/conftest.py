@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 import shutil
+import signal
 import subprocess
 import sys
 import tempfile
@@ -34,9 +35,16 @@ settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))
 def pytest_configure(config: pytest.Config) -> None:
     """Matplotlib's settings and font cache of this run's own (inherited by child processes), set before
     any test module imports matplotlib: a user's matplotlibrc (``text.usetex: True`` on a machine without
-    LaTeX, another style) would otherwise break or change the figures that experiments and sweeps draw."""
+    LaTeX, another style) would otherwise break or change the figures that experiments and sweeps draw.
+
+    And Ctrl-C as a terminal delivers it: a shell without job control starts a background job (``make test
+    &`` in a script) with SIGINT ignored, children inherit that, and Python then never raises
+    KeyboardInterrupt, so the tests of what Ctrl-C does would see it ignored. A handled signal is reset to
+    the default at exec, so the commands under test get Python's own handler again."""
     os.environ["MPLCONFIGDIR"] = tempfile.mkdtemp(prefix="physics_mapper_matplotlib_")
     os.environ.pop("MATPLOTLIBRC", None)
+    if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
 def pytest_unconfigure(config: pytest.Config) -> None:
