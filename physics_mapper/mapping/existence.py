@@ -42,6 +42,7 @@ Named objects and confirmed instances of ``count: K`` with fresh hypotheses have
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import NamedTuple
 
@@ -275,8 +276,7 @@ def holding_others_up(
     poses = result.settled_poses or result.poses
     if poses is None:
         return ()
-    left_out = set(absent_objects(names, hypotheses, result))
-    in_map = [None if name in left_out else pose for name, pose in zip(names, poses, strict=True)]
+    in_map = _in_map(names, hypotheses, result, poses)
     shapes = [model.shape for model in scene.objects]
     return tuple(names[i] for i in holding_up(in_map, shapes, scene.search.jitter_threshold))
 
@@ -287,12 +287,20 @@ def map_rests(
     """Where a result's settled map put each object it holds (none for an unsettled one)."""
     if result.code is None or result.unsettled or result.settled_poses is None:
         return {}
-    left_out = set(absent_objects(names, hypotheses, result))
+    in_map = _in_map(names, hypotheses, result, result.settled_poses)
     return {
         name: np.asarray(pose.position, dtype=np.float64)
-        for name, pose in zip(names, result.settled_poses, strict=True)
-        if name not in left_out
+        for name, pose in zip(names, in_map, strict=True)
+        if pose is not None
     }
+
+
+def _in_map(
+    names: tuple[str, ...], hypotheses: tuple[RankedHypotheses, ...], result: SearchResult, poses: Sequence[Pose]
+) -> list[Pose | None]:
+    """``poses`` (one per object of ``names``), None for each object the result's map leaves out."""
+    left_out = set(absent_objects(names, hypotheses, result))
+    return [None if name in left_out else pose for name, pose in zip(names, poses, strict=True)]
 
 
 def learn_from_result(
