@@ -41,7 +41,9 @@ instance of one object; the others are true objects placed beyond the gate), mis
 same hypotheses without the estimator's faults: how many snapshots they allow a valid map within the deadline at
 all), those with the refined map instead (``fallback: refine``: a physically consistent map where no
 configuration of the hypotheses was found valid) and among them those that keep Rule 1 and Rule 2 (the map's
-deepest overlap, and a settling from rest at the map: :func:`within_rules`), the position error by identity
+deepest overlap, and a settling from rest at the map: :func:`within_rules`), the double detections of the faulty
+bag and how many of them the map holds once and twice or more (:func:`double_detections`: a second instance of an
+object detected twice is what it must not hold), the position error by identity
 of the faulty, the identified and the named bag, and the share of ticks whose search finished within the
 deadline (else it stopped there with its best so far), and each bag's deadline. The reference settling
 (``crowded.py``'s: Rule 2 on the shipped ``stack`` problem's three cubes with pybullet's own solver, the median of
@@ -61,12 +63,14 @@ import numpy as np
 import yaml
 from crowded import ReferenceSettling, scaled_deadline
 
-from physics_mapper.bags.storage import read_bag
+from physics_mapper.bags.storage import Bag, detections_from_cdr, read_bag
 from physics_mapper.cli import main as cli_main
 from physics_mapper.evaluation.identity import identity_metrics, record_frames
 from physics_mapper.evaluation.scoring import ObjectClasses
 from physics_mapper.evaluation.snapshot_results import SnapshotResult, replay_offline, snapshot_result_dict
 from physics_mapper.evaluation.snapshots import input_topics
+from physics_mapper.mapping.detection_data import DetectionData, detection_array_data
+from physics_mapper.mapping.detections import RECORDED_DETECTIONS_TOPIC
 from physics_mapper.model.extents import body_box, shape_extents
 from physics_mapper.model.geometry import ORIGIN
 from physics_mapper.model.scene import Scene
@@ -94,6 +98,8 @@ FAULTS = [
 BAGS = {"faulty": FAULTS, "identified": [*FAULTS, "--ids", "stable"], "named": []}
 GAP = 0.01  # metres between neighbours
 DEADLINE = 0.2  # s, the node's default
+#: Metres a double detection's results lie from the detection's at most (``generate``'s offset is 6 mm).
+DOUBLE_OFFSET_LIMIT = 0.05
 
 
 def _box(entry: dict[str, Any]) -> tuple[np.ndarray, np.ndarray]:
@@ -166,13 +172,15 @@ def _generate(scene_file: Path, bag: Path, extra: list[str], frames: int, partic
 
 def replay(scene: Scene, bag: Path, deadline: float) -> dict[str, Any]:
     """The offline replay's figures of one bag, each snapshot searched for ``deadline`` seconds (module docstring)."""
-    results = replay_offline(read_bag(bag, input_topics(scene)), scene, deadline)
+    recorded = read_bag(bag, input_topics(scene))
+    results = replay_offline(recorded, scene, deadline)
     objects = ObjectClasses.of(scene)
     records = [snapshot_result_dict(r, objects) for r in results]
     frames = record_frames(records)
     identity = identity_metrics(frames, objects)
     size = max(float(np.max(shape_extents(o.shape))) for o in scene.objects)
     loose = identity_metrics(frames, objects, size)
+    doubles = double_detections(recorded, results, records, size)
     assert identity is not None and loose is not None
     finished = sum(1 for r in results if r.search is not None and not r.search.stats.stopped_at_deadline)
     refined = [r for r in results if r.search is not None and r.search.fallback == "refine"]
@@ -189,7 +197,75 @@ def replay(scene: Scene, bag: Path, deadline: float) -> dict[str, Any]:
         "finished": finished,
         "identity": identity,
         "false_objects": loose["false_positives"],
+        "doubles": doubles,
     }
+
+
+def double_detections(
+    bag: Bag, results: list[SnapshotResult], records: list[dict[str, Any]], size: float
+) -> tuple[int, int, int]:
+    """The double detections of a bag and how the maps hold their objects: (doubles, held once, held twice or
+    more). The bag does not say which detection is which; the simulator makes a double by moving a
+    detection's results (the same scores) by one horizontal offset (:func:`_doubled`), and its object is the
+    true object nearest where the detection puts it (:func:`_where_seen`). The map holds that object as many
+    times as it has map objects whose nearest true object it is, within ``size`` metres (the object's
+    largest extent: a second instance of it lies there). Once is one instance; none, a miss the misses
+    count."""
+    arrays = [
+        (message.time_ns, detection_array_data(detections_from_cdr(message.raw, bag.definitions)))
+        for message in bag.on(RECORDED_DETECTIONS_TOPIC)
+    ]
+    doubles = once = twice = 0
+    for result, record in zip(results, records, strict=True):
+        array = next((data for time_ns, data in reversed(arrays) if time_ns <= result.snapshot.time_ns), None)
+        positions = record["positions"]
+        if array is None or positions["truth"] is None or positions["map"] is None:
+            continue
+        truth = np.asarray(positions["truth"], dtype=float)
+        held = [_nearest(truth, np.asarray(p, dtype=float), size) for p in positions["map"].values()]
+        for detection in _doubled(array.detections):
+            index = _nearest(truth, _where_seen(detection, size / 2.0), size)
+            doubles += 1
+            once += index is not None and held.count(index) == 1
+            twice += index is not None and held.count(index) > 1
+    return doubles, once, twice
+
+
+def _doubled(detections: tuple[DetectionData, ...]) -> list[DetectionData]:
+    """One of each pair of detections whose results are the same but for one horizontal offset (at most
+    :data:`DOUBLE_OFFSET_LIMIT` metres): the simulator's double detections."""
+    found = []
+    for k, first in enumerate(detections):
+        for second in detections[k + 1 :]:
+            if len(first.scores) != len(second.scores) or not np.array_equal(first.scores, second.scores):
+                continue
+            moved = np.asarray(second.poses, dtype=float)[:, :3] - np.asarray(first.poses, dtype=float)[:, :3]
+            offset = moved[0]
+            if (
+                np.allclose(moved, offset, atol=1e-9)
+                and offset[2] == 0.0
+                and np.linalg.norm(offset) <= DOUBLE_OFFSET_LIMIT
+            ):
+                found.append(first)
+    return found
+
+
+def _where_seen(detection: DetectionData, radius: float) -> np.ndarray:
+    """Where a detection puts its object (m): the score-weighted mean of its heaviest group of results that
+    agree (those within ``radius`` metres of one of them), so that a wrong pose ranked first, centimetres off,
+    does not pull it away."""
+    positions = np.asarray(detection.poses, dtype=float)[:, :3]
+    scores = np.maximum(np.asarray(detection.scores, dtype=float), 1e-12)
+    agreeing = np.linalg.norm(positions[:, None] - positions[None], axis=2) <= radius
+    group = agreeing[int(np.argmax(agreeing @ scores))]
+    return np.average(positions[group], axis=0, weights=scores[group])
+
+
+def _nearest(truth: np.ndarray, position: np.ndarray, within: float) -> int | None:
+    """The index of the true position nearest ``position``, if within ``within`` metres."""
+    distances = np.linalg.norm(truth - position, axis=1)
+    index = int(np.argmin(distances))
+    return index if distances[index] <= within else None
 
 
 def spans(indices: list[int]) -> str:
@@ -271,12 +347,12 @@ def main() -> None:
         header = (
             "| bin | objects | switches | IDF1, faulty / identified / named | MOTA | FP in map (false objects) "
             "| misses | valid maps (previous map's) | snapshots without one | valid maps, named "
-            "| refined maps (within Rules 1 and 2) "
+            "| refined maps (within Rules 1 and 2) | double detections: held once / twice "
             "| error by identity, faulty / identified / named [cm] | ticks finished within the deadline "
             "| deadline, faulty / identified / named [s] |"
         )
         print(header)
-        print("| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | --- | ---: | ---: | ---: | ---: | ---: |")
+        print("| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | --- |" + " ---: |" * 6)
         folder = args.output or Path(temporary)
         folder.mkdir(parents=True, exist_ok=True)
         for shape in args.shapes:
@@ -303,7 +379,8 @@ def main() -> None:
                         f"{i['mota']:.3f} | {i['false_positives']} ({faulty['false_objects']}) | {i['misses']} | "
                         f"{faulty['valid']}/{n} ({faulty['previous_map']}) | {spans(faulty['without_valid'])} | "
                         f"{references[1]['valid']}/{references[1]['snapshots']} | "
-                        f"{faulty['refined']} ({faulty['refined_within_rules']}) | {errors} | "
+                        f"{faulty['refined']} ({faulty['refined_within_rules']}) | {_doubles(faulty['doubles'])} | "
+                        f"{errors} | "
                         f"{faulty['finished']}/{n} | {deadlines} |",
                         flush=True,
                     )
@@ -319,6 +396,11 @@ def _object_entry(text: str) -> tuple[str, dict[str, Any]]:
         raise SystemExit(f"--object: a scene file's object entry (a mapping with 'shape') is needed, not {text!r}")
     name = str(entry.pop("name", "object"))
     return name, entry
+
+
+def _doubles(counts: tuple[int, int, int]) -> str:
+    doubles, once, twice = counts
+    return f"{doubles}: {once} / {twice}"
 
 
 def _cm(metres: float | None) -> str:
