@@ -438,14 +438,20 @@ def figures_table(problems: Sequence[ProblemRun]) -> str:
     return "\n".join(lines)
 
 
-def linear_fit(problems: Sequence[ProblemRun], strategy: Runner = "conflict") -> tuple[float, float]:
-    """Least-squares t = a + b N over the answered problems (seconds; a, b)."""
+def linear_fit(problems: Sequence[ProblemRun], strategy: Runner = "conflict") -> tuple[float, float] | None:
+    """Least-squares t = a + b N over the answered problems (seconds; a, b); None where they have fewer than two
+    sizes N (no line through them)."""
     points = [(p.case.objects, p.runs[strategy].answer_time) for p in problems if p.runs[strategy].answer_time]
-    if len(points) < 2:
-        return 0.0, 0.0
+    if len({objects for objects, _ in points}) < 2:
+        return None
     n, t = np.array(points, dtype=float).T
     slope, intercept = np.polyfit(n, t, 1)
     return float(intercept), float(slope)
+
+
+def _line_text(intercept: float, slope: float) -> str:
+    """A fitted time to answer, t = a + b N (seconds), in milliseconds."""
+    return f"{intercept * 1000:.1f} ms + {slope * 1000:.2f} ms x N"
 
 
 def targets_text(problems: Sequence[ProblemRun], reduced: Sequence[ProblemRun]) -> str:
@@ -476,7 +482,8 @@ def targets_text(problems: Sequence[ProblemRun], reduced: Sequence[ProblemRun]) 
     valid_checked = sum(p.valid_checked for p in problems)
     valid_same = sum(p.valid_agreed for p in problems)
     truth = sum(p.truth_valid for p in problems)
-    intercept, slope = linear_fit(problems)
+    fit = linear_fit(problems)
+    line = "not fitted (answers at fewer than two sizes N)" if fit is None else _line_text(*fit)
     return "\n".join(
         [
             f"- answered within the scaled deadline ({deadlines_text(_references(problems))}), per layout, "
@@ -488,7 +495,7 @@ def targets_text(problems: Sequence[ProblemRun], reduced: Sequence[ProblemRun]) 
             f"{'met' if skipped == 0 else 'missed'})",
             f"- where the paper's search finishes: the same answer in {agreed} of {len(finished)} "
             f"(target 100 %: {'met' if agreed == len(finished) else 'missed'})",
-            f"- time to answer, least-squares line: {intercept * 1000:.1f} ms + {slope * 1000:.2f} ms x N",
+            f"- time to answer, least-squares line: {line}",
             f"- unstable verdicts (local or full settling) confirmed by a full settling in a fresh world: "
             f"{same} of {checked}",
             f"- valid verdicts confirmed stable by a full settling (the whole settle_time) in a fresh world: "
@@ -517,14 +524,16 @@ def plot_time_to_answer(problems: Sequence[ProblemRun], path: Path) -> None:
             statistics.median(y for x, y in zip(problems, ys, strict=True) if x.case.objects == n) for n in sizes
         ]
         axes.plot(sizes, medians, color=f"C{index}", linewidth=1.0)
-    intercept, slope = linear_fit(problems)
-    axes.plot(
-        sizes,
-        [intercept + slope * n for n in sizes],
-        "k--",
-        linewidth=0.8,
-        label=f"conflict fit: {intercept * 1000:.0f} ms + {slope * 1000:.1f} ms x N",
-    )
+    fit = linear_fit(problems)
+    if fit is not None:
+        intercept, slope = fit
+        axes.plot(
+            sizes,
+            [intercept + slope * n for n in sizes],
+            "k--",
+            linewidth=0.8,
+            label=f"conflict fit: {intercept * 1000:.0f} ms + {slope * 1000:.1f} ms x N",
+        )
     references = _references(problems)
     deadline = scaled_deadline(statistics.median(references))
     axes.axhline(deadline, color="grey", linewidth=0.8)

@@ -102,6 +102,8 @@ def test_each_search_is_judged_against_the_deadline_scaled_to_the_reference_meas
     assert "worst layout: 50%" in text
     # The miss is named, with its time and its deadline; the one in time is not.
     assert text.count(f"{case.label} (") == 1 and f"{case.label} (300 ms / 200 ms)" in text
+    # Both problems have N = 10: no line through one size.
+    assert "least-squares line: not fitted" in text
 
 
 def test_a_bin_s_bags_are_searched_to_the_deadline_scaled_to_a_reference_measured_beside_each() -> None:
