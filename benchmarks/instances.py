@@ -69,6 +69,7 @@ from physics_mapper.evaluation.identity import identity_metrics, record_frames
 from physics_mapper.evaluation.scoring import ObjectClasses
 from physics_mapper.evaluation.snapshot_results import SnapshotResult, replay_offline, snapshot_result_dict
 from physics_mapper.evaluation.snapshots import input_topics
+from physics_mapper.mapping.association import Observation
 from physics_mapper.mapping.detection_data import DetectionData, detection_array_data
 from physics_mapper.mapping.detections import RECORDED_DETECTIONS_TOPIC
 from physics_mapper.model.extents import body_box, shape_extents
@@ -224,7 +225,7 @@ def double_detections(
         truth = np.asarray(positions["truth"], dtype=float)
         held = [_nearest(truth, np.asarray(p, dtype=float), size) for p in positions["map"].values()]
         for detection in _doubled(array.detections):
-            index = _nearest(truth, _where_seen(detection, size / 2.0), size)
+            index = _nearest(truth, _where_seen(detection), size)
             doubles += 1
             once += index is not None and held.count(index) == 1
             twice += index is not None and held.count(index) > 1
@@ -250,15 +251,12 @@ def _doubled(detections: tuple[DetectionData, ...]) -> list[DetectionData]:
     return found
 
 
-def _where_seen(detection: DetectionData, radius: float) -> np.ndarray:
-    """Where a detection puts its object (m): the score-weighted mean of its heaviest group of results that
-    agree (those within ``radius`` metres of one of them), so that a wrong pose ranked first, centimetres off,
-    does not pull it away."""
-    positions = np.asarray(detection.poses, dtype=float)[:, :3]
-    scores = np.maximum(np.asarray(detection.scores, dtype=float), 1e-12)
-    agreeing = np.linalg.norm(positions[:, None] - positions[None], axis=2) <= radius
-    group = agreeing[int(np.argmax(agreeing @ scores))]
-    return np.average(positions[group], axis=0, weights=scores[group])
+def _where_seen(detection: DetectionData) -> np.ndarray:
+    """Where a detection puts its object (m): its central result's position, as the association places a new
+    track (:attr:`~physics_mapper.mapping.association.Observation.central`: a wrong pose ranked first,
+    centimetres off, does not pull it away)."""
+    poses = np.asarray(detection.poses, dtype=float)
+    return np.asarray(Observation("", poses[:, :3], poses[:, 3:], np.asarray(detection.scores)).place())
 
 
 def _nearest(truth: np.ndarray, position: np.ndarray, within: float) -> int | None:
