@@ -46,6 +46,11 @@ saw, and keeps no order across frames. The rules that give each detection of a *
   S = P + R, 4.8 cm for a track seen every half second with the default noises. Half a jenga block's
   length (7.5 cm) reaches its neighbours and, from a block the estimator missed, a false detection in
   the floor beneath it; matched, its poses were the block's, all impossible, and the map invalid.
+  Gate and reach hold for the body the detection shows, its central result, as well as for the
+  measurement: a detection whose wrong pose, ranked first, lies a layer up near a missed block's
+  instance (3.7 cm) while its other results agree on the block beside and below (6.7 cm) took that
+  instance for a frame, whose name then stood on the lower block and went back: an identity switch
+  (jenga blocks in two layers).
 - **One body, one match.** Two detections the assignment matched whose central results, or whose
   measurements, lie within the *same-body distance* (below) of each other are one body seen twice (and so
   is one near a detection matched by its id): the one matched from farther is left out and the assignment
@@ -631,10 +636,13 @@ class InstanceTracks:
         predicted = np.array([self.tracks[n].predicted(now, self.settings.process_noise) for n in free])
         gate = self.gate(class_id)
         costs, nearest = _nearest_distances(predicted, rest, gate)
-        costs[costs > gate] = _FORBIDDEN
+        # The body a detection shows is at its central result: a result of it near the track (a wrong pose in
+        # a neighbour's place) does not make that body the track's instance.
+        bodies = cdist(predicted, np.array([o.positions[o.central] for o in rest]))
+        costs[np.maximum(costs, bodies) > gate] = _FORBIDDEN
         if self.settings.gate <= 0.0:  # an explicit gate is the user's; the default one stops at the reach
             reaches = np.array([self.tracks[n].reach() for n in free])
-            costs[costs > reaches[:, None]] = _FORBIDDEN
+            costs[np.maximum(costs, bodies) > reaches[:, None]] = _FORBIDDEN
         keyed_places = [o.positions[o.central] for o, _, _ in pairs]
         assigned = _one_match_per_body(rest, costs, nearest, self.same_body(class_id), keyed_places)
         pairs.extend((rest[column], free[row], int(nearest[row, column])) for row, column in assigned)
