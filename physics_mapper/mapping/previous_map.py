@@ -64,13 +64,19 @@ does not agree with) does not stay the map's.
 Where no valid map is remembered (the first ticks of a bin) and the scene's fallback is ``refine``, the
 tick's own refined map guides the check instead (:func:`refined_map_check`): the search runs until it has
 made its map (the refined map comes first, so a tick keeps its map) and checked its own first configuration,
-the most probable (often valid where the one nearest the refined map is not), and where its map is still the
-refined map, the configuration nearest where it rests the objects is checked with the time left, the objects
-it leaves out left out from the start (it saw them fall or slide away; a settling to see it again would take
-the check's time), then the search goes on
-(its own valid answer stands). The refined map's objects rest overlapping nothing, so the hypotheses nearest
-them are worth one check: in 24 cylinders in two layers searched 0.1 s a tick, whose refined map took most
-of each tick, no tick had a valid map; now 14 of 30 do (BENCHMARKS.md, "Bins of identical objects").
+the most probable (often valid where the one nearest the refined map is not); then the configuration nearest
+where the refined map rests the objects is checked with the time left, the objects it leaves out left out from
+the start (it saw them fall or slide away; a settling to see it again would take the check's time), then the
+search goes on. Of the search's own valid answer and the check's configuration, the map is the one with the
+more probable pattern of existence (:func:`~physics_mapper.model.hypotheses.existence_probability`, the
+search's own preference among valid configurations; on a tie, the search's answer stands): in a first frame
+each pose of a tentative part can weigh less than its *absent* while its poses together outweigh it, so the
+search's first valid configurations leave such parts out, and the refined map, started where the poses agree,
+holds them (12 jenga blocks in two layers, seed 2: the search's first map held 8 blocks, 5 of them within the
+identity gate of their own, the check's 11). The refined map's objects rest overlapping nothing, so the
+hypotheses nearest them are worth one check: in 24 cylinders in two layers searched 0.1 s a tick, whose
+refined map took most of each tick, no tick had a valid map; now 14 of 30 do (BENCHMARKS.md, "Bins of
+identical objects").
 Where that check fails too, the tick's map is its refined map, and its rests are remembered until a valid
 map holds an object (:meth:`~physics_mapper.mapping.existence.MapMemory.remember`, ``refined``): the next
 tick still makes its own refined map first (it may be the tick's only map), then checks the configuration
@@ -97,7 +103,7 @@ from collections.abc import Collection, Mapping, Sequence
 from dataclasses import dataclass, replace
 
 from physics_mapper.model.geometry import Pose
-from physics_mapper.model.hypotheses import RankedHypotheses
+from physics_mapper.model.hypotheses import RankedHypotheses, existence_probability
 from physics_mapper.model.scene import SearchParams
 from physics_mapper.physics.checker import PhysicsChecker
 from physics_mapper.physics.settling import Settling, early_exit_rule
@@ -367,43 +373,59 @@ def search_with_previous_map(
     passed = check is not None and check.settling is not None
     search = make_search(checker, searched, replace(params, fallback="none") if passed else params, previous)
     stop_at = None if budget is None else started + budget
+    # The first tick's refined map guides a check even where the search found a valid map: of the two, the
+    # map is the one with the more probable pattern of existence.
+    first = unchecked is None
     if map_first:
         result = _run_until_map(search, stop_at)
-        if result.valid or _time_up(stop_at):
+        if _time_up(stop_at) or (result.valid and not first):
             return search, result, None
         if unchecked is None:
-            check = refined_map_check(checker, hypotheses, params, result, stop_at)
+            check = refined_map_check(checker, hypotheses, params, _guiding_map(search, result), stop_at)
         elif check is None:
             check = check_previous_map(checker, unchecked, params, stop_at)
     if check is not None and check.pending and not _time_up(stop_at, check.time_to_go_on):
         assert stop_at is not None  # without a deadline a check ends passed or failed
         result = _run_leaving(search, stop_at, check.time_to_go_on)
         if result.valid or _time_up(stop_at):
-            return search, with_previous_map(result, check), check
+            return search, with_previous_map(result, check, first), check
         check = check_previous_map(checker, check, params, stop_at)
     remaining = None if stop_at is None else max(0.0, stop_at - time.monotonic())
-    return search, with_previous_map(search.run(remaining), check), check
+    return search, with_previous_map(search.run(remaining), check, first), check
+
+
+def _guiding_map(search: Search, result: SearchResult) -> tuple[Code, tuple[Pose, ...]] | None:
+    """The code and settled poses of the map that guides the first tick's check: the search's result where it
+    holds the refined map (its groups found valid at their answers), the refined map the search made where
+    the result is valid; None where it holds none."""
+    if result.valid:
+        refined = search.refined_map
+        return None if refined is None else (refined.code, refined.settling.settled_poses)
+    if result.fallback != "refine" or result.code is None or result.settled_poses is None:
+        return None
+    return result.code, result.settled_poses
 
 
 def refined_map_check(
     checker: PhysicsChecker,
     hypotheses: tuple[RankedHypotheses, ...],
     params: SearchParams,
-    result: SearchResult,
+    guide: tuple[Code, tuple[Pose, ...]] | None,
     stop_at: float | None,
 ) -> PreviousMapCheck | None:
-    """Where no valid map is remembered and ``result`` holds the tick's refined map: the configuration nearest
-    where it rests the objects, those it leaves out left out (module docstring), checked until ``stop_at``
-    (None: ``result`` holds no refined map)."""
-    if result.fallback != "refine" or result.code is None or result.settled_poses is None:
+    """Where no valid map is remembered, the configuration nearest where the tick's refined map ``guide`` (its
+    code and settled poses) rests the objects, those it leaves out left out (module docstring), checked until
+    ``stop_at`` (None: no refined map)."""
+    if guide is None:
         return None
+    guide_code, settled = guide
     names = checker.scene.object_names
-    chosen = zip(names, hypotheses, result.code, result.settled_poses, strict=True)
+    chosen = zip(names, hypotheses, guide_code, settled, strict=True)
     rests = {name: pose for name, ranked, rank, pose in chosen if not ranked.is_absent(rank)}
     nearest = previous_map_code(names, hypotheses, rests)
     assert nearest is not None
     new = tuple(i for i, name in enumerate(names) if name not in rests)
-    start = tuple(result.code[i] if i in new else rank for i, rank in enumerate(nearest))
+    start = tuple(guide_code[i] if i in new else rank for i, rank in enumerate(nearest))
     return check_previous_map(checker, PreviousMapCheck(hypotheses, start, start, rests, new), params, stop_at)
 
 
@@ -447,9 +469,13 @@ def settling_goes_on(previous: Search, hypotheses: Sequence[RankedHypotheses]) -
     return bool(objects) and all(previous.hypotheses[i] == hypotheses[i] for i in objects)
 
 
-def with_previous_map(result: SearchResult, check: PreviousMapCheck | None) -> SearchResult:
-    """``result`` where it is valid (or no previous map passed); else the previous map's configuration, valid."""
-    if result.valid or check is None or check.settling is None:
+def with_previous_map(result: SearchResult, check: PreviousMapCheck | None, compete: bool = False) -> SearchResult:
+    """``result`` where it is valid (or no previous map passed); else the previous map's configuration, valid.
+    With ``compete``, a valid ``result`` too gives way to it where its pattern of existence is the more
+    probable (:func:`~physics_mapper.model.hypotheses.existence_probability`; on a tie the search's stands)."""
+    if check is None or check.settling is None:
+        return result
+    if result.valid and not (compete and _likelier_pattern(check, result)):
         return result
     code, settling, hypotheses = check.code, check.settling, check.hypotheses
     groups = tuple(
@@ -477,3 +503,10 @@ def with_previous_map(result: SearchResult, check: PreviousMapCheck | None) -> S
         groups=groups,
         previous_map=True,
     )
+
+
+def _likelier_pattern(check: PreviousMapCheck, result: SearchResult) -> bool:
+    """Whether ``check``'s configuration has a more probable pattern of existence than ``result``'s."""
+    assert result.code is not None  # a valid result has a configuration
+    hypotheses = check.hypotheses
+    return existence_probability(hypotheses, check.code) > existence_probability(hypotheses, result.code)

@@ -9,6 +9,7 @@ never published.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -136,3 +137,14 @@ class RankedHypotheses:
     def pose(self, rank: int) -> Pose:
         """Pose of the hypothesis of 1-based ``rank``."""
         return self.hypotheses[rank - 1].pose
+
+
+def existence_probability(hypotheses: Sequence[RankedHypotheses], code: Sequence[int]) -> float:
+    """The probability of a configuration's pattern of existence: the product, over the objects with an
+    *absent* hypothesis, of w(absent) where ``code`` (1-based ranks) leaves the object out and 1 - w(absent)
+    where it keeps it (1 when no object may be absent)."""
+    return math.prod(
+        weight if ranked.is_absent(rank) else 1.0 - weight
+        for ranked, rank in zip(hypotheses, code, strict=True)
+        if (weight := ranked.absent_weight()) > 0.0
+    )

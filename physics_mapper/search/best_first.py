@@ -19,8 +19,8 @@ configuration below T, however many objects have one. Rule 1 is tested first (th
 policy*, :mod:`physics_mapper.search.rule2`, :mod:`physics_mapper.search.trial_settling`). Among valid
 candidates the least total jitter J wins; where objects may be absent (an *absent* hypothesis,
 :mod:`physics_mapper.model.hypotheses`), first the most probable pattern of existence
-(:meth:`BestFirst.existence`), then the least J: an object is left out where no valid configuration
-holds it, or where being absent is the likelier.
+(:func:`~physics_mapper.model.hypotheses.existence_probability`), then the least J: an object is left out
+where no valid configuration holds it, or where being absent is the likelier.
 
 With ``fallback: refine``, the search first makes the refined map of the root
 (:mod:`physics_mapper.physics.refine`), before it visits any candidate, so that every tick has a map:
@@ -52,7 +52,7 @@ from operator import getitem
 from typing import Generic, NamedTuple, Protocol, TypeVar
 
 from physics_mapper.model.geometry import Pose, pose_displacement
-from physics_mapper.model.hypotheses import RankedHypotheses
+from physics_mapper.model.hypotheses import RankedHypotheses, existence_probability
 from physics_mapper.model.scene import ObjectShape, SearchParams
 from physics_mapper.physics.checker import PhysicsChecker
 from physics_mapper.physics.collision import Collision
@@ -315,7 +315,6 @@ class BestFirst(Generic[G, R]):
         self._refined_candidate: Candidate | None = None  # the map it makes, displaced objects left out
         # The refinement's map so far where a deadline stopped it in its settling (the depenetrated poses).
         self._unsettled: tuple[RefinedMap, Candidate] | None = None
-        self._absent_weights = tuple(ranked.absent_weight() for ranked in self.hypotheses)
 
     def probability(self, code: Code) -> float:
         """p(C): product of the chosen hypotheses' normalised weights."""
@@ -539,20 +538,11 @@ class BestFirst(Generic[G, R]):
             return entry
         return replace(entry, settle_stop=settling.stopped, settled_time=settling.steps * TIME_STEP)
 
-    def existence(self, code: Code) -> float:
-        """The probability of the configuration's pattern of existence: the product, over objects with an
-        *absent* hypothesis, of w(absent) where ``code`` leaves the object out and 1 - w(absent) where it
-        keeps it (1 when no object may be absent)."""
-        return math.prod(
-            weight if ranked.is_absent(rank) else 1.0 - weight
-            for ranked, weight, rank in zip(self.hypotheses, self._absent_weights, code, strict=True)
-            if weight > 0.0
-        )
-
     def preference(self, candidate: Candidate) -> tuple[float, float]:
         """The order of valid candidates, least first: the most probable pattern of existence
-        (:meth:`existence`), then the least jitter (the paper's rule, unchanged where nothing may be absent)."""
-        return (-self.existence(candidate.code), candidate.settling.total_jitter)
+        (:func:`~physics_mapper.model.hypotheses.existence_probability`), then the least jitter (the paper's
+        rule, unchanged where nothing may be absent)."""
+        return (-existence_probability(self.hypotheses, candidate.code), candidate.settling.total_jitter)
 
     def _count(self, entry: TraceEntry) -> None:
         """Add a visited candidate's outcome to the core's counters."""
@@ -608,6 +598,12 @@ class BestFirst(Generic[G, R]):
             part_counters=stats.part_counters,
             ruled_out=self.candidates.ruled_out,
         )
+
+    @property
+    def refined_map(self) -> Candidate | None:
+        """The map the root's refinement made (objects it moved away from where they were seen left out where
+        they may be absent), once made: also after a valid candidate was found."""
+        return self._refined_candidate
 
     @property
     def refined(self) -> RefinedMap | None:
@@ -670,6 +666,9 @@ class Search(Protocol):
 
     @property
     def settling_objects(self) -> tuple[int, ...]: ...
+
+    @property
+    def refined_map(self) -> Candidate | None: ...
 
 
 def continuable(running: SearchParams, wanted: SearchParams) -> bool:

@@ -62,7 +62,7 @@ from physics_mapper.physics.refine import RefinedMap
 from physics_mapper.physics.settling import Settling
 from physics_mapper.search.best_first import BestFirst, G, R, Trace, continuable, resumable
 from physics_mapper.search.groups import Grouping, interaction_groups
-from physics_mapper.search.results import Code, SearchEnd, SearchResult, SearchStats, TraceEntry
+from physics_mapper.search.results import Candidate, Code, SearchEnd, SearchResult, SearchStats, TraceEntry
 from physics_mapper.search.rule2 import SETTLE_MEMO_LIMIT, SettleMemo, physics_key
 from physics_mapper.search.ruling_out import Ground, Grounds
 
@@ -415,6 +415,29 @@ class GroupedSearch(Generic[G, R]):
         group = self._interrupted_group()
         return () if group is None else group.objects
 
+    @property
+    def refined_map(self) -> Candidate | None:
+        """Every group's refined map as one map over every object, once each group has made its own."""
+        groups = self.groups()
+        maps = [group.refined_map for group in groups]
+        if any(refined is None for refined in maps):
+            return None
+        return self._joined(groups, [refined for refined in maps if refined is not None])
+
+    def _joined(self, groups: Sequence[BestFirst[G, R]], candidates: Sequence[Candidate]) -> Candidate:
+        """One candidate per group (``groups``' order) as one over every object: codes, settled poses and
+        jitters in object order, p(C) their product."""
+        count = len(self.hypotheses)
+        code, jitters = [0] * count, [0.0] * count
+        settled: list[Pose] = [self.hypotheses[0].pose(1)] * count
+        for group, candidate in zip(groups, candidates, strict=True):
+            for position, index in enumerate(group.objects):
+                code[index] = candidate.code[position]
+                settled[index] = candidate.settling.settled_poses[position]
+                jitters[index] = candidate.settling.jitters[position]
+        probability = math.prod(candidate.probability for candidate in candidates)
+        return Candidate(tuple(code), probability, Settling(tuple(settled), tuple(jitters)))
+
     def _interrupted_group(self) -> BestFirst[G, R] | None:
         return next((g for g in self._groups.values() if g.settling_in_progress is not None), None)
 
@@ -488,28 +511,20 @@ class GroupedSearch(Generic[G, R]):
         chosen = [candidate for candidate, _ in choices if candidate is not None]
         if len(chosen) < len(groups):
             return SearchResult(False, None, None, None, None, None, None, False, stats, trace, groups=group_results)
-        count = len(self.hypotheses)
-        code, jitters = [0] * count, [0.0] * count
-        poses: list[Pose] = [self.hypotheses[0].pose(1)] * count
-        settled = list(poses)
-        for group, candidate in zip(groups, chosen, strict=True):
-            for position, index in enumerate(group.objects):
-                code[index] = candidate.code[position]
-                poses[index] = group.hypotheses[position].pose(candidate.code[position])
-                settled[index] = candidate.settling.settled_poses[position]
-                jitters[index] = candidate.settling.jitters[position]
+        joined = self._joined(groups, chosen)
+        code, settled, jitters = joined.code, joined.settling.settled_poses, joined.settling.jitters
         valid = all(is_valid for _, is_valid in choices)
         fallback = None if valid else self.params.fallback
         refined = [group.refined for group, (_, is_valid) in zip(groups, choices, strict=True) if not is_valid]
         refinement = combined_refinement([r for r in refined if r is not None]) if fallback == "refine" else None
         return SearchResult(
             valid=valid,
-            code=tuple(code),
-            probability=math.prod(candidate.probability for candidate in chosen),
+            code=code,
+            probability=joined.probability,
             jitter=sum(jitters),
-            poses=tuple(poses),
-            settled_poses=tuple(settled),
-            object_jitters=tuple(jitters),
+            poses=tuple(ranked.pose(rank) for ranked, rank in zip(self.hypotheses, code, strict=True)),
+            settled_poses=settled,
+            object_jitters=jitters,
             fallback_used=not valid,
             stats=stats,
             trace=trace,

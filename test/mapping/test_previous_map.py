@@ -285,6 +285,30 @@ def test_what_the_refined_map_leaves_out_the_check_leaves_out_from_the_start() -
     assert result.valid and result.previous_map and result.code == (1, 2, 2)
 
 
+def test_the_first_tick_s_check_wins_over_a_valid_map_that_leaves_out_what_is_likelier_there() -> None:
+    """The first tick: b's three poses agree (within 5 mm, 0.2 each) and each weighs less than its *absent*
+    (0.4), though b is there with 0.6. The search's root leaves b out and is valid; it checks nothing more (its
+    bound). Its refined map holds b where its poses agree, and the configuration nearest it, b at a pose of
+    its own, passes both rules: of the two valid maps, the one whose pattern of existence is the more
+    probable (b there, 0.6 against 0.4) is the map, as the search itself would have chosen had it gone on.
+    Before, the search's own valid map stood, without b."""
+    poses = [(0.3, 0.0, 0.05), (0.305, 0.0, 0.05), (0.3, 0.005, 0.05)]
+    spread = RankedHypotheses.from_weighted(
+        [*(Hypothesis(Pose(p, IDENTITY), 0.2) for p in poses), absent_hypothesis(1, 0.4)]
+    )
+    hypotheses = searchable((at(BOTTOM), spread))
+    with PhysicsChecker(STACK) as checker:
+        _, result, check = search_with_previous_map(checker, hypotheses, replace(ROOT_ONLY, fallback="refine"), {}, 5.0)
+    assert spread.is_absent(1)  # absent ranks first
+    assert result.trace[0].code == (1, 1) and result.trace[0].outcome == "valid" and result.stats.visited == 1
+    assert check is not None and check.settling is not None
+    assert result.valid and result.previous_map and result.code is not None and result.code[1] in (2, 3, 4)
+    named = scene_from_dict({"objects": [{"name": "a", **BOX}], "static": [{"name": "floor", "shape": "plane"}]}, "t")
+    with PhysicsChecker(named) as checker:  # nothing may be absent: a tie, and the search's own map stands
+        _, alone, _ = search_with_previous_map(checker, (at(BOTTOM),), replace(ROOT_ONLY, fallback="refine"), {}, 5.0)
+    assert alone.valid and not alone.previous_map
+
+
 def box_detection(*positions: Sequence[float]) -> Any:
     """A detection whose results are ``positions``, scored 0.9, 0.1, ..."""
     return detection(*(result(p, score) for p, score in zip(positions, (0.9, 0.1), strict=False)))
