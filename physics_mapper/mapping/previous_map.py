@@ -64,19 +64,19 @@ does not agree with) does not stay the map's.
 Where no valid map is remembered (the first ticks of a bin) and the scene's fallback is ``refine``, the
 tick's own refined map guides the check instead (:func:`refined_map_check`): the search runs until it has
 made its map (the refined map comes first, so a tick keeps its map) and checked its own first configuration,
-the most probable (often valid where the one nearest the refined map is not); then the configuration nearest
-where the refined map rests the objects is checked with the time left, the objects it leaves out left out from
-the start (it saw them fall or slide away; a settling to see it again would take the check's time), then the
-search goes on. Of the search's own valid answer and the check's configuration, the map is the one with the
-more probable pattern of existence (:func:`~physics_mapper.model.hypotheses.existence_probability`, the
-search's own preference among valid configurations; on a tie, the search's answer stands): in a first frame
-each pose of a tentative part can weigh less than its *absent* while its poses together outweigh it, so the
-search's first valid configurations leave such parts out, and the refined map, started where the poses agree,
-holds them (12 jenga blocks in two layers, seed 2: the search's first map held 8 blocks, 5 of them within the
-identity gate of their own, the check's 11). The refined map's objects rest overlapping nothing, so the
-hypotheses nearest them are worth one check: in 24 cylinders in two layers searched 0.1 s a tick, whose
-refined map took most of each tick, no tick had a valid map; now 14 of 30 do (BENCHMARKS.md, "Bins of
-identical objects").
+the most probable (often valid where the one nearest the refined map is not); then, where its map is still the
+refined map or an object may be absent, the configuration nearest where the refined map rests the objects is
+checked with the time left, the objects it leaves out left out from the start (it saw them fall or slide away;
+a settling to see it again would take the check's time), then the search goes on. Of the search's own valid
+answer and the check's configuration, the map is the one with the more probable pattern of existence
+(:func:`~physics_mapper.model.hypotheses.existence_probability`, the search's own preference among valid
+configurations; on a tie, the search's answer stands): in a first frame each pose of a tentative part can weigh
+less than its *absent* while its poses together outweigh it, so the search's first valid configurations leave
+such parts out, and the refined map, started where the poses agree, holds them (12 jenga blocks in two layers,
+seed 2: the search's first map held 8 blocks, 5 of them within the identity gate of their own, the check's 11).
+The refined map's objects rest overlapping nothing, so the hypotheses nearest them are worth one check: in 24
+cylinders in two layers searched 0.1 s a tick, whose refined map took most of each tick, no tick had a valid
+map; now 14 of 30 do (BENCHMARKS.md, "Bins of identical objects").
 Where that check fails too, the tick's map is its refined map, and its rests are remembered until a valid
 map holds an object (:meth:`~physics_mapper.mapping.existence.MapMemory.remember`, ``refined``): the next
 tick still makes its own refined map first (it may be the tick's only map), then checks the configuration
@@ -374,8 +374,8 @@ def search_with_previous_map(
     search = make_search(checker, searched, replace(params, fallback="none") if passed else params, previous)
     stop_at = None if budget is None else started + budget
     # The first tick's refined map guides a check even where the search found a valid map: of the two, the
-    # map is the one with the more probable pattern of existence.
-    first = unchecked is None
+    # map is the one with the more probable pattern of existence (where nothing may be absent, a tie).
+    first = unchecked is None and any(ranked.absent_rank() is not None for ranked in searched)
     if map_first:
         result = _run_until_map(search, stop_at)
         if _time_up(stop_at) or (result.valid and not first):

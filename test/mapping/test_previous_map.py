@@ -304,9 +304,11 @@ def test_the_first_tick_s_check_wins_over_a_valid_map_that_leaves_out_what_is_li
     assert check is not None and check.settling is not None
     assert result.valid and result.previous_map and result.code is not None and result.code[1] in (2, 3, 4)
     named = scene_from_dict({"objects": [{"name": "a", **BOX}], "static": [{"name": "floor", "shape": "plane"}]}, "t")
-    with PhysicsChecker(named) as checker:  # nothing may be absent: a tie, and the search's own map stands
-        _, alone, _ = search_with_previous_map(checker, (at(BOTTOM),), replace(ROOT_ONLY, fallback="refine"), {}, 5.0)
-    assert alone.valid and not alone.previous_map
+    with PhysicsChecker(named) as checker:  # nothing may be absent: no check, the search's own map stands
+        _, alone, unchecked = search_with_previous_map(
+            checker, (at(BOTTOM),), replace(ROOT_ONLY, fallback="refine"), {}, 5.0
+        )
+    assert alone.valid and not alone.previous_map and unchecked is None
 
 
 def box_detection(*positions: Sequence[float]) -> Any:
