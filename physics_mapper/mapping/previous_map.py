@@ -44,10 +44,10 @@ ended early at rest as the search's are), within half the deadline, and repaired
   two of the first three ticks' checks passed this way, none before);
 
 and the rest checked again, with at most :data:`CHECK_SETTLINGS` settlings in all. The search's own answer stands
-whenever it is valid: it is the paper's. Only when the search ends without a valid configuration is a
-valid previous-map configuration the tick's map, valid, with ``previous_map`` set in the result. Where
-it passed, the search runs without its ``fallback``: a fallback map (the refined root, the settled first
-collision-free configuration) would only stand in for a valid map that exists, and making it takes the
+whenever it is valid (but at the first tick, below): it is the paper's. Only when the search ends without a valid
+configuration is a valid previous-map configuration the tick's map, valid, with ``previous_map`` set in the
+result. Where it passed, the search runs without its ``fallback``: a fallback map (the refined root, the settled
+first collision-free configuration) would only stand in for a valid map that exists, and making it takes the
 search's time (the refined root of 24 cylinders in two layers took most of a 0.2 s tick).
 
 A check that its half of the deadline stopped with a repaired configuration still to check is *pending*:
