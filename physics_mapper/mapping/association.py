@@ -48,7 +48,7 @@ saw, and keeps no order across frames. The rules that give each detection of a *
   the floor beneath it; matched, its poses were the block's, all impossible, and the map invalid.
   Gate and reach hold for the body the detection shows, its central result, as well as for the
   measurement: a detection whose wrong pose, ranked first, lies a layer up near a missed block's
-  instance (3.7 cm) while its other results agree on the block beside and below (6.7 cm) took that
+  instance (4.6 cm) while its other results agree on the block beside and below (5.6 cm) took that
   instance for a frame, whose name then stood on the lower block and went back: an identity switch
   (jenga blocks in two layers).
 - **One body, one match.** Two detections the assignment matched whose central results, or whose
