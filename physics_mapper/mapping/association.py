@@ -638,11 +638,11 @@ class InstanceTracks:
         costs, nearest = _nearest_distances(predicted, rest, gate)
         # The body a detection shows is at its central result: a result of it near the track (a wrong pose in
         # a neighbour's place) does not make that body the track's instance.
-        bodies = cdist(predicted, np.array([o.positions[o.central] for o in rest]))
-        costs[np.maximum(costs, bodies) > gate] = _FORBIDDEN
+        farthest = np.maximum(costs, cdist(predicted, np.array([o.positions[o.central] for o in rest])))
+        costs[farthest > gate] = _FORBIDDEN
         if self.settings.gate <= 0.0:  # an explicit gate is the user's; the default one stops at the reach
             reaches = np.array([self.tracks[n].reach() for n in free])
-            costs[np.maximum(costs, bodies) > reaches[:, None]] = _FORBIDDEN
+            costs[farthest > reaches[:, None]] = _FORBIDDEN
         keyed_places = [o.positions[o.central] for o, _, _ in pairs]
         assigned = _one_match_per_body(rest, costs, nearest, self.same_body(class_id), keyed_places)
         pairs.extend((rest[column], free[row], int(nearest[row, column])) for row, column in assigned)
