@@ -105,7 +105,7 @@ saw, and keeps no order across frames. The rules that give each detection of a *
   do (an invalid map of a stopped search is no verdict); a confirmed one ends when unmatched for more
   than ``max_age`` seconds. Two tracks on one body, whose poses the search rules out each against every
   pose of the other (:func:`~physics_mapper.mapping.existence.twins`), end as one, confirmed or not
-  (:meth:`InstanceTracks.end_twins`). An ended track frees its instance, and the instance's hypotheses
+  (:meth:`InstanceTracks.end_twins`); two a valid map holds both are two bodies. An ended track frees its instance, and the instance's hypotheses
   are forgotten.
 - **Existence.** An instance that may not be there, a tentative track or an instance of a
   ``count: {max: K}`` entry, has a weight for *absent*:

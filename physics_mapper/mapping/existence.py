@@ -221,9 +221,13 @@ def twins(
     every pose because each overlaps the twin at every pose of the twin's (:mod:`~physics_mapper.search.ruling_out`):
     two tracks on one body (a second detection of a part a centimetre off, born as an instance of its own).
     Confirmed, neither may be absent, and no configuration holds both: every search ends with none valid
-    until one track ends (:meth:`~physics_mapper.mapping.association.InstanceTracks.end_twins`)."""
+    until one track ends (:meth:`~physics_mapper.mapping.association.InstanceTracks.end_twins`). Two that a
+    valid map holds both are two bodies: the poses of two neighbours can overlap in one frame while the
+    previous map's check holds them where they rested (24 jenga blocks in two layers: the rule ended a
+    confirmed block, and its name went to the next one born)."""
     if result is None:
         return ()
+    held = set(held_by_valid_map(names, hypotheses, result))
     others: dict[str, set[str]] = {}
     ranks: dict[str, set[int]] = {}
     for ruling in result.ruled_out:
@@ -236,7 +240,7 @@ def twins(
         if len(others.get(name, ())) != 1 or not poses or not poses <= ranks[name]:
             continue
         (twin,) = others[name]
-        if tracks.same_class(name, twin):
+        if tracks.same_class(name, twin) and not {name, twin} <= held:
             found.append((name, twin))
     return tuple(found)
 

@@ -280,6 +280,23 @@ def test_two_confirmed_tracks_on_one_body_keep_one_and_the_map_is_valid_again() 
     assert all(r.result is not None and r.result.valid for r in reports[invalid[-1] + 1 :])
 
 
+def test_two_neighbours_seen_overlapping_in_one_frame_are_no_twins_where_the_map_holds_both() -> None:
+    """A row of seven boxes 1 cm apart, confirmed; in one frame the estimator sees the first two 1.5 cm towards
+    each other, so that every pose of one overlaps every pose of the other, as with a second detection of one
+    box. The previous map's check holds both where they rested: the map is valid and holds two bodies there, so
+    neither track ends (the twins' rule ended one, and its name went to the next box born)."""
+    mapper = Mapper(make_scene({"name": "box", "count": 7, **BOX}))
+    row = [(0.11 * k, 0.0, 0.05) for k in range(7)]
+    closer = [(0.015, 0.0, 0.05), *((x - 0.015, y, z) for x, y, z in row[1:])]
+    for step, positions in enumerate([row, row, row, closer]):
+        feed(mapper, positions, 0.5 * step)
+        report = mapper.tick(0.5 * step + 0.1, SETTINGS)
+    assert report.result is not None and report.result.valid and report.result.previous_map
+    assert {(r.object, r.other, r.reason) for r in report.result.ruled_out} == {("box_1", "box_2", "collision")}
+    assert sorted(present(report)) == [f"box_{k}" for k in range(1, 8)]
+    assert len(mapper.tracks.tracks) == 7 and report.tracking.ends == ()
+
+
 def test_an_instance_the_refined_map_keeps_under_another_is_not_placeless() -> None:
     """A bottom box that may be absent, seen only 1.5 cm into the floor (every pose ruled out alone), under
     a box: the refined map keeps it (:mod:`physics_mapper.physics.support`), so physics found it a place and
