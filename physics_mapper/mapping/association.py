@@ -50,7 +50,13 @@ saw, and keeps no order across frames. The rules that give each detection of a *
   measurement: a detection whose wrong pose, ranked first, lies a layer up near a missed block's
   instance (4.6 cm) while its other results agree on the block beside and below (5.6 cm) took that
   instance for a frame, whose name then stood on the lower block and went back: an identity switch
-  (jenga blocks in two layers).
+  (jenga blocks in two layers). Nor, with the default gate, is a pair matched whose bodies overlap by less
+  than :data:`BODY_OVERLAP` of the shape's extent along one of its axes: the body the detection shows (the
+  shape at its central result's pose) and the same body at the track's predicted position. A block lying on
+  another overlaps it by nothing, and where the estimator missed the lower block in the array that first
+  saw the upper one, the upper one's detection (2.8 cm off, 5 mm low on a block 3 cm thick) took the lower
+  one's instance, which took a new name when seen again: an identity switch (jenga blocks and flat parts in
+  two layers).
 - **One body, one match.** Two detections the assignment matched whose central results, or whose
   measurements, lie within the *same-body distance* (below) of each other are one body seen twice (and so
   is one near a detection matched by its id): the one matched from farther is left out and the assignment
@@ -105,8 +111,8 @@ saw, and keeps no order across frames. The rules that give each detection of a *
   do (an invalid map of a stopped search is no verdict); a confirmed one ends when unmatched for more
   than ``max_age`` seconds. Two tracks on one body, whose poses the search rules out each against every
   pose of the other (:func:`~physics_mapper.mapping.existence.twins`), end as one, confirmed or not
-  (:meth:`InstanceTracks.end_twins`); two a valid map holds both are two bodies. An ended track frees its instance, and the instance's hypotheses
-  are forgotten.
+  (:meth:`InstanceTracks.end_twins`); two a valid map holds both are two bodies. An ended track frees its
+  instance, and the instance's hypotheses are forgotten.
 - **Existence.** An instance that may not be there, a tentative track or an instance of a
   ``count: {max: K}`` entry, has a weight for *absent*:
   w_absent = prod_k (1 - c_k) over its track's (newest 20) matched detections, c_k the detection's best
@@ -130,6 +136,7 @@ from numpy.linalg import norm
 from numpy.typing import NDArray
 from scipy.optimize import linear_sum_assignment
 from scipy.spatial.distance import cdist
+from scipy.spatial.transform import Rotation
 from scipy.stats import chi2
 
 from physics_mapper.model.extents import body_box, inside_static, may_overlap_static, shape_extents
@@ -153,6 +160,12 @@ CUT_SHORT_LEAVINGS = 2
 #: Probability with which a detection of an instance lies within its track's reach (:meth:`Track.reach`).
 GATE_PROBABILITY = 0.99
 _GATE_CHI2 = float(chi2.ppf(GATE_PROBABILITY, 3))
+#: The least share of the shape's extent, along each axis of the body a detection shows, by which that body and
+#: the same body at a track's predicted position overlap where the detection is of the track's instance
+#: (module docstring, then distance): a detection of the block lying on a missed one (3 cm thick, seen 5 mm
+#: low) overlaps it by a sixth; in bins of boxes, cylinders, lego parts, jenga blocks and flat parts every
+#: other match overlapped by a half or more (BENCHMARKS.md, "Bins of identical objects").
+BODY_OVERLAP = 0.25
 #: Cost of a pair outside the gate: never chosen over a gated pair (distances are metres, ≤ 1e7).
 _FORBIDDEN = 1e12
 
@@ -327,6 +340,19 @@ def _nearest_distances(
         nearest[rows, column] = np.argmin(offsets, axis=1)
         distances[rows, column] = offsets[np.arange(len(rows)), nearest[rows, column]]
     return distances, nearest
+
+
+def _body_overlaps(
+    points: NDArray[np.float64], observations: Sequence[Observation], extents: NDArray[np.float64]
+) -> NDArray[np.float64]:
+    """(P x O): by what share of the shape's ``extents`` (m) the body each observation shows (at its central
+    result's pose) and the same body moved to each of ``points`` (P x 3, m) overlap along the body's axis where
+    they overlap least: 1 - max_i |d_i| / e_i, d the offset between the two in the body's frame (0 where they
+    touch, negative where they lie apart)."""
+    centres = np.array([o.positions[o.central] for o in observations])
+    turns = Rotation.from_quat(np.array([o.orientations[o.central] for o in observations])).as_matrix()
+    offsets = np.einsum("oji,poj->poi", turns, centres[None] - points[:, None])  # R^T d, P x O x 3
+    return np.asarray(1.0 - np.max(np.abs(offsets) / extents, axis=2), dtype=np.float64)
 
 
 def _assigned(costs: NDArray[np.float64]) -> list[tuple[int, int]]:
@@ -643,6 +669,7 @@ class InstanceTracks:
         if self.settings.gate <= 0.0:  # an explicit gate is the user's; the default one stops at the reach
             reaches = np.array([self.tracks[n].reach() for n in free])
             costs[farthest > reaches[:, None]] = _FORBIDDEN
+            costs[_body_overlaps(predicted, rest, self._class_extents(class_id)) < BODY_OVERLAP] = _FORBIDDEN
         keyed_places = [o.positions[o.central] for o, _, _ in pairs]
         assigned = _one_match_per_body(rest, costs, nearest, self.same_body(class_id), keyed_places)
         pairs.extend((rest[column], free[row], int(nearest[row, column])) for row, column in assigned)

@@ -71,7 +71,8 @@ PARAMETERS = (
     ParameterSpec(
         "association_gate",
         "metres beyond which a detection never matches an instance (0: half the largest extent of its shape, "
-        "and never beyond where the instance's filter gives a detection a 1 % chance)",
+        "and never beyond where the instance's filter gives a detection a 1 % chance, nor where the bodies "
+        "overlap by less than a quarter of the shape)",
         0.0,
         (0.0, 10.0),
     ),
