@@ -343,15 +343,17 @@ def _nearest_distances(
 
 
 def _body_overlaps(
-    points: NDArray[np.float64], observations: Sequence[Observation], extents: NDArray[np.float64]
+    points: NDArray[np.float64],
+    places: NDArray[np.float64],
+    orientations: NDArray[np.float64],
+    extents: NDArray[np.float64],
 ) -> NDArray[np.float64]:
-    """(P x O): by what share of the shape's ``extents`` (m) the body each observation shows (at its central
-    result's pose) and the same body moved to each of ``points`` (P x 3, m) overlap along the body's axis where
-    they overlap least: 1 - max_i |d_i| / e_i, d the offset between the two in the body's frame (0 where they
-    touch, negative where they lie apart)."""
-    centres = np.array([o.positions[o.central] for o in observations])
-    turns = Rotation.from_quat(np.array([o.orientations[o.central] for o in observations])).as_matrix()
-    offsets = np.einsum("oji,poj->poi", turns, centres[None] - points[:, None])  # R^T d, P x O x 3
+    """(P x O): by what share of the shape's ``extents`` (m) a body at each of ``places`` (O x 3, m) turned by
+    ``orientations`` (O x 4, quaternions x, y, z, w) and the same body moved to each of ``points`` (P x 3, m)
+    overlap along the body's axis where they overlap least: 1 - max_i |d_i| / e_i, d the offset between the two
+    in the body's frame (0 where they touch, negative where they lie apart)."""
+    turns = Rotation.from_quat(orientations).as_matrix()
+    offsets = np.einsum("oji,poj->poi", turns, places[None] - points[:, None])  # R^T d, P x O x 3
     return np.asarray(1.0 - np.max(np.abs(offsets) / extents, axis=2), dtype=np.float64)
 
 
@@ -664,12 +666,15 @@ class InstanceTracks:
         costs, nearest = _nearest_distances(predicted, rest, gate)
         # The body a detection shows is at its central result: a result of it near the track (a wrong pose in
         # a neighbour's place) does not make that body the track's instance.
-        farthest = np.maximum(costs, cdist(predicted, np.array([o.positions[o.central] for o in rest])))
+        places = np.array([o.positions[o.central] for o in rest])
+        farthest = np.maximum(costs, cdist(predicted, places))
         costs[farthest > gate] = _FORBIDDEN
         if self.settings.gate <= 0.0:  # an explicit gate is the user's; the default one stops at the reach
             reaches = np.array([self.tracks[n].reach() for n in free])
             costs[farthest > reaches[:, None]] = _FORBIDDEN
-            costs[_body_overlaps(predicted, rest, self._class_extents(class_id)) < BODY_OVERLAP] = _FORBIDDEN
+            turns = np.array([o.orientations[o.central] for o in rest])
+            overlaps = _body_overlaps(predicted, places, turns, self._class_extents(class_id))
+            costs[overlaps < BODY_OVERLAP] = _FORBIDDEN
         keyed_places = [o.positions[o.central] for o, _, _ in pairs]
         assigned = _one_match_per_body(rest, costs, nearest, self.same_body(class_id), keyed_places)
         pairs.extend((rest[column], free[row], int(nearest[row, column])) for row, column in assigned)
