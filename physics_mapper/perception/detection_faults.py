@@ -20,10 +20,11 @@ given :class:`numpy.random.Generator` (so a seed reproduces them):
 * **False positives**: ``Binomial(objects, false_positive)`` detections of nothing, of a random
   object's class and true orientation. A share ``air_share`` of them floats in the air (above the
   highest true object by 2 to 4 bounding radii of its shape, over the true objects' horizontal
-  extent); the rest lie inside a static body, chosen uniformly: a box, sphere or cylinder at its
-  centre, a mesh at its origin, a plane one half bounding radius below its surface under the true
-  objects. A scene without static bodies gets only false positives in the air. Their results are
-  scattered around that position by ``sigma_position``.
+  extent); the rest lie inside a static body, chosen uniformly, the middle of their body's box at a box's,
+  sphere's or cylinder's centre, a mesh's origin, or one half bounding radius below a plane's surface
+  under the true objects (the body there, not its origin: a mesh's origin can lie at a corner of it). A
+  scene without static bodies gets only false positives in the air. Their results are scattered around
+  that position by ``sigma_position``.
 * **Order**: unshuffled, the true detections come in scene order, each double right after its
   original, false positives last; ``shuffle`` puts them in a random order, as estimators keep none.
 * **Ids** (``Detection3D.id``): ``none`` leaves them empty (CosyPose, happypose); ``stable`` gives
@@ -43,9 +44,20 @@ from typing import Literal
 
 import numpy as np
 
-from physics_mapper.model.geometry import Pose, make_pose, rotate_vector
+from physics_mapper.model.extents import body_box
+from physics_mapper.model.geometry import Pose, Quaternion, make_pose, rotate_vector
 from physics_mapper.model.hypotheses import Hypothesis, RankedHypotheses
-from physics_mapper.model.scene import Box, Cylinder, Mesh, Plane, Scene, Sphere, StaticBody, object_radius
+from physics_mapper.model.scene import (
+    Box,
+    Cylinder,
+    Mesh,
+    ObjectShape,
+    Plane,
+    Scene,
+    Sphere,
+    StaticBody,
+    object_radius,
+)
 
 IdMode = Literal["none", "stable", "reassigned"]
 ID_MODES: tuple[IdMode, ...] = ("none", "stable", "reassigned")
@@ -193,12 +205,13 @@ class DetectionSimulator:
         radius = object_radius(scene.objects[like].shape)
         in_air = not scene.static or rng.random() < self.faults.air_share
         low, high = self._truth_extent()
+        orientation = self.truth[like].orientation
         if in_air:
             centre = np.array([*rng.uniform(low[:2], high[:2]), high[2] + radius * rng.uniform(2.0, 4.0)])
         else:
             body = scene.static[int(rng.integers(len(scene.static)))]
-            centre = _inside(body, rng.uniform(low[:2], high[:2]), radius)
-        orientation = self.truth[like].orientation
+            inside = _inside(body, rng.uniform(low[:2], high[:2]), radius)
+            centre = _body_at(scene.objects[like].shape, inside, orientation)
         count = self._result_count(self.top_m)
         poses = [
             make_pose(tuple(centre + rng.normal(0.0, self.faults.sigma_position, 3)), orientation) for _ in range(count)
@@ -257,6 +270,13 @@ def _inside(body: StaticBody, below: np.ndarray, radius: float) -> np.ndarray:
     if isinstance(shape, Box | Sphere | Cylinder | Mesh):
         return np.asarray(body.pose.position, dtype=float)
     raise TypeError(f"static body {body.name}: unknown shape {type(shape).__name__}")
+
+
+def _body_at(shape: ObjectShape, point: np.ndarray, orientation: Quaternion) -> np.ndarray:
+    """The position (m) that puts the middle of ``shape``'s box, turned by ``orientation``, at ``point``: a mesh's
+    origin can lie at a corner of its body (pybullet_data's lego part), and the body, not the origin, is inside."""
+    low, high = body_box(shape, Pose((float(point[0]), float(point[1]), float(point[2])), orientation))
+    return np.asarray(point - ((low + high) / 2.0 - point), dtype=float)
 
 
 def _rotated_z(pose: Pose) -> np.ndarray:

@@ -7,6 +7,7 @@ ones run ``generate`` itself.
 from __future__ import annotations
 
 from collections import Counter
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -16,13 +17,15 @@ from conftest import SCENES
 from physics_mapper.bags.storage import detections_from_cdr, read_bag
 from physics_mapper.cli import main
 from physics_mapper.mapping.detections import RECORDED_DETECTIONS_TOPIC
+from physics_mapper.model.extents import body_box, inside_static
 from physics_mapper.model.geometry import make_pose, translation_distance
 from physics_mapper.model.hypotheses import Hypothesis, RankedHypotheses
 from physics_mapper.model.scene import Scene, object_radius
-from physics_mapper.model.scene_files import load_scene
+from physics_mapper.model.scene_files import load_scene, scene_from_dict
 from physics_mapper.perception.detection_faults import DetectionFaults, DetectionSimulator, SimulatedDetection
 
 BIN = SCENES / "box_bin.yaml"
+LEGO = "package://pybullet_data/lego/lego.obj"
 FRAMES = 200
 
 
@@ -198,3 +201,19 @@ def test_fault_options_need_the_detections_format_and_rates_are_checked(
     assert main(["generate", str(BIN), "-o", str(tmp_path / "b"), "--format", "detections", "--double", "1.5"]) == 2
     assert "double must be a probability in [0, 1], got 1.5" in capsys.readouterr().err
     assert not (tmp_path / "a").exists() and not (tmp_path / "b").exists()
+
+
+def test_a_false_positive_inside_a_static_body_has_its_body_there_whatever_its_origin(scene: Scene) -> None:
+    """pybullet_data's lego part has its origin at a corner of its body: a false positive inside a wall or under
+    the floor has the middle of its body there, not its origin (which would leave the body mostly outside)."""
+    lego = scene_from_dict(
+        {"objects": [{"name": "lego", "shape": "mesh", "file": LEGO, "scale": 0.1}], "static": []}, "lego"
+    ).objects[0]
+    legos = replace(scene, objects=tuple(replace(o, shape=lego.shape) for o in scene.objects))
+    faults = DetectionFaults(false_positive=0.5, air_share=0.0, sigma_position=0.0)
+    found = [d for frame in frames(legos, faults, count=20) for d in frame if d.source is None]
+    assert found
+    for detection in found:
+        low, high = body_box(lego.shape, detection.hypotheses.pose(1))
+        middle = (low + high) / 2.0
+        assert any(inside_static(body, middle) for body in scene.static)
