@@ -160,7 +160,8 @@ def instance_values(report: TickReport) -> list[tuple[str, str]]:
     """What the map left out and what the association of instances did: ``absent`` (the objects the map
     leaves out, ``none``), and where the scene has classes of instances, ``instances <class>`` (instances
     with a track), ``births`` and ``ends`` (since the previous tick), ``detections outside every gate`` and
-    ``second detections of an instance`` (since the start)."""
+    ``second detections of an instance`` (since the start), and ``poses moved out of static bodies`` (this
+    tick's, :mod:`~physics_mapper.mapping.seen_too_deep`)."""
     tracking = report.tracking
     values = [("absent", ", ".join(report.absent) or "none")]
     if not tracking.instances:
@@ -171,6 +172,7 @@ def instance_values(report: TickReport) -> list[tuple[str, str]]:
         ("ends", ", ".join(tracking.ends) or "none"),
         ("detections outside every gate", str(tracking.outside)),
         ("second detections of an instance", str(tracking.doubles)),
+        ("poses moved out of static bodies", str(report.moved_out)),
     ]
     return values
 

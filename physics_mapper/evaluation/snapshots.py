@@ -11,6 +11,7 @@ problem, as it would be for the node, which otherwise resumes its search.
 from __future__ import annotations
 
 from collections.abc import Callable, Iterator, Sequence
+from contextlib import nullcontext
 from dataclasses import dataclass
 
 from physics_mapper.bags.storage import (
@@ -30,11 +31,13 @@ from physics_mapper.mapping.existence import (
     searched_hypotheses,
 )
 from physics_mapper.mapping.inputs import InputSettings, InputTracker, check_poses, check_weights
+from physics_mapper.mapping.seen_too_deep import moved_out_of_static
 from physics_mapper.mapping.stamps import NANOSECONDS_PER_SECOND
 from physics_mapper.mapping.topics import GROUND_TRUTH_TOPIC, recorded_poses_topic, recorded_weights_topic
 from physics_mapper.model.geometry import Pose
 from physics_mapper.model.hypotheses import RankedHypotheses
 from physics_mapper.model.scene import Scene
+from physics_mapper.physics.checker import PhysicsChecker
 from physics_mapper.search.results import SearchResult
 
 #: Messages closer together than this (ns) form one burst, after which the node's inputs are snapshot.
@@ -133,11 +136,23 @@ def bag_snapshots(
     is remembered, whose instances may be confirmed and whose left-out tentative instances end
     (:func:`~physics_mapper.mapping.existence.learn_from_result`), as after the node's tick.
     """
-    settings = settings or InputSettings()
+    # A physics world for the instances' poses seen inside a static body: a scene of named objects needs none.
+    with PhysicsChecker(scene) if has_instances(scene) else nullcontext() as checker:
+        return _snapshots(bag, scene, settings or InputSettings(), InstanceTracks(scene, association), decide, checker)
+
+
+def _snapshots(
+    bag: Bag,
+    scene: Scene,
+    settings: InputSettings,
+    instances: InstanceTracks,
+    decide: Decide | None,
+    checker: PhysicsChecker | None,
+) -> list[BagSnapshot]:
+    """:func:`bag_snapshots`, the instances tracked by ``instances``, their poses moved out of static bodies in
+    ``checker``'s world (:mod:`~physics_mapper.mapping.seen_too_deep`; None: a scene without instances)."""
     tracker = InputTracker(scene.object_names)
-    instances = InstanceTracks(scene, association)
     memory = MapMemory()
-    tracked = has_instances(scene)
     poses_of = {recorded_poses_topic(name): name for name in scene.object_names}
     weights_of = {recorded_weights_topic(name): name for name in scene.object_names}
     wanted = set(input_topics(scene))
@@ -180,8 +195,9 @@ def bag_snapshots(
             tracker.forget(name)
         snapshot = tracker.snapshot(now, settings)
         hypotheses = snapshot.hypotheses
-        if tracked and (len(snapshot.missing) < len(scene.objects) or memory.poses):
+        if checker is not None and (len(snapshot.missing) < len(scene.objects) or memory.poses):
             hypotheses = searched_hypotheses(snapshot, memory, instances, now, settings.max_age)
+            hypotheses, _ = moved_out_of_static(checker, hypotheses, scene.search.penetration_threshold)
         new = not snapshots or hypotheses != snapshots[-1].hypotheses
         if hypotheses is None or snapshot.stamp_ns is None or not new:
             continue
@@ -193,7 +209,7 @@ def bag_snapshots(
             )
         )
         result = None if decide is None else decide(snapshots[-1])
-        if tracked:  # as after the node's tick (Mapper.tick)
+        if checker is not None:  # as after the node's tick (Mapper.tick)
             for name in learn_from_result(memory, instances, scene.object_names, hypotheses, result, now):
                 tracker.forget(name)
     return snapshots

@@ -36,7 +36,9 @@ the map of the previous ticks (:class:`MapMemory`):
 - **Not in the map and nothing fresh** (never seen, or dropped): *absent* alone, weight 1: the
   object is not in the world.
 
-Named objects and confirmed instances of ``count: K`` with fresh hypotheses have no *absent*.
+Named objects and confirmed instances of ``count: K`` with fresh hypotheses have no *absent*. Before the search,
+an instance's poses seen a little inside the floor or a wall are moved out of it
+(:mod:`~physics_mapper.mapping.seen_too_deep`).
 """
 
 from __future__ import annotations

@@ -27,6 +27,7 @@ from physics_mapper.mapping.existence import (
 from physics_mapper.mapping.frames import Transform
 from physics_mapper.mapping.inputs import InputSettings, InputSnapshot, InputTracker
 from physics_mapper.mapping.previous_map import PreviousMapCheck, search_with_previous_map
+from physics_mapper.mapping.seen_too_deep import moved_out_of_static
 from physics_mapper.model.hypotheses import RankedHypotheses
 from physics_mapper.model.scene import Scene, SearchParams, search_params_problem
 from physics_mapper.physics.checker import PhysicsChecker
@@ -90,7 +91,8 @@ class TickReport:
     ``settling_in_progress`` is the configuration (of group ``settling_group``'s objects, for a
     grouped search) whose settling the deadline cut short (a settling longer than one tick's
     search): the next tick continues it. ``engine_fault`` says how the physics engine failed this
-    tick (``result`` is None then); the next tick searches again in a rebuilt world.
+    tick (``result`` is None then); the next tick searches again in a rebuilt world. ``moved_out`` counts the
+    instances' poses moved out of a static body before the search (:mod:`~physics_mapper.mapping.seen_too_deep`).
     """
 
     snapshot: InputSnapshot
@@ -104,6 +106,7 @@ class TickReport:
     hypotheses: tuple[RankedHypotheses, ...] = ()
     absent: tuple[str, ...] = ()
     tracking: Tracking = field(default_factory=Tracking)
+    moved_out: int = 0
 
     @property
     def present(self) -> tuple[int, ...]:
@@ -194,7 +197,10 @@ class Mapper:
         waiting = len(snapshot.missing) == len(names) and not self.memory.poses
         if waiting:
             return TickReport(snapshot, None, 0.0, False, settings, absent=names, tracking=tracking)
+        moved_out = 0
         try:
+            threshold = settings.search.penetration_threshold
+            hypotheses, moved_out = moved_out_of_static(self.checker, hypotheses, threshold)
             report = self._search_tick(snapshot, hypotheses, settings)
         except PhysicsEngineError as error:
             self._discard_world()
@@ -203,7 +209,7 @@ class Mapper:
         absent = absent_objects(names, hypotheses, report.result)
         with self._tracks_lock:
             self._ended(learn_from_result(self.memory, self.tracks, names, hypotheses, report.result, now))
-        return replace(report, hypotheses=hypotheses, absent=absent, tracking=tracking)
+        return replace(report, hypotheses=hypotheses, absent=absent, tracking=tracking, moved_out=moved_out)
 
     def _search_tick(
         self, snapshot: InputSnapshot, hypotheses: tuple[RankedHypotheses, ...], settings: MapperSettings

@@ -82,3 +82,8 @@ class PhysicsChecker:
     def static_overlap(self, index: int, pose: Pose) -> float:
         """Object ``index``'s deepest overlap (m) at ``pose`` with the static bodies."""
         return collision.static_overlap(self.world, index, pose)
+
+    def moved_out_of_static(self, index: int, pose: Pose, threshold: float, limit: float) -> Pose | None:
+        """Object ``index`` at ``pose`` moved out of the static bodies it overlaps deeper than ``threshold``
+        metres, by at most ``limit`` metres, or None (:func:`~collision.moved_out_of_static`)."""
+        return collision.moved_out_of_static(self.world, index, pose, threshold, limit)

@@ -9,6 +9,9 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
 
 from physics_mapper.model.bullet import pybullet
 from physics_mapper.model.geometry import Pose, Vector3
@@ -163,14 +166,61 @@ def static_overlap(world: PhysicsWorld, index: int, pose: Pose) -> float:
     Moves that object only (the world is reset by the next placement anyway); the other
     objects are not looked at, wherever they are.
     """
+    deepest, _ = _deepest_static(world, index, pose, 0.0)
+    return 0.0 if deepest is None else -float(deepest[8])
+
+
+#: Moves :func:`moved_out_of_static` makes at most: one per static body a pose lies in (a floor, then a wall).
+MOVES_OUT = 3
+
+
+def moved_out_of_static(world: PhysicsWorld, index: int, pose: Pose, threshold: float, limit: float) -> Pose | None:
+    """Object ``index`` at ``pose`` moved out of the static bodies it overlaps deeper than ``threshold`` metres,
+    or None where it overlaps none that deep, or cannot be moved out.
+
+    Each move is the deepest overlap's: along the static body's contact normal, by its depth, so that the
+    two bodies touch (Bullet's shortest separating translation), at most :data:`MOVES_OUT` of them until no
+    static body is overlapped deeper than ``threshold``. None where the moves add up to more than ``limit``
+    metres, or where the body's centre (the middle of its axis-aligned box) lies behind the surface it
+    would be moved out of: a body more inside the static body than out of it, such as a detection inside
+    a wall, is not one seen a little too deep. The world is reset by the next placement.
+    """
+    seen = np.asarray(pose.position, dtype=float)
+    moved = seen
+    for move in range(MOVES_OUT):
+        deepest, centre = _deepest_static(world, index, Pose(_vector(moved), pose.orientation), threshold)
+        if deepest is None:
+            return None if move == 0 else Pose(_vector(moved), pose.orientation)
+        normal = np.asarray(deepest[7], dtype=float)  # the static body's, towards the object
+        if float(np.dot(centre - np.asarray(deepest[6], dtype=float), normal)) <= 0.0:
+            return None
+        moved = moved - normal * float(deepest[8])
+        if float(np.linalg.norm(moved - seen)) > limit:
+            return None
+    deepest, _ = _deepest_static(world, index, Pose(_vector(moved), pose.orientation), threshold)
+    return Pose(_vector(moved), pose.orientation) if deepest is None else None
+
+
+def _deepest_static(world: PhysicsWorld, index: int, pose: Pose, threshold: float) -> tuple[Any, np.ndarray]:
+    """Object ``index`` put at ``pose``: its deepest closest point with a static body overlapped deeper than
+    ``threshold`` metres (Bullet's tuple; None if none), and its body's centre (the middle of its box, m).
+    Moves that object only: the world is reset by the next placement."""
     world.save_kept()
+    if world.placed is not None and index not in world.placed:
+        world.placed = (*world.placed, index)
     client, uid = world.client, world.object_uids[index]
     world.set_pose(index, pose)
-    world.placed = None if world.placed is None else (*world.placed, index)
     low, high = pybullet.getAABB(uid, physicsClientId=client)
-    deepest = 0.0
-    for other, _link in pybullet.getOverlappingObjects(low, high, physicsClientId=client) or ():
-        if other not in world.object_index:
-            for point in pybullet.getClosestPoints(uid, other, 0.0, physicsClientId=client):
-                deepest = max(deepest, -float(point[8]))
-    return deepest
+    points = [
+        point
+        for other, _link in pybullet.getOverlappingObjects(low, high, physicsClientId=client) or ()
+        if other not in world.object_index
+        for point in pybullet.getClosestPoints(uid, other, 0.0, physicsClientId=client)
+    ]
+    deepest = min(points, key=lambda point: float(point[8]), default=None)
+    centre = (np.asarray(low, dtype=float) + np.asarray(high, dtype=float)) / 2.0
+    return (None if deepest is None or -float(deepest[8]) <= threshold else deepest), centre
+
+
+def _vector(values: np.ndarray) -> Vector3:
+    return (float(values[0]), float(values[1]), float(values[2]))

@@ -5,13 +5,14 @@ from __future__ import annotations
 import itertools
 import math
 from collections.abc import Callable
+from dataclasses import replace
 
 import pybullet
 import pytest
 from core_builders import CUBE_SIZE, ON_FLOOR, cube, floor_scene, ground_truth, moved, shipped_scene, unrotated
 
-from physics_mapper.model.geometry import Pose, rotation_angle, translation_distance
-from physics_mapper.model.scene import Scene, SearchParams
+from physics_mapper.model.geometry import Pose, quaternion_about_axis, rotation_angle, translation_distance
+from physics_mapper.model.scene import Box, Plane, Scene, SearchParams, StaticBody
 from physics_mapper.physics.checker import PhysicsChecker
 from physics_mapper.physics.settling import CLOCK_CHECK_STEPS, EarlyExit, PartialSettling, Settling, early_exit_rule
 from physics_mapper.physics.world import TIME_STEP
@@ -363,3 +364,45 @@ def test_a_settling_with_a_larger_solver_residual_ends_elsewhere_and_leaves_the_
     assert early.is_stable(JITTER_THRESHOLD) and expected.is_stable(JITTER_THRESHOLD)
     assert max(abs(a - b) for a, b in zip(early.jitters, expected.jitters, strict=True)) < 0.001
     assert again == expected
+
+
+def cube_in_a_corner() -> Scene:
+    """A cube over the floor, beside a wall whose face is the plane x = 0.2 (the wall 10 cm thick, 30 cm high)."""
+    wall = StaticBody("wall", Box((0.1, 1.0, 0.3)), unrotated(0.25, 0.0, 0.15))
+    return replace(floor_scene(cube("cube_a")), static=(StaticBody("floor", Plane()), wall))
+
+
+MOVE_LIMIT = 0.05
+
+
+def test_a_cube_seen_a_little_inside_the_floor_and_a_wall_is_moved_out_until_it_touches_both() -> None:
+    with PhysicsChecker(cube_in_a_corner()) as checker:
+        turned = quaternion_about_axis((0.0, 0.0, 1.0), 0.3)
+        reach = ON_FLOOR * (math.cos(0.3) + math.sin(0.3))  # from its centre to its corners along x
+        seen = Pose((0.2 - reach + 0.025, 0.1, ON_FLOOR - 0.02), turned)  # 2.5 cm into the wall, 2 cm into the floor
+        pose = checker.moved_out_of_static(0, seen, PENETRATION_THRESHOLD, MOVE_LIMIT)
+        assert pose is not None and pose.orientation == turned
+        assert math.isclose(pose.position[0], 0.2 - reach, abs_tol=0.001)
+        assert math.isclose(pose.position[1], seen.position[1], abs_tol=1e-9)  # along the normals only
+        assert math.isclose(pose.position[2], ON_FLOOR, abs_tol=0.001)
+        assert checker.static_overlap(0, pose) <= 0.001  # touching the floor and the wall, within a millimetre
+        assert checker.find_collision((pose,), PENETRATION_THRESHOLD) is None
+
+
+def test_a_cube_overlapping_a_static_body_within_the_threshold_is_not_moved() -> None:
+    with PhysicsChecker(cube_in_a_corner()) as checker:
+        seen = unrotated(0.0, 0.0, ON_FLOOR - PENETRATION_THRESHOLD / 2.0)
+        assert checker.moved_out_of_static(0, seen, PENETRATION_THRESHOLD, MOVE_LIMIT) is None
+
+
+@pytest.mark.parametrize("seen", [unrotated(0.0, 0.0, -0.01), unrotated(0.26, 0.0, 0.1)], ids=["floor", "wall"])
+def test_a_cube_whose_centre_lies_inside_a_static_body_is_not_moved(seen: Pose) -> None:
+    with PhysicsChecker(cube_in_a_corner()) as checker:
+        assert checker.moved_out_of_static(0, seen, PENETRATION_THRESHOLD, MOVE_LIMIT) is None
+
+
+def test_a_cube_is_not_moved_farther_than_the_limit() -> None:
+    with PhysicsChecker(cube_in_a_corner()) as checker:
+        seen = unrotated(0.0, 0.0, ON_FLOOR - 0.02)
+        assert checker.moved_out_of_static(0, seen, PENETRATION_THRESHOLD, 0.015) is None
+        assert checker.moved_out_of_static(0, seen, PENETRATION_THRESHOLD, 0.025) is not None
