@@ -43,12 +43,17 @@ ended early at rest as the search's are), within half the deadline, and repaired
   tip it (a mug on two others, a lego part on the studs), and the next may not (12 mugs in two layers:
   two of the first three ticks' checks passed this way, none before);
 
-and the rest checked again, with at most :data:`CHECK_SETTLINGS` settlings in all. The search's own answer stands
-whenever it is valid (but at the first tick, below): it is the paper's. Only when the search ends without a valid
-configuration is a valid previous-map configuration the tick's map, valid, with ``previous_map`` set in the
-result. Where it passed, the search runs without its ``fallback``: a fallback map (the refined root, the settled
-first collision-free configuration) would only stand in for a valid map that exists, and making it takes the
-search's time (the refined root of 24 cylinders in two layers took most of a 0.2 s tick).
+and the rest checked again, with at most :data:`CHECK_SETTLINGS` settlings in all. Where the check passed and the
+search ends without a valid configuration, the previous map's configuration is the tick's map, valid, with
+``previous_map`` set in the result. Where the search found a valid configuration too, the map is the one of the
+two with the more probable pattern of existence (:func:`~physics_mapper.model.hypotheses.existence_probability`,
+the search's own preference among valid configurations; on a tie, and always where nothing may be absent, the
+search's answer stands: it is the paper's). A search the deadline stops can find first a valid configuration that
+leaves out an instance seen in every frame, whose poses of this frame overlap a neighbour or the floor, where the
+check holds it at its held pose: a finished search's map would then have ended its track. Where the check
+passed, the search runs without its ``fallback``: a fallback map (the refined root, the settled first
+collision-free configuration) would only stand in for a valid map that exists, and making it takes the search's
+time (the refined root of 24 cylinders in two layers took most of a 0.2 s tick).
 
 A check that its half of the deadline stopped with a repaired configuration still to check is *pending*:
 the search runs first, leaving :data:`RESERVE_SHARE` times the check's longest settling, then, unless the
@@ -373,9 +378,11 @@ def search_with_previous_map(
     passed = check is not None and check.settling is not None
     search = make_search(checker, searched, replace(params, fallback="none") if passed else params, previous)
     stop_at = None if budget is None else started + budget
-    # The first tick's refined map guides a check even where the search found a valid map: of the two, the
-    # map is the one with the more probable pattern of existence (where nothing may be absent, a tie).
-    first = unchecked is None and any(ranked.absent_rank() is not None for ranked in searched)
+    # Of a check's valid map and the search's, the map is the one with the more probable pattern of existence
+    # (where nothing may be absent, a tie: the search's stands). The first tick's refined map guides a check
+    # even where the search found a valid map.
+    compete = any(ranked.absent_rank() is not None for ranked in searched)
+    first = unchecked is None and compete
     if map_first:
         result = _run_until_map(search, stop_at)
         if _time_up(stop_at) or (result.valid and not first):
@@ -388,10 +395,10 @@ def search_with_previous_map(
         assert stop_at is not None  # without a deadline a check ends passed or failed
         result = _run_leaving(search, stop_at, check.time_to_go_on)
         if result.valid or _time_up(stop_at):
-            return search, with_previous_map(result, check, first), check
+            return search, with_previous_map(result, check, compete), check
         check = check_previous_map(checker, check, params, stop_at)
     remaining = None if stop_at is None else max(0.0, stop_at - time.monotonic())
-    return search, with_previous_map(search.run(remaining), check, first), check
+    return search, with_previous_map(search.run(remaining), check, compete), check
 
 
 def _guiding_map(search: Search, result: SearchResult) -> tuple[Code, tuple[Pose, ...]] | None:
