@@ -43,9 +43,8 @@ def moved_out_of_static(
     searched, moved = [], 0
     for index, ranked in enumerate(hypotheses):
         seen = [h for h in ranked.hypotheses if not (h.absent or h.held)]
-        if not scene.is_instance(scene.objects[index].name) or not all(
-            _too_deep(checker, index, h, threshold) for h in seen
-        ):
+        instance = scene.is_instance(scene.objects[index].name)
+        if not (instance and seen and all(_too_deep(checker, index, h, threshold) for h in seen)):
             searched.append(ranked)
             continue
         poses = [_moved(checker, index, hypothesis, threshold) for hypothesis in ranked.hypotheses]
