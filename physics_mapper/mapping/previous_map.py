@@ -32,7 +32,9 @@ ended early at rest as the search's are), within half the deadline, and repaired
   (BENCHMARKS.md, "Bins of identical objects");
 - where only new objects broke it, those that may be absent are left out (a new box on the floor stays;
   a false detection in the air or inside the bin's wall goes), or, if none may be, what they touch is
-  put where it rested;
+  put where it rested. Where such an object overlaps another, it first takes its other poses, in rank order,
+  a collision pass each: a second detection of a box overlaps it at every pose, while a part seen beside a
+  neighbour may overlap it at its best pose alone;
 - where an overlapping pair has none of these, one of the two takes its next hypothesis near where it
   rested (within :data:`NEAR`, nearest first; no settling, only the collision pass again). Where the
   tick's refined map guides the check (below), the refinement parts two overlapping boxes by moving both,
@@ -228,9 +230,9 @@ def check_previous_map(
     check pending), repaired where it fails (module docstring): where an object the previous map held breaks a
     rule (one of the overlapping pair, or moved beyond the jitter threshold), it and the objects it touches are
     put at their *held* ranks; where only its ``new`` objects break it, they are left out (their *absent*
-    ranks, where they have one); where neither changes an overlapping pair, one of the two takes its next pose
-    near where it rested (not the rank it started at), and where neither changes what moved, each of those
-    takes its next;
+    ranks, where they have one), one that overlaps another only once each of its poses has; where neither
+    changes an overlapping pair, one of the two takes its next pose near where it rested (not the rank it
+    started at), and where neither changes what moved, each of those takes its next;
     then the rest is checked again, with at most :data:`CHECK_SETTLINGS` settlings in all, none begun that
     would not end before ``stop_at`` if it took as long as the longest so far (the check is left pending: the
     time is the search's then, and its fallback map may need it)."""
@@ -243,6 +245,10 @@ def check_previous_map(
     nearer = {
         i: [r for r in nearby_ranks(ranked, rested.get(name)) if r not in (code[i], start[i])]
         for i, (name, ranked) in enumerate(zip(names, hypotheses, strict=True))
+    }
+    # A new object's other poses, for a collision pass each before an overlap leaves it out.
+    others = {
+        i: [r for r in hypotheses[i].pose_ranks() if r not in (code[i], hypotheses[i].held_rank())] for i in droppable
     }
     early_exit = early_exit_rule(params, complete=False, moving=True)
     settlings, longest = check.settlings, check.longest_settling
@@ -259,7 +265,7 @@ def check_previous_map(
         collision = checker.find_collision(poses, params.penetration_threshold)
         while collision is not None:
             pair = {names.index(body) for body in collision.pair if body in names}
-            repaired = _repaired(hypotheses, code, pair, pair, new, droppable, holdable)
+            repaired = _repaired(hypotheses, code, pair, pair, new, droppable, holdable, others)
             if not repaired and not _nearer(code, pair, nearer, every=False):
                 return ended()
             poses = _poses(hypotheses, code)
@@ -273,7 +279,8 @@ def check_previous_map(
             return ended(outcome)
         moved = {i for i, jitter in enumerate(outcome.jitters) if jitter > params.jitter_threshold}
         reached = within_reach(poses, shapes, moved, TOUCHING)
-        repaired = _repaired(hypotheses, code, moved, reached, new, droppable, holdable)
+        # What moved takes no other pose of its own: each would cost a settling.
+        repaired = _repaired(hypotheses, code, moved, reached, new, droppable, holdable, {})
         if not repaired and not _nearer(code, moved, nearer, every=True):
             return ended()
     return ended()
@@ -287,13 +294,28 @@ def _repaired(
     new: Collection[int],
     droppable: set[int],
     holdable: dict[int, int],
+    others: dict[int, list[int]],
 ) -> bool:
     """One repair of ``code`` where ``culprits`` broke a rule (module docstring): where one of them is not
     ``new``, the ``reached`` objects put at their held ranks (or, if none has one to go to, the culprits that
-    may be absent left out); else the other way round. Whether anything changed."""
+    may be absent left out, the first of them with a pose left in ``others`` first taking it); else the other
+    way round. Whether anything changed."""
+
+    def left_out() -> bool:
+        return _next_pose(code, culprits, others) or _left_out(hypotheses, code, culprits, droppable)
+
     if culprits - set(new):
-        return _held(code, reached, holdable) or _left_out(hypotheses, code, culprits, droppable)
-    return _left_out(hypotheses, code, culprits, droppable) or _held(code, reached, holdable)
+        return _held(code, reached, holdable) or left_out()
+    return left_out() or _held(code, reached, holdable)
+
+
+def _next_pose(code: list[int], culprits: Collection[int], others: dict[int, list[int]]) -> bool:
+    """Move the first of ``culprits`` with a pose left in ``others`` (per object, its poses not tried yet, in
+    rank order) to that pose; whether one moved."""
+    found = [i for i in sorted(culprits) if others.get(i)]
+    if found:
+        code[found[0]] = others[found[0]].pop(0)
+    return bool(found)
 
 
 def _nearer(code: list[int], objects: Collection[int], nearer: dict[int, list[int]], every: bool) -> bool:

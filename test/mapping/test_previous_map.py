@@ -437,3 +437,24 @@ def test_a_later_tick_s_check_wins_over_a_valid_map_that_leaves_out_a_part_likel
         report = mapper.tick(0.5 * step + 0.1, MapperSettings(GENEROUS, INPUTS, rate_hz=0.1))
     assert report.result is not None and report.result.valid and report.result.previous_map
     assert report.absent == () and report.tracking.ends == () and len(mapper.tracks.tracks) == 3
+
+
+def test_a_new_instance_that_overlaps_at_its_best_pose_takes_its_next_before_it_is_left_out() -> None:
+    """The last map held box_1. box_2 is new: its best pose lies 2 cm into box_1, its second beside it; box_3, a
+    second detection of box_1, overlaps it at both its poses. The check keeps box_2 at its second pose and
+    leaves box_3 out, and passes."""
+    scene = scene_from_dict(
+        {"objects": [{"name": "box", "count": {"max": 3}, **BOX}], "static": [{"name": "floor", "shape": "plane"}]},
+        "test",
+    )
+
+    def maybe(index: int, *positions: tuple[float, float, float]) -> RankedHypotheses:
+        poses = tuple(Hypothesis(Pose(p, IDENTITY), 0.8 / (i + 1)) for i, p in enumerate(positions))
+        return RankedHypotheses((*poses, absent_hypothesis(index, 0.1)))
+
+    beside, into = (0.11, 0.0, 0.05), (0.08, 0.0, 0.05)
+    hypotheses = (maybe(0, BOTTOM), maybe(1, into, beside), maybe(2, (0.01, 0.0, 0.05), (0.0, 0.01, 0.05)))
+    start = (1, 1, 1)
+    check = PreviousMapCheck(hypotheses, start, start, {"box_1": Pose(BOTTOM, IDENTITY)}, new=(1, 2))
+    ended = check_previous_map(PhysicsChecker(scene), check, GENEROUS, None)
+    assert ended.settling is not None and ended.code == (1, 2, 3)
