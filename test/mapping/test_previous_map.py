@@ -458,3 +458,21 @@ def test_a_new_instance_that_overlaps_at_its_best_pose_takes_its_next_before_it_
     check = PreviousMapCheck(hypotheses, start, start, {"box_1": Pose(BOTTOM, IDENTITY)}, new=(1, 2))
     ended = check_previous_map(PhysicsChecker(scene), check, GENEROUS, None)
     assert ended.settling is not None and ended.code == (1, 2, 3)
+
+
+def test_a_new_instance_whose_poses_together_outweigh_its_absence_starts_the_check_where_they_agree() -> None:
+    """The last map held box_1. box_2 is new, seen three times within 3 mm, each pose weighing 0.2 against its
+    *absent*'s 0.4, which ranks first. The search checks its root alone (box_2 absent: valid); the check starts
+    box_2 where its poses agree (0.6 in all, more likely there than not), passes, and its pattern of existence
+    is the likelier: box_2 is in the map. Started at rank 1, the check was the search's root."""
+    scene = scene_from_dict(
+        {"objects": [{"name": "box", "count": {"max": 2}, **BOX}], "static": [{"name": "floor", "shape": "plane"}]},
+        "test",
+    )
+    seen = [(0.3, 0.0, 0.05), (0.303, 0.0, 0.05), (0.3, 0.003, 0.05)]
+    box_2 = RankedHypotheses((absent_hypothesis(1, 0.4), *(Hypothesis(Pose(p, IDENTITY), 0.2) for p in seen)))
+    box_1 = RankedHypotheses((Hypothesis(Pose(BOTTOM, IDENTITY), 0.9), absent_hypothesis(0, 0.1)))
+    remembered = {"box_1": Pose(BOTTOM, IDENTITY)}
+    _, result, check = search_with_previous_map(PhysicsChecker(scene), (box_1, box_2), ROOT_ONLY, remembered, None)
+    assert check is not None and check.start == (1, 2)
+    assert result.valid and result.previous_map and result.code == (1, 2)
