@@ -272,7 +272,7 @@ def check_previous_map(
         while collision is not None:
             pair = {names.index(body) for body in collision.pair if body in names}
             repaired = _repaired(hypotheses, code, pair, pair, new, droppable, holdable, others)
-            if not repaired and not _nearer(code, pair, nearer, every=False):
+            if not repaired and not _next_pose(code, pair, nearer, every=False):
                 return ended()
             poses = _poses(hypotheses, code)
             collision = checker.find_collision(poses, params.penetration_threshold)
@@ -287,7 +287,7 @@ def check_previous_map(
         reached = within_reach(poses, shapes, moved, TOUCHING)
         # What moved takes no other pose of its own: each would cost a settling.
         repaired = _repaired(hypotheses, code, moved, reached, new, droppable, holdable, {})
-        if not repaired and not _nearer(code, moved, nearer, every=True):
+        if not repaired and not _next_pose(code, moved, nearer, every=True):
             return ended()
     return ended()
 
@@ -308,29 +308,21 @@ def _repaired(
     way round. Whether anything changed."""
 
     def left_out() -> bool:
-        return _next_pose(code, culprits, others) or _left_out(hypotheses, code, culprits, droppable)
+        return _next_pose(code, culprits, others, every=False) or _left_out(hypotheses, code, culprits, droppable)
 
     if culprits - set(new):
         return _held(code, reached, holdable) or left_out()
     return left_out() or _held(code, reached, holdable)
 
 
-def _next_pose(code: list[int], culprits: Collection[int], others: dict[int, list[int]]) -> bool:
-    """Move the first of ``culprits`` with a pose left in ``others`` (per object, its poses not tried yet, in
-    rank order) to that pose; whether one moved."""
-    found = [i for i in sorted(culprits) if others.get(i)]
-    if found:
-        code[found[0]] = others[found[0]].pop(0)
-    return bool(found)
-
-
-def _nearer(code: list[int], objects: Collection[int], nearer: dict[int, list[int]], every: bool) -> bool:
-    """Move the first of ``objects`` that has one left (``every``: each that has) to its next pose near where it
-    rested (``nearer``: per object, those poses not tried yet, nearest first); whether one moved. Of an
-    overlapping pair one is enough to part them; each object that moved beyond the threshold needs its own."""
-    found = [i for i in sorted(objects) if nearer[i]]
+def _next_pose(code: list[int], objects: Collection[int], untried: dict[int, list[int]], every: bool) -> bool:
+    """Move the first of ``objects`` that has one left (``every``: each that has) to its next pose in ``untried``
+    (per object, the poses not tried yet, in the order to try them: near where it rested, nearest first, or a
+    new object's in rank order); whether one moved. Of an overlapping pair one is enough to part them; each
+    object that moved beyond the threshold needs its own."""
+    found = [i for i in sorted(objects) if untried.get(i)]
     for i in found if every else found[:1]:
-        code[i] = nearer[i].pop(0)
+        code[i] = untried[i].pop(0)
     return bool(found)
 
 
