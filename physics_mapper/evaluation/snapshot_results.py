@@ -28,10 +28,14 @@ from physics_mapper.bags.storage import (
 )
 from physics_mapper.evaluation.identity import identity_metrics, identity_text, record_frames
 from physics_mapper.evaluation.scoring import ObjectClasses, matched_errors, rank_one_poses
-from physics_mapper.evaluation.snapshots import BagSnapshot, bag_snapshots
+from physics_mapper.evaluation.snapshots import BagSnapshot, Decision, bag_snapshots
 from physics_mapper.mapping.association import AssociationSettings
-from physics_mapper.mapping.existence import with_held
-from physics_mapper.mapping.previous_map import PreviousMapCheck, search_with_previous_map
+from physics_mapper.mapping.previous_map import (
+    PreviousMapCheck,
+    result_hypotheses,
+    search_with_previous_map,
+    with_held,
+)
 from physics_mapper.mapping.topics import MAP_TOPIC_QOS, RECORDED_CONFIGURATION_TOPIC, RECORDED_SETTLED_TOPIC
 from physics_mapper.model.geometry import Pose, is_same_pose
 from physics_mapper.model.hypotheses import RankedHypotheses
@@ -99,7 +103,7 @@ class OfflineSearch:
         self._search: Search | None = None
         self._check: PreviousMapCheck | None = None
 
-    def __call__(self, snapshot: BagSnapshot) -> SearchResult:
+    def __call__(self, snapshot: BagSnapshot) -> Decision:
         remembered = dict(snapshot.remembered)
         self._search, found, self._check = search_with_previous_map(
             self.checker,
@@ -111,10 +115,12 @@ class OfflineSearch:
             self._check,
             refined=snapshot.remembered_refined,
         )
+        ranked = result_hypotheses(snapshot.hypotheses, found, self._check)
+        snapshot = replace(snapshot, hypotheses=ranked)
         self.results.append(SnapshotResult(snapshot, found.code, found.poses, found.settled_poses, found))
         if self.progress is not None:
             self.progress(len(self.results) - 1, found)
-        return found
+        return Decision(found, ranked)
 
 
 def replay_offline(

@@ -13,6 +13,7 @@ from __future__ import annotations
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import nullcontext
 from dataclasses import dataclass
+from typing import NamedTuple
 
 from physics_mapper.bags.storage import (
     Bag,
@@ -110,8 +111,17 @@ def has_instances(scene: Scene) -> bool:
     return any(scene.is_instance(name) for name in scene.object_names)
 
 
-#: Told after each new snapshot's search: the chosen configuration (None: nothing chosen).
-Decide = Callable[["BagSnapshot"], SearchResult | None]
+class Decision(NamedTuple):
+    """What was chosen for a snapshot: ``result`` (None: nothing chosen) and the ``hypotheses`` whose ranks its code
+    names (:func:`~physics_mapper.mapping.previous_map.result_hypotheses`: the snapshot's, or the previous map's
+    check's, with *held* poses)."""
+
+    result: SearchResult | None
+    hypotheses: tuple[RankedHypotheses, ...]
+
+
+#: Told after each new snapshot's search: what was chosen for it.
+Decide = Callable[["BagSnapshot"], Decision]
 
 
 def bag_snapshots(
@@ -208,8 +218,9 @@ def _snapshots(
                 burst[-1].time_ns, snapshot.stamp_ns, hypotheses, truth, stamps, taken, remembered, memory.refined
             )
         )
-        result = None if decide is None else decide(snapshots[-1])
+        decision = Decision(None, hypotheses) if decide is None else decide(snapshots[-1])
         if checker is not None:  # as after the node's tick (Mapper.tick)
-            for name in learn_from_result(memory, instances, scene.object_names, hypotheses, result, now):
+            names, ranked = scene.object_names, decision.hypotheses
+            for name in learn_from_result(memory, instances, names, ranked, decision.result, now):
                 tracker.forget(name)
     return snapshots

@@ -8,24 +8,24 @@ the map of the previous ticks (:class:`MapMemory`):
   more, *absent*, with the weight w the association gives it
   (:meth:`~physics_mapper.mapping.association.InstanceTracks.absent_weight`); its other
   hypotheses are scaled by 1 - w.
-- **Held**: an instance (an object of a tracked class) with fresh hypotheses that the last valid map
-  held, one of whose fresh poses lies within :data:`~physics_mapper.mapping.previous_map.NEAR` of where
-  it came to rest in that map, gets one more, *held*, at that rest pose, weighing :data:`HELD_SHARE` of
-  its lightest hypothesis: it ranks last. It is the previous map's check's alone: the search ranks this
-  tick's inputs (a configuration at rest where it rested would have the least jitter and win over every
-  fresh valid one, and the map would stay where it first became valid). An estimator's poses scatter a
-  few millimetres around the truth from frame to frame, and a lego part stands on the studs under it
-  only within a millimetre or two: in a bin standing still, a tick whose poses each miss by that much
-  has no valid configuration of them, yet the map of the last tick still agrees with them. The previous
-  map's check (:mod:`~physics_mapper.mapping.previous_map`) starts an instance seen where it rested (its
-  nearest pose within :data:`~physics_mapper.mapping.previous_map.AGREE`) at its held pose, and puts an
-  object that breaks a rule there, and the objects it touches, at their held poses. A map that holds an
-  object at its held pose leaves the remembered pose as it was: settled again every tick, a map at rest
-  would creep. Until a valid map holds any object (the first ticks of a bin), the last refined map stands
-  in for the last valid map: its objects' rests are remembered (:meth:`MapMemory.remember`), the previous
-  map's check (made after the tick's own refined map) starts from them, and an instance's held pose is its
-  rest there. The refined map's objects rest together without overlapping, so where the tick's poses miss
-  the studs, the rests a pose agrees with may still stand.
+- **Held**: an instance (an object of a tracked class) with fresh hypotheses that the last valid map held, one of
+  whose fresh poses lies within :data:`~physics_mapper.mapping.previous_map.NEAR` of where it came to rest in that
+  map, gets one more, *held*, at that rest pose, weighing :data:`~physics_mapper.mapping.previous_map.HELD_SHARE`
+  of its lightest hypothesis: it ranks last. It is the previous map's check's alone: the search ranks this tick's
+  inputs (a configuration at rest where it rested would have the least jitter and win over every fresh valid one,
+  and the map would stay where it first became valid). An estimator's poses scatter a few millimetres around the
+  truth from frame to frame, and a lego part stands on the studs under it only within a millimetre or two: in a
+  bin standing still, a tick whose poses each miss by that much has no valid configuration of them, yet the map of
+  the last tick still agrees with them. The previous map's check (:mod:`~physics_mapper.mapping.previous_map`)
+  starts an instance seen where it rested (its nearest pose within
+  :data:`~physics_mapper.mapping.previous_map.AGREE`) at its held pose, and puts an object that breaks a rule
+  there, and the objects it touches, at their held poses. A map that holds an object at its held pose leaves the
+  remembered pose as it was: settled again every tick, a map at rest would creep. Until a valid map holds any
+  object (the first ticks of a bin), the last refined map stands in for the last valid map: its objects' rests are
+  remembered (:meth:`MapMemory.remember`), the previous map's check (made after the tick's own refined map) starts
+  from them, and an instance's held pose is its rest there; at the very first tick, the check guided by the tick's
+  own refined map gives each instance a held pose at its rest there too. The refined map's objects rest together
+  without overlapping, so where the tick's poses miss the studs, the rests a pose agrees with may still stand.
 - **Silent** (its newest hypotheses older than ``max_age``, or its track ended): if the last valid
   map held it, its pose there is kept as one hypothesis beside *absent*, whose weight grows with the
   silence s (seconds since it fell silent): w_absent = 1 - exp(-s / max_age) / 2. From s = 0
@@ -53,7 +53,7 @@ from numpy.typing import NDArray
 
 from physics_mapper.mapping.association import InstanceTracks
 from physics_mapper.mapping.inputs import InputSnapshot
-from physics_mapper.mapping.previous_map import nearby_ranks
+from physics_mapper.mapping.previous_map import with_held
 from physics_mapper.model.geometry import Pose
 from physics_mapper.model.hypotheses import Hypothesis, RankedHypotheses, absent_hypothesis
 from physics_mapper.model.scene import Scene
@@ -66,27 +66,10 @@ def silent_absent_weight(silence: float, max_age: float) -> float:
     return 1.0 - 0.5 * math.exp(-max(0.0, silence) / max_age)
 
 
-#: The weight of an object's *held* hypothesis, as a share of its lightest hypothesis's (module docstring).
-HELD_SHARE = 0.5
-
-
 def with_absent(ranked: RankedHypotheses, index: int, weight: float) -> RankedHypotheses:
     """``ranked`` scaled by 1 - ``weight``, plus object ``index``'s *absent* of ``weight``, ranked."""
     scaled = [Hypothesis(h.pose, h.weight * (1.0 - weight)) for h in ranked.hypotheses]
     return RankedHypotheses.from_weighted([*scaled, absent_hypothesis(index, weight)])
-
-
-def with_held(ranked: RankedHypotheses, rested: Pose) -> RankedHypotheses:
-    """``ranked`` plus a *held* hypothesis at ``rested`` (where the object rested in the remembered map) weighing
-    :data:`HELD_SHARE` of its lightest hypothesis (outside the others' sum, which stays 1), ranked last;
-    ``ranked`` itself where no pose of it lies within :data:`~physics_mapper.mapping.previous_map.NEAR`
-    metres of ``rested``."""
-    if not nearby_ranks(ranked, rested):
-        return ranked
-    lightest = min(hypothesis.weight for hypothesis in ranked.hypotheses)
-    # Appended, not renormalised: the search's hypotheses (without it) stay bit for bit the inputs', so a
-    # search with unchanged inputs still resumes.
-    return RankedHypotheses((*ranked.hypotheses, Hypothesis(rested, HELD_SHARE * lightest, held=True)))
 
 
 @dataclass

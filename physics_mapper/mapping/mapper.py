@@ -26,7 +26,7 @@ from physics_mapper.mapping.existence import (
 )
 from physics_mapper.mapping.frames import Transform
 from physics_mapper.mapping.inputs import InputSettings, InputSnapshot, InputTracker
-from physics_mapper.mapping.previous_map import PreviousMapCheck, search_with_previous_map
+from physics_mapper.mapping.previous_map import PreviousMapCheck, result_hypotheses, search_with_previous_map
 from physics_mapper.mapping.seen_too_deep import moved_out_of_static
 from physics_mapper.model.hypotheses import RankedHypotheses
 from physics_mapper.model.scene import Scene, SearchParams, search_params_problem
@@ -202,6 +202,7 @@ class Mapper:
             threshold = settings.search.penetration_threshold
             hypotheses, moved_out = moved_out_of_static(self.checker, hypotheses, threshold)
             report = self._search_tick(snapshot, hypotheses, settings)
+            hypotheses = report.hypotheses
         except PhysicsEngineError as error:
             self._discard_world()
             fault = f"physics engine failed: {error}; the world is rebuilt and the search starts again at the next tick"
@@ -217,7 +218,9 @@ class Mapper:
         """Resume the search in progress if inputs and settings allow (a grouped search: every group
         whose objects' hypotheses did not change), else start a new one; run it to the deadline.
 
-        Grouping and carrying over the previous search's groups count as search time.
+        Grouping and carrying over the previous search's groups count as search time. The report's hypotheses
+        are those its result's code ranks: ``hypotheses``, or where the previous map's check made the map, the
+        check's (the first tick's check adds *held* poses where the tick's refined map rests the instances).
         """
         if settings.search.fallback == "refine":
             load_solver()  # the first time: 0.2 s outside the deadline (not imported before, for memory)
@@ -243,4 +246,5 @@ class Mapper:
             settings,
             search.settling_in_progress,
             settling_group=search.settling_group,
+            hypotheses=result_hypotheses(hypotheses, result, self._previous_map),
         )

@@ -43,11 +43,11 @@ ended early at rest as the search's are), within half the deadline, and repaired
   neighbour may overlap it at its best pose alone;
 - where an overlapping pair has none of these, one of the two takes its next hypothesis near where it
   rested (within :data:`NEAR`, nearest first; no settling, only the collision pass again). Where the
-  tick's refined map guides the check (below), the refinement parts two overlapping boxes by moving both,
+  tick's refined map guides the check (below), the refinement parts two overlapping objects by moving both,
   and the hypothesis nearest where one came to rest can be the overlapping one, its next the one beside;
 - where objects that moved beyond the threshold have none of these either, each takes its next hypothesis
-  near where it rested. Where the refined map guides the check, no object has a held pose and those the
-  refined map placed may not be left out; a pose a few millimetres from where an object rests can still
+  near where it rested. Where the refined map guides the check, a named object has no held pose and those
+  the refined map placed may not be left out; a pose a few millimetres from where an object rests can still
   tip it (a mug on two others, a lego part on the studs), and the next may not (12 mugs in two layers:
   two of the first three ticks' checks passed this way, none before);
 
@@ -89,7 +89,16 @@ such parts out, and the refined map, started where the poses agree, holds them (
 seed 2: the search's first map held 8 blocks, 5 of them within the identity gate of their own, the check's 11).
 The refined map's objects rest overlapping nothing, so the hypotheses nearest them are worth one check: in 24
 cylinders in two layers searched 0.1 s a tick, whose refined map took most of each tick, no tick had a valid
-map; now 14 of 30 do (BENCHMARKS.md, "Bins of identical objects").
+map; now 14 of 30 do (BENCHMARKS.md, "Bins of identical objects"). In that check each instance has a *held*
+pose where the refined map rests it (:func:`with_held`; the check's map is then made of the check's hypotheses,
+:func:`result_hypotheses`), as at the ticks after: what moved beyond the threshold is put there with what it
+touches, as above. An overlapping pair goes there only once the poses near its rests are spent (``held_last``):
+the refinement parts overlapping neighbours by moving both, so that every pair of their poses can overlap while
+the rests overlap nothing; but a rest stands with the refined map's other rests, not always beside neighbours at
+poses of their own (12 cylinders in two layers, seed 3: put at their rests at the first overlap, a cylinder
+tipped and the first two ticks lost their valid map). The check starts at poses of the objects' own, not at the
+rests. Bins of 12 and 24 in two layers, five seeds: a valid map at every snapshot in 21 bins of 50 before, 39 so
+(BENCHMARKS.md, "Bins of identical objects", round 34).
 Where that check fails too, the tick's map is its refined map, and its rests are remembered until a valid
 map holds an object (:meth:`~physics_mapper.mapping.existence.MapMemory.remember`, ``refined``): the next
 tick still makes its own refined map first (it may be the tick's only map), then checks the configuration
@@ -116,7 +125,7 @@ from collections.abc import Collection, Mapping, Sequence
 from dataclasses import dataclass, replace
 
 from physics_mapper.model.geometry import Pose
-from physics_mapper.model.hypotheses import RankedHypotheses, existence_probability
+from physics_mapper.model.hypotheses import Hypothesis, RankedHypotheses, existence_probability
 from physics_mapper.model.scene import SearchParams
 from physics_mapper.physics.checker import PhysicsChecker
 from physics_mapper.physics.settling import Settling, early_exit_rule
@@ -133,6 +142,9 @@ NEAR = 0.02
 AGREE = 0.005
 
 
+#: The weight of an object's *held* hypothesis, as a share of its lightest hypothesis's
+#: (:mod:`~physics_mapper.mapping.existence`).
+HELD_SHARE = 0.5
 #: Settlings one check may make: the first, and again after each repair (objects put at their held poses, new
 #: objects left out).
 CHECK_SETTLINGS = 4
@@ -142,6 +154,19 @@ RESERVE_SHARE = 1.25
 #: Slices of a tick's time in which a search runs until its refined map is made (each ends at a step: a
 #: settling the slice interrupts goes on in the next, losing nothing).
 MAP_SLICES = 20
+
+
+def with_held(ranked: RankedHypotheses, rested: Pose) -> RankedHypotheses:
+    """``ranked`` plus a *held* hypothesis at ``rested`` (where the object rested in the remembered map) weighing
+    :data:`HELD_SHARE` of its lightest hypothesis (outside the others' sum, which stays 1), ranked last;
+    ``ranked`` itself where no pose of it lies within :data:`NEAR`
+    metres of ``rested``."""
+    if not nearby_ranks(ranked, rested):
+        return ranked
+    lightest = min(hypothesis.weight for hypothesis in ranked.hypotheses)
+    # Appended, not renormalised: the search's hypotheses (without it) stay bit for bit the inputs', so a
+    # search with unchanged inputs still resumes.
+    return RankedHypotheses((*ranked.hypotheses, Hypothesis(rested, HELD_SHARE * lightest, held=True)))
 
 
 def previous_map_code(
@@ -209,7 +234,8 @@ class PreviousMapCheck:
     settling if it passed both rules (None: it failed one, or it is ``pending``: not begun, or stopped for
     time with ``code`` still to be checked). ``settlings``: how many it made, the longest
     ``longest_settling`` seconds. ``carried``: the objects it started at their held poses, where the last
-    check had put them (:func:`held_again`)."""
+    check had put them (:func:`held_again`). ``held_last``: where the held poses are the tick's own refined map's
+    rests, an object is put there only once its poses near its rest are spent (:func:`refined_map_check`)."""
 
     hypotheses: tuple[RankedHypotheses, ...]
     start: Code
@@ -221,6 +247,7 @@ class PreviousMapCheck:
     settlings: int = 0
     longest_settling: float = 0.0
     carried: frozenset[int] = frozenset()
+    held_last: bool = False
 
     @property
     def time_to_go_on(self) -> float:
@@ -264,6 +291,15 @@ def check_previous_map(
             check, code=tuple(code), settling=settling, pending=pending, settlings=settlings, longest_settling=longest
         )
 
+    def repaired(culprits: set[int], reached: Collection[int], poses_left: dict[int, list[int]], every: bool) -> bool:
+        if every or not check.held_last:
+            held_or_left_out = _repaired(hypotheses, code, culprits, reached, new, droppable, holdable, poses_left)
+            return held_or_left_out or _next_pose(code, culprits, nearer, every)
+        # A refined map's rests stand together, not one by one: an overlapping object goes there once the poses near
+        # it are spent (a collision pass each; what moved costs a settling a pose, and goes there at once).
+        left_out = _repaired(hypotheses, code, culprits, reached, new, droppable, {}, poses_left)
+        return left_out or _next_pose(code, culprits, nearer, every) or _held(code, reached, holdable)
+
     while settlings < CHECK_SETTLINGS:
         if _time_up(stop_at, longest):
             return ended(pending=True)  # a settling that would not end in time only takes the search's
@@ -271,8 +307,7 @@ def check_previous_map(
         collision = checker.find_collision(poses, params.penetration_threshold)
         while collision is not None:
             pair = {names.index(body) for body in collision.pair if body in names}
-            repaired = _repaired(hypotheses, code, pair, pair, new, droppable, holdable, others)
-            if not repaired and not _next_pose(code, pair, nearer, every=False):
+            if not repaired(pair, pair, others, every=False):
                 return ended()
             poses = _poses(hypotheses, code)
             collision = checker.find_collision(poses, params.penetration_threshold)
@@ -285,9 +320,7 @@ def check_previous_map(
             return ended(outcome)
         moved = {i for i, jitter in enumerate(outcome.jitters) if jitter > params.jitter_threshold}
         reached = within_reach(poses, shapes, moved, TOUCHING)
-        # What moved takes no other pose of its own: each would cost a settling.
-        repaired = _repaired(hypotheses, code, moved, reached, new, droppable, holdable, {})
-        if not repaired and not _next_pose(code, moved, nearer, every=True):
+        if not repaired(moved, reached, {}, every=True):  # what moved takes no other pose: each costs a settling
             return ended()
     return ended()
 
@@ -423,6 +456,15 @@ def search_with_previous_map(
     return search, with_previous_map(search.run(remaining), check, compete), check
 
 
+def result_hypotheses(
+    hypotheses: Sequence[RankedHypotheses], result: SearchResult, check: PreviousMapCheck | None
+) -> tuple[RankedHypotheses, ...]:
+    """The hypotheses whose ranks ``result``'s code names: the ``check``'s where its map is the previous map's (the
+    first tick's check adds *held* poses where the tick's refined map rests the instances: :func:`refined_map_check`),
+    else ``hypotheses``."""
+    return check.hypotheses if result.previous_map and check is not None else tuple(hypotheses)
+
+
 def _guiding_map(search: Search, result: SearchResult) -> tuple[Code, tuple[Pose, ...]] | None:
     """The code and settled poses of the map that guides the first tick's check: the search's result where it
     holds the refined map (its groups found valid at their answers), the refined map the search made where
@@ -443,19 +485,25 @@ def refined_map_check(
     stop_at: float | None,
 ) -> PreviousMapCheck | None:
     """Where no valid map is remembered, the configuration nearest where the tick's refined map ``guide`` (its
-    code and settled poses) rests the objects, those it leaves out left out (module docstring), checked until
-    ``stop_at`` (None: no refined map)."""
+    code and settled poses) rests the objects, those it leaves out left out, each instance it holds with a *held*
+    pose at its rest there (module docstring), checked until ``stop_at`` (None: no refined map)."""
     if guide is None:
         return None
     guide_code, settled = guide
-    names = checker.scene.object_names
+    scene = checker.scene
+    names = scene.object_names
     chosen = zip(names, hypotheses, guide_code, settled, strict=True)
     rests = {name: pose for name, ranked, rank, pose in chosen if not ranked.is_absent(rank)}
     nearest = previous_map_code(names, hypotheses, rests)
+    hypotheses = tuple(
+        with_held(ranked, rests[name]) if name in rests and scene.is_instance(name) else ranked
+        for name, ranked in zip(names, hypotheses, strict=True)
+    )
     assert nearest is not None
     new = tuple(i for i, name in enumerate(names) if name not in rests)
     start = tuple(guide_code[i] if i in new else rank for i, rank in enumerate(nearest))
-    return check_previous_map(checker, PreviousMapCheck(hypotheses, start, start, rests, new), params, stop_at)
+    check = PreviousMapCheck(hypotheses, start, start, rests, new, held_last=True)
+    return check_previous_map(checker, check, params, stop_at)
 
 
 def _time_up(stop_at: float | None, needed: float = 0.0) -> bool:

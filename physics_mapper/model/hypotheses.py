@@ -124,7 +124,7 @@ class RankedHypotheses:
 
     def without_held(self) -> RankedHypotheses:
         """These hypotheses without the *held* one (``self`` without one). A held hypothesis ranks last and its
-        weight is not in the others' sum (:func:`~physics_mapper.mapping.existence.with_held`): the others keep
+        weight is not in the others' sum (:func:`~physics_mapper.mapping.previous_map.with_held`): the others keep
         their ranks and weights, bit for bit."""
         if self.held_rank() is None:
             return self

@@ -12,17 +12,14 @@ from core_builders import CUBE_SIZE, ON_FLOOR, cube, floor_scene, ranked, unrota
 from detection_builders import array, detection, result
 
 from physics_mapper.mapping.existence import (
-    HELD_SHARE,
     MapMemory,
     holding_others_up,
     left_out_by_physics,
     silent_absent_weight,
-    with_held,
 )
 from physics_mapper.mapping.inputs import InputSettings, check_poses, check_weights
 from physics_mapper.mapping.mapper import Mapper, MapperSettings, TickReport
-from physics_mapper.mapping.previous_map import NEAR
-from physics_mapper.model.geometry import IDENTITY, Pose
+from physics_mapper.model.geometry import Pose
 from physics_mapper.model.hypotheses import Hypothesis, RankedHypotheses, absent_hypothesis
 from physics_mapper.model.scene import Scene, SearchParams
 from physics_mapper.model.scene_files import scene_from_dict
@@ -180,19 +177,6 @@ def test_a_persistent_impossible_detection_is_never_confirmed() -> None:
 def test_a_silent_object_s_absent_weight_starts_at_one_half_and_grows() -> None:
     weights = [silent_absent_weight(silence, max_age=2.0) for silence in (0.0, 1.0, 2.0, 10.0)]
     assert weights[0] == 0.5 and weights == sorted(weights) and weights[-1] > 0.99
-
-
-def test_the_held_pose_ranks_last_and_only_where_a_pose_of_this_tick_lies_near_it() -> None:
-    rested = Pose((0.0, 0.0, 0.05), IDENTITY)
-    seen = RankedHypotheses.from_weighted(
-        [Hypothesis(Pose((0.0, 0.005, 0.05), IDENTITY), 0.6), absent_hypothesis(0, 0.1), Hypothesis(rested, 0.3)]
-    )
-    held = with_held(seen, rested)
-    assert held.held_rank() == len(held) == 4 and not held.is_absent(4) and held.pose(4) == rested
-    assert held.weight(4) == HELD_SHARE * seen.weight(3)  # of the lightest, absent; outside the others' sum
-    assert held.without_held() == seen  # the search's hypotheses, bit for bit: a search with them resumes
-    far = RankedHypotheses.from_weighted([Hypothesis(Pose((0.0, NEAR + 0.001, 0.05), IDENTITY), 1.0)])
-    assert with_held(far, rested) is far  # it moved: nothing of this tick's agrees with where it rested
 
 
 def test_a_finished_search_leaves_an_instance_out_for_good_a_valid_map_cut_short_once_it_is_repeated() -> None:

@@ -12,17 +12,18 @@ from typing import Any
 import pytest
 from detection_builders import array, detection, result
 
-from physics_mapper.mapping.existence import with_held
 from physics_mapper.mapping.inputs import InputSettings, check_poses, check_weights
 from physics_mapper.mapping.mapper import Mapper, MapperSettings, TickReport
 from physics_mapper.mapping.previous_map import (
     AGREE,
+    HELD_SHARE,
     NEAR,
     PreviousMapCheck,
     check_previous_map,
     previous_map_code,
     search_with_previous_map,
     settling_goes_on,
+    with_held,
 )
 from physics_mapper.model.geometry import IDENTITY, Pose, Quaternion, quaternion_about_axis
 from physics_mapper.model.hypotheses import Hypothesis, RankedHypotheses, absent_hypothesis
@@ -59,6 +60,19 @@ def test_each_object_takes_its_hypothesis_nearest_where_the_last_map_left_it() -
     assert previous_map_code("abcd", hypotheses, remembered) == (2, 3, 1, 1)
     assert previous_map_code("ab", (at(far), at(FLOATING)), remembered) == (1, 1)  # none near: rank 1
     assert previous_map_code("ab", hypotheses[:2], {}) is None  # no previous map
+
+
+def test_the_held_pose_ranks_last_and_only_where_a_pose_of_this_tick_lies_near_it() -> None:
+    rested = Pose((0.0, 0.0, 0.05), IDENTITY)
+    seen = RankedHypotheses.from_weighted(
+        [Hypothesis(Pose((0.0, 0.005, 0.05), IDENTITY), 0.6), absent_hypothesis(0, 0.1), Hypothesis(rested, 0.3)]
+    )
+    held = with_held(seen, rested)
+    assert held.held_rank() == len(held) == 4 and not held.is_absent(4) and held.pose(4) == rested
+    assert held.weight(4) == HELD_SHARE * seen.weight(3)  # of the lightest, absent; outside the others' sum
+    assert held.without_held() == seen  # the search's hypotheses, bit for bit: a search with them resumes
+    far = RankedHypotheses.from_weighted([Hypothesis(Pose((0.0, NEAR + 0.001, 0.05), IDENTITY), 1.0)])
+    assert with_held(far, rested) is far  # it moved: nothing of this tick's agrees with where it rested
 
 
 def test_an_instance_seen_where_it_rested_starts_the_check_at_its_rest() -> None:
@@ -180,17 +194,31 @@ def test_where_no_valid_map_is_remembered_the_configuration_nearest_the_refined_
 def test_where_the_nearest_poses_overlap_the_check_takes_the_next_nearest() -> None:
     """The first tick: two boxes in a row, b's best pose 1.5 cm into a and its second 6 mm beside it. The search
     checks the root alone (an overlap); the refinement parts the two by moving both, so b's pose nearest where it
-    rests is the overlapping one. The check then takes b's next pose near its rest, and that is the map, valid."""
+    rests is the overlapping one. The check then takes b's next pose near its rest, and that is the map, valid.
+    Two instances the same: each has a *held* pose where the refined map rests it, but a pose of its own near
+    there goes first (a collision pass each), and the map holds them at poses of their own."""
     row = scene_from_dict(
         {"objects": [{"name": "a", **BOX}, {"name": "b", **BOX}], "static": [{"name": "floor", "shape": "plane"}]},
         "test",
     )
+    settings = MapperSettings(replace(ROOT_ONLY, fallback="refine"), INPUTS, rate_hz=0.1)
     mapper = Mapper(row)
     feed_poses(mapper, "a", [BOTTOM], 0.0)
     feed_poses(mapper, "b", [(0.085, 0.0, 0.05), (0.106, 0.0, 0.05)], 0.0)
-    result = mapper.tick(0.1, MapperSettings(replace(ROOT_ONLY, fallback="refine"), INPUTS, rate_hz=0.1)).result
+    result = mapper.tick(0.1, settings).result
     assert result is not None and result.stats.visited == 1 and result.trace[0].outcome == "collision"
     assert result.valid and result.previous_map and result.code == (1, 2)
+    boxes = scene_from_dict(
+        {"objects": [{"name": "box", "count": {"max": 2}, **BOX}], "static": [{"name": "floor", "shape": "plane"}]},
+        "test",
+    )
+    mapper = Mapper(boxes)
+    mapper.add_detections(array([box_detection(BOTTOM), box_detection((0.085, 0.0, 0.05), (0.106, 0.0, 0.05))]), 0.0)
+    report = mapper.tick(0.1, settings)
+    assert report.result is not None and report.result.valid and report.result.previous_map
+    assert report.result.code is not None and not report.absent
+    assert any(ranked.held_rank() is not None for ranked in report.hypotheses)  # there to go to, but not needed
+    assert all(ranked.held_rank() != rank for ranked, rank in zip(report.hypotheses, report.result.code, strict=True))
 
 
 def test_where_the_nearest_pose_tips_over_the_check_takes_the_next_nearest() -> None:
@@ -309,6 +337,31 @@ def test_the_first_tick_s_check_wins_over_a_valid_map_that_leaves_out_what_is_li
             checker, (at(BOTTOM),), replace(ROOT_ONLY, fallback="refine"), {}, 5.0
         )
     assert alone.valid and not alone.previous_map and unchecked is None
+
+
+def test_the_first_tick_s_check_holds_instances_where_the_refined_map_rests_them() -> None:
+    """The first tick: two new boxes side by side, each of whose poses overlaps the other's by 1-1.3 cm (the
+    root collides; the search checks it alone). The refinement parts the two, moving both; the check of the
+    configuration nearest the refined map finds every pair of their poses overlapping, and puts both where the
+    refined map rests them (their *held* poses), as a later tick's check does after a valid map. That is the
+    map, valid, both boxes in it; the tick's hypotheses are the check's, whose held ranks the code names. Before,
+    the check failed (no held pose to go to) and the tick's map was the refined map, invalid."""
+    scene = scene_from_dict(
+        {"objects": [{"name": "box", "count": {"max": 2}, **BOX}], "static": [{"name": "floor", "shape": "plane"}]},
+        "test",
+    )
+    mapper = Mapper(scene)
+    left, right = [(0.0, 0.0, 0.05), (0.003, 0.0, 0.05)], [(0.09, 0.0, 0.05), (0.088, 0.0, 0.05)]
+    mapper.add_detections(array([box_detection(*left), box_detection(*right)]), received=0.0)
+    report = mapper.tick(0.1, MapperSettings(replace(ROOT_ONLY, fallback="refine"), INPUTS, rate_hz=0.1))
+    result = report.result
+    assert result is not None and result.stats.visited == 1 and result.trace[0].outcome == "collision"
+    assert result.valid and result.previous_map and result.code is not None and not report.absent
+    assert all(ranked.held_rank() == rank for ranked, rank in zip(report.hypotheses, result.code, strict=True))
+    assert result.settled_poses is not None
+    first, second = (pose.position for pose in result.settled_poses)
+    assert math.dist(first, second) >= 0.1 - ROOT_ONLY.penetration_threshold  # apart, as the refined map rests them
+    assert set(mapper.memory.poses) == {"box_1", "box_2"}  # a valid map: the next tick starts from it
 
 
 def box_detection(*positions: Sequence[float]) -> Any:
