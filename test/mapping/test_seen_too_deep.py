@@ -73,3 +73,19 @@ def test_a_single_pose_into_the_floor_beside_right_ones_is_ruled_out_not_moved()
     index = report.snapshot.names.index(ruling.object)
     assert report.hypotheses[index].pose(1).position == wrong
     np.testing.assert_allclose(report.result.poses[index].position, ROW[0], atol=1e-9)
+
+
+def test_a_detection_inside_the_wall_is_not_moved_onto_it_by_the_one_pose_that_could_be() -> None:
+    """A false detection inside the wall: two of its poses lie more inside the wall than out (they cannot be moved
+    out), its third only a centimetre into the wall's top. A depth bias puts every pose of a part a little low;
+    this detection is of nothing, and none of its poses is moved: it is left out. Before, the third was moved onto
+    the wall's top, where a box rests, and the map held a box that is not there."""
+    mapper = Mapper(bin_scene({"name": "box", "count": {"max": 3}, **BOX}))
+    inside = [(0.5, 0.0, 0.15), (0.5, 0.01, 0.16), (0.5, 0.0, 0.34)]
+    false = detection(*(result(p, score) for p, score in zip(inside, (0.9, 0.6, 0.5), strict=True)))
+    mapper.add_detections(array([*(detection(result(p, 0.9)) for p in ROW[:2]), false]), received=0.0)
+    report = mapper.tick(0.1, SETTINGS)
+    assert report.result is not None and report.result.valid
+    assert report.moved_out == 0 and len(report.absent) == 1
+    index = report.snapshot.names.index(report.absent[0])
+    assert [report.hypotheses[index].pose(rank).position for rank in (1, 2, 3)] == inside  # as seen
