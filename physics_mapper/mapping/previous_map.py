@@ -145,6 +145,7 @@ AGREE = 0.005
 #: The weight of an object's *held* hypothesis, as a share of its lightest hypothesis's
 #: (:mod:`~physics_mapper.mapping.existence`).
 HELD_SHARE = 0.5
+
 #: Settlings one check may make: the first, and again after each repair (objects put at their held poses, new
 #: objects left out).
 CHECK_SETTLINGS = 4
@@ -159,8 +160,7 @@ MAP_SLICES = 20
 def with_held(ranked: RankedHypotheses, rested: Pose) -> RankedHypotheses:
     """``ranked`` plus a *held* hypothesis at ``rested`` (where the object rested in the remembered map) weighing
     :data:`HELD_SHARE` of its lightest hypothesis (outside the others' sum, which stays 1), ranked last;
-    ``ranked`` itself where no pose of it lies within :data:`NEAR`
-    metres of ``rested``."""
+    ``ranked`` itself where no pose of it lies within :data:`NEAR` metres of ``rested``."""
     if not nearby_ranks(ranked, rested):
         return ranked
     lightest = min(hypothesis.weight for hypothesis in ranked.hypotheses)
@@ -295,8 +295,8 @@ def check_previous_map(
         if every or not check.held_last:
             held_or_left_out = _repaired(hypotheses, code, culprits, reached, new, droppable, holdable, poses_left)
             return held_or_left_out or _next_pose(code, culprits, nearer, every)
-        # A refined map's rests stand together, not one by one: an overlapping object goes there once the poses near
-        # it are spent (a collision pass each; what moved costs a settling a pose, and goes there at once).
+        # A refined map's rests stand together, not one by one: an overlapping object goes to its rest once the
+        # poses near it are spent (a collision pass each); what moved goes there at once (a pose costs a settling).
         left_out = _repaired(hypotheses, code, culprits, reached, new, droppable, {}, poses_left)
         return left_out or _next_pose(code, culprits, nearer, every) or _held(code, reached, holdable)
 
@@ -495,11 +495,11 @@ def refined_map_check(
     chosen = zip(names, hypotheses, guide_code, settled, strict=True)
     rests = {name: pose for name, ranked, rank, pose in chosen if not ranked.is_absent(rank)}
     nearest = previous_map_code(names, hypotheses, rests)
+    assert nearest is not None
     hypotheses = tuple(
         with_held(ranked, rests[name]) if name in rests and scene.is_instance(name) else ranked
         for name, ranked in zip(names, hypotheses, strict=True)
     )
-    assert nearest is not None
     new = tuple(i for i, name in enumerate(names) if name not in rests)
     start = tuple(guide_code[i] if i in new else rank for i, rank in enumerate(nearest))
     check = PreviousMapCheck(hypotheses, start, start, rests, new, held_last=True)
