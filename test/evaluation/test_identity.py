@@ -28,6 +28,7 @@ from physics_mapper.mapping.association import AssociationSettings
 from physics_mapper.mapping.topics import GROUND_TRUTH_TOPIC, poses_topic
 from physics_mapper.model.errors import InputError
 from physics_mapper.model.geometry import make_pose
+from physics_mapper.model.hypotheses import Hypothesis, RankedHypotheses
 from physics_mapper.model.scene_files import load_scene
 
 TRUTH = [(0.0, 0.0, 0.05), (0.2, 0.0, 0.05)]
@@ -264,3 +265,43 @@ def test_the_map_scored_is_the_settled_one_a_refined_map_not_the_hypotheses_it_s
     assert frame[0].estimate == {"box": list(result.settled[0].position)}
     figures = identity_metrics(frame, gate=0.01)
     assert figures is not None and (figures["misses"], figures["false_positives"]) == (0, 0)
+
+
+TWO_BOXES_SCENE = """\
+static:
+  - {name: floor, shape: plane}
+objects:
+  - {name: box, shape: box, size: [0.1, 0.1, 0.1], mass: 0.2, count: {max: 2}}
+search:
+  fallback: refine
+  strategy: joint
+  bound: absolute
+  probability_threshold: 0.95
+"""
+
+
+def test_the_offline_replay_follows_a_first_map_made_at_held_poses(tmp_path: Path) -> None:
+    """Two boxes side by side, each pose of each 1-1.3 cm into the other, in two arrays. The search checks its root
+    alone (its bound); the first snapshot's map is the check's, the boxes where the refined map rests them (their
+    *held* poses), valid. The replay scores that map with the check's hypotheses, whose held ranks its code names,
+    and learns from it as the node does: the next snapshot starts from a valid map, not a refined one."""
+    (tmp_path / "scene.yaml").write_text(TWO_BOXES_SCENE)
+    scene = load_scene(tmp_path / "scene.yaml")
+    left = RankedHypotheses.from_weighted(
+        [Hypothesis(make_pose((0.0, 0.0, 0.05)), 0.9), Hypothesis(make_pose((0.003, 0.0, 0.05)), 0.1)]
+    )
+    right = RankedHypotheses.from_weighted(
+        [Hypothesis(make_pose((0.09, 0.0, 0.05)), 0.9), Hypothesis(make_pose((0.088, 0.0, 0.05)), 0.1)]
+    )
+    truth = [make_pose((-0.005, 0.0, 0.05)), make_pose((0.095, 0.0, 0.05))]
+    with BagWriter(tmp_path / "bag") as writer:
+        writer.write(GROUND_TRUTH_TOPIC, POSE_ARRAY, 1, pose_array_cdr(1, "world", truth))
+        for time_ns in (1_000_000_000, 2_000_000_000):
+            writer.write_detections(time_ns, time_ns, "world", [("box", left, ""), ("box", right, "")])
+    first, second = replay_offline(read_bag(tmp_path / "bag", input_topics(scene)), scene, None)
+    assert first.search is not None and first.search.valid and first.search.previous_map and first.code is not None
+    ranked = first.snapshot.hypotheses
+    assert all(hypotheses.held_rank() == rank for hypotheses, rank in zip(ranked, first.code, strict=True))
+    figures = identity_metrics(record_frames([snapshot_result_dict(first, ObjectClasses.of(scene))]))
+    assert figures is not None and (figures["misses"], figures["false_positives"]) == (0, 0)
+    assert second.snapshot.remembered and not second.snapshot.remembered_refined
