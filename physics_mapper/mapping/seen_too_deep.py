@@ -49,16 +49,10 @@ def moved_out_of_static(
     for index, ranked in enumerate(hypotheses):
         seen = [h for h in ranked.hypotheses if not (h.absent or h.held)]
         instance = scene.is_instance(scene.objects[index].name)
-        if not (instance and seen and all(_too_deep(checker, index, h, threshold) for h in seen)):
-            searched.append(ranked)
-            continue
-        poses = [_moved(checker, index, hypothesis, threshold) for hypothesis in ranked.hypotheses]
-        kept = sum(pose is hypothesis for pose, hypothesis in zip(poses, ranked.hypotheses, strict=True))
-        if kept > len(ranked) - len(seen):  # a pose that cannot be moved out: a detection inside, not too low
-            searched.append(ranked)
-            continue
-        moved += len(seen)
-        searched.append(RankedHypotheses(tuple(poses)))
+        deep = instance and bool(seen) and all(_too_deep(checker, index, h, threshold) for h in seen)
+        out = _moved_out(checker, index, ranked, threshold) if deep else None
+        searched.append(ranked if out is None else out)
+        moved += 0 if out is None else len(seen)
     return tuple(searched), moved
 
 
@@ -67,9 +61,17 @@ def _too_deep(checker: PhysicsChecker, index: int, hypothesis: Hypothesis, thres
     return checker.static_overlap(index, hypothesis.pose) > threshold
 
 
-def _moved(checker: PhysicsChecker, index: int, hypothesis: Hypothesis, threshold: float) -> Hypothesis:
-    """``hypothesis`` moved out of the static bodies, or itself (absent, held, or not movable)."""
-    if hypothesis.absent or hypothesis.held:
-        return hypothesis
-    pose = checker.moved_out_of_static(index, hypothesis.pose, threshold, MOVE_LIMIT)
-    return hypothesis if pose is None else replace(hypothesis, pose=pose)
+def _moved_out(
+    checker: PhysicsChecker, index: int, ranked: RankedHypotheses, threshold: float
+) -> RankedHypotheses | None:
+    """Object ``index``'s ``ranked`` with each pose (not *absent*, not *held*) moved out of the static bodies, or
+    None where one cannot be: a detection inside, not one seen too low (module docstring)."""
+    moved = []
+    for hypothesis in ranked.hypotheses:
+        if not (hypothesis.absent or hypothesis.held):
+            pose = checker.moved_out_of_static(index, hypothesis.pose, threshold, MOVE_LIMIT)
+            if pose is None:
+                return None
+            hypothesis = replace(hypothesis, pose=pose)
+        moved.append(hypothesis)
+    return RankedHypotheses(tuple(moved))
