@@ -63,6 +63,20 @@ def _abandon_stdout() -> None:
         pass
 
 
+def caused_by_interrupt(error: BaseException) -> bool:
+    """Whether ``error`` is a KeyboardInterrupt, or was raised from one.
+
+    CPython 3.11 re-raises what a descriptor's ``__set_name__`` raises as a RuntimeError from it: a
+    Ctrl-C that lands while an import creates a dataclass arrives as that RuntimeError.
+    """
+    cause: BaseException | None = error
+    while cause is not None:
+        if isinstance(cause, KeyboardInterrupt):
+            return True
+        cause = cause.__cause__
+    return False
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="physics-mapper",
@@ -105,5 +119,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                 file=sys.stderr,
             )
             return EXIT_BAD_INPUT
-    except KeyboardInterrupt:
+    except (KeyboardInterrupt, RuntimeError) as error:
+        if not caused_by_interrupt(error):
+            raise
         return 0 if arguments[:1] and arguments[0] in RUN_UNTIL_STOPPED else EXIT_INTERRUPTED

@@ -15,6 +15,7 @@ import re
 import signal
 import subprocess
 import sys
+import textwrap
 import threading
 import time
 from dataclasses import dataclass, field
@@ -220,6 +221,30 @@ def test_ctrl_c_while_a_mesh_loads_is_never_lost(tmp_path: Path) -> None:
         out, _ = process.communicate(timeout=60)
         # 130: stopped by the KeyboardInterrupt; -SIGINT: the signal came before Python's handler was set up.
         assert process.returncode in (130, -signal.SIGINT) and out == "", (delay, process.returncode)
+
+
+def test_ctrl_c_while_an_import_creates_a_dataclass_exits_as_interrupted() -> None:
+    """CPython 3.11 re-raises an exception of ``__set_name__`` as a RuntimeError from it: a Ctrl-C that
+    lands there (as while ``solve`` imports the search's result types) still exits 130, no traceback."""
+    probe = textwrap.dedent(
+        """
+        import signal, sys
+        from physics_mapper import cli
+
+        class Field:
+            def __set_name__(self, owner, name):
+                signal.raise_signal(signal.SIGINT)
+
+        def command_module(name):
+            class Stats:  # created as an import creates a dataclass's fields
+                counters = Field()
+
+        cli.command_module = command_module
+        sys.exit(cli.main(["solve", "problem.yaml"]))
+        """
+    )
+    completed = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, timeout=60)
+    assert (completed.returncode, completed.stderr) == (130, "")
 
 
 def test_stopping_the_node_s_scene_load_does_not_wait_for_a_mesh_parser(tmp_path: Path) -> None:
