@@ -161,6 +161,22 @@ def put_back_supports(
     return tuple(ranks)
 
 
+def held_up(
+    poses: Sequence[Pose | None], shapes: Sequence[ObjectShape], static: Sequence[StaticBody], jitter_threshold: float
+) -> frozenset[int]:
+    """The objects of a map (``poses`` of the objects of ``shapes``, None for one the map leaves out) that stand
+    (module docstring) on a static plane, on the other static bodies or on another object of the map, by index."""
+    boxes = {
+        i: body_box(shape, pose) for i, (shape, pose) in enumerate(zip(shapes, poses, strict=True)) if pose is not None
+    }
+    lows, highs = _corners(list(boxes.values()))
+    supports = _corners([body_box(body.shape, body.pose) for body in static if not isinstance(body.shape, Plane)])
+    planes = [body for body in static if isinstance(body.shape, Plane)]
+    falling = _falling(lows, highs, supports, planes, jitter_threshold)
+    indices = list(boxes)
+    return frozenset(indices[k] for k in np.flatnonzero(~falling))
+
+
 def holding_up(poses: Sequence[Pose | None], shapes: Sequence[ObjectShape], jitter_threshold: float) -> tuple[int, ...]:
     """The objects of a map (``poses`` of the objects of ``shapes``, None for one the map leaves out) that hold
     another object of the map up (module docstring), by index."""
@@ -172,6 +188,25 @@ def holding_up(poses: Sequence[Pose | None], shapes: Sequence[ObjectShape], jitt
     np.fill_diagonal(holds, False)
     indices = list(boxes)
     return tuple(indices[k] for k in np.flatnonzero(holds.any(axis=1)))
+
+
+def holding(
+    poses: Sequence[Pose | None], shapes: Sequence[ObjectShape], above: int, jitter_threshold: float
+) -> frozenset[int]:
+    """The objects of a map (``poses`` of the objects of ``shapes``, None for one the map leaves out) that hold object
+    ``above`` (in the map) up (module docstring), by index."""
+    boxes = {
+        i: body_box(shape, pose)
+        for i, (shape, pose) in enumerate(zip(shapes, poses, strict=True))
+        if pose is not None and i != above
+    }
+    lows, highs = _corners(list(boxes.values()))
+    pose = poses[above]
+    assert pose is not None  # the object held up is in the map
+    low, high = _corners([body_box(shapes[above], pose)])
+    holds = _holds_up_pairs(lows, highs, low, high, jitter_threshold)[:, 0]
+    indices = list(boxes)
+    return frozenset(indices[k] for k in np.flatnonzero(holds))
 
 
 def within_reach(

@@ -513,6 +513,31 @@ def test_a_new_instance_that_overlaps_at_its_best_pose_takes_its_next_before_it_
     assert ended.settling is not None and ended.code == (1, 2, 3)
 
 
+def test_a_new_instance_that_tips_where_something_holds_it_up_takes_its_next_pose_before_it_is_left_out() -> None:
+    """The last map held box_1. box_2 is new: its best pose is tilted 20 degrees on an edge of box_1 (it tips
+    back flat: unstable), its second upright on it; box_3, a false detection, floats 30 cm up at both its poses.
+    The first settling moves both: box_2, held up by box_1, takes its next pose, which stands in a local
+    settling; box_3, held up by nothing, is left out. The second settling, the check's last, passes."""
+    scene = scene_from_dict(
+        {"objects": [{"name": "box", "count": {"max": 3}, **BOX}], "static": [{"name": "floor", "shape": "plane"}]},
+        "test",
+    )
+    tilt = 0.35  # rad
+    lowest = 0.05 * (math.cos(tilt) + math.sin(tilt))  # m, the tilted box's centre above its lowest edge
+    tilted = Pose((0.0, 0.0, 0.1 + lowest + 0.001), quaternion_about_axis((1.0, 0.0, 0.0), tilt))
+
+    def maybe(index: int, *poses: Pose) -> RankedHypotheses:
+        seen = tuple(Hypothesis(pose, 0.8 / (i + 1)) for i, pose in enumerate(poses))
+        return RankedHypotheses((*seen, absent_hypothesis(index, 0.1)))
+
+    in_the_air = (Pose((0.3, 0.0, 0.4), IDENTITY), Pose((0.31, 0.0, 0.4), IDENTITY))
+    hypotheses = (maybe(0, Pose(BOTTOM, IDENTITY)), maybe(1, tilted, Pose(TOP, IDENTITY)), maybe(2, *in_the_air))
+    start = (1, 1, 1)
+    check = PreviousMapCheck(hypotheses, start, start, {"box_1": Pose(BOTTOM, IDENTITY)}, new=(1, 2))
+    ended = check_previous_map(PhysicsChecker(scene), check, GENEROUS, None)
+    assert ended.settling is not None and ended.code == (1, 2, 3) and ended.settlings == 2
+
+
 def test_a_new_instance_whose_poses_together_outweigh_its_absence_starts_the_check_where_they_agree() -> None:
     """The last map held box_1. box_2 is new, seen three times within 3 mm, each pose weighing 0.2 against its
     *absent*'s 0.4, which ranks first. The search checks its root alone (box_2 absent: valid); the check starts

@@ -12,6 +12,8 @@ from physics_mapper.model.scene import Box, Scene
 from physics_mapper.physics.checker import PhysicsChecker
 from physics_mapper.physics.support import (
     TOUCHING,
+    held_up,
+    holding,
     holding_up,
     leave_out_displaced,
     moved_away,
@@ -117,6 +119,26 @@ def test_the_objects_holding_others_up_are_those_under_another_within_the_jitter
     assert holding_up(poses, [o.shape for o in scene.objects], TAU) == (0,)
     poses[3] = unrotated(0.3, 0.0, ON_FLOOR)
     assert holding_up(poses, [o.shape for o in scene.objects], TAU) == (0, 3)
+
+
+def test_the_objects_held_up_stand_on_the_floor_or_on_another_within_the_jitter_threshold() -> None:
+    """The same five: the stack stands (the floor, the bottom cube, which holds the top one up); the cube beside it
+    stands only once the cube under it is in the map, which then holds it up; the cube 3 cm over the stack stands on
+    nothing."""
+    poses = [
+        unrotated(0.0, 0.0, ON_FLOOR),
+        unrotated(0.0, 0.0, ON_CUBE),
+        unrotated(0.3, 0.0, ON_CUBE),
+        None,
+        unrotated(0.0, 0.0, ON_CUBE + CUBE_SIZE + 0.03),
+    ]
+    scene = floor_scene(*(cube(f"c{i}") for i in range(len(poses))))
+    shapes = [o.shape for o in scene.objects]
+    assert held_up(poses, shapes, scene.static, TAU) == {0, 1}
+    assert [holding(poses, shapes, i, TAU) for i in (1, 2, 4)] == [{0}, set(), set()]
+    poses[3] = unrotated(0.3, 0.0, ON_FLOOR)
+    assert held_up(poses, shapes, scene.static, TAU) == {0, 1, 2, 3}
+    assert holding(poses, shapes, 2, TAU) == {3}
 
 
 def test_within_reach_are_the_objects_whose_boxes_come_within_the_margin() -> None:
