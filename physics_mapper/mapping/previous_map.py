@@ -42,12 +42,15 @@ ended early at rest as the search's are), within half the deadline, and repaired
   a collision pass each: a second detection of a box overlaps it at every pose, while a part seen beside a
   neighbour may overlap it at its best pose alone. Where one moved beyond the threshold at the pose it
   started at though something holds it up there (:func:`~physics_mapper.physics.support.held_up`, the
-  refined map's box rule), its other poses are tried in rank order, each by a *local* settling: it and the
-  objects its body box comes within :data:`~physics_mapper.physics.support.TOUCHING` of settle, what those
-  touch held fixed (a few bodies, 1-10 ms, where a settling of the bin's 24 parts takes 20-60 ms); it takes
-  the first that stands there, and the check's next settling confirms it. A lego part's best pose, tilted 4
-  degrees on the studs, slides off where its next, tilted 2, stands. Where none stands it is left out; a
-  detection in the air is held up by nothing and is left out at once;
+  refined map's box rule), its other poses are tried in rank order, each by a *local* settling: it, the
+  objects that hold it up and those its body box comes within :data:`~physics_mapper.physics.support.TOUCHING`
+  of settle, what those touch held fixed (a few bodies, 1-12 ms, where a settling of the bin's 24 parts takes
+  20-60 ms); it takes the first that stands there, and the check's next settling confirms it. A lego part's
+  best pose, tilted 4 degrees on the studs, slides off where its next, tilted 2, stands. Where none stands it
+  is left out; a detection in the air is held up by nothing and is left out at once. Poses are tried only where
+  the time left holds two settlings as long as the longest so far: one to confirm, one to leave out what tips
+  still (the trials' time is the confirming settling's: a settling that ends at rest runs two to three times as
+  long as one that ends when an object moves);
 - where an overlapping pair has none of these, one of the two takes its next hypothesis near where it
   rested (within :data:`NEAR`, nearest first; no settling, only the collision pass again). Where the
   tick's refined map guides the check (below), the refinement parts two overlapping objects by moving both,
@@ -270,7 +273,8 @@ def check_previous_map(
     check pending), repaired where it fails (module docstring): where an object the previous map held breaks a
     rule (one of the overlapping pair, or moved beyond the jitter threshold), it and the objects it touches are
     put at their *held* ranks; where only its ``new`` objects break it, they are left out (their *absent*
-    ranks, where they have one), one that overlaps another only once each of its poses has; where neither
+    ranks, where they have one), one that overlaps another only once each of its poses has, one that tipped where
+    something holds it up only where none of its other poses stands in a local settling; where neither
     changes an overlapping pair, one of the two takes its next pose near where it rested (not the rank it
     started at), and where neither changes what moved, each of those takes its next;
     then the rest is checked again, with at most :data:`CHECK_SETTLINGS` settlings in all, none begun that
@@ -286,7 +290,7 @@ def check_previous_map(
         i: [r for r in nearby_ranks(ranked, rested.get(name)) if r not in (code[i], start[i])]
         for i, (name, ranked) in enumerate(zip(names, hypotheses, strict=True))
     }
-    # A new object's other poses, for a collision pass each before an overlap leaves it out.
+    # A new object's other poses, tried before an overlap or a tip leaves it out.
     others = {
         i: [r for r in hypotheses[i].pose_ranks() if r not in (code[i], hypotheses[i].held_rank())] for i in droppable
     }
@@ -403,8 +407,9 @@ def _stands_locally(
     checker: PhysicsChecker, poses: Sequence[Pose], index: int, params: SearchParams, stop_at: float | None
 ) -> bool:
     """Whether object ``index`` stays within the jitter threshold where it is at ``poses``, settled with the objects
-    its body box comes within :data:`TOUCHING` of (they may give way under it), those they touch held fixed: a
-    few bodies, not the bin (module docstring)."""
+    that hold it up (:func:`~physics_mapper.physics.support.holding`) and those its body box comes within
+    :data:`TOUCHING` of (they may give way under it), those they touch held fixed: a few bodies, not the bin
+    (module docstring)."""
     shapes = [model.shape for model in checker.scene.objects]
     touched = sorted(
         within_reach(poses, shapes, {index}, TOUCHING) | holding(poses, shapes, index, params.jitter_threshold)
