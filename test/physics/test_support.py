@@ -105,17 +105,23 @@ def test_the_most_probable_of_two_candidates_is_put_back_and_the_other_stays_out
     assert put_back(hypotheses, (1, 1, 1)) == (1, 1, 1)  # the likelier one in: the other stays out
 
 
-def test_the_objects_holding_others_up_are_those_under_another_within_the_jitter_threshold() -> None:
-    """A stack of two, a cube beside it, a cube left out of the map under the one beside, and a cube in the
-    air over the stack, 3 cm over the top cube (more than tau): only the bottom cube of the stack holds one up."""
-    poses = [
+def five_cubes() -> tuple[list[Pose | None], Scene]:
+    """A stack of two, a cube beside it, a cube left out of the map (None) under the one beside, and a cube in the
+    air over the stack, 3 cm over the top cube (more than tau); their scene."""
+    poses: list[Pose | None] = [
         unrotated(0.0, 0.0, ON_FLOOR),
         unrotated(0.0, 0.0, ON_CUBE),
         unrotated(0.3, 0.0, ON_CUBE),
         None,
         unrotated(0.0, 0.0, ON_CUBE + CUBE_SIZE + 0.03),
     ]
-    scene = floor_scene(*(cube(f"c{i}") for i in range(len(poses))))
+    return poses, floor_scene(*(cube(f"c{i}") for i in range(len(poses))))
+
+
+def test_the_objects_holding_others_up_are_those_under_another_within_the_jitter_threshold() -> None:
+    """The five cubes: only the bottom cube of the stack holds one up, and the one under the cube beside it once
+    it is in the map."""
+    poses, scene = five_cubes()
     assert holding_up(poses, [o.shape for o in scene.objects], TAU) == (0,)
     poses[3] = unrotated(0.3, 0.0, ON_FLOOR)
     assert holding_up(poses, [o.shape for o in scene.objects], TAU) == (0, 3)
@@ -125,14 +131,7 @@ def test_the_objects_held_up_stand_on_the_floor_or_on_another_within_the_jitter_
     """The same five: the stack stands (the floor, the bottom cube, which holds the top one up); the cube beside it
     stands only once the cube under it is in the map, which then holds it up; the cube 3 cm over the stack stands on
     nothing."""
-    poses = [
-        unrotated(0.0, 0.0, ON_FLOOR),
-        unrotated(0.0, 0.0, ON_CUBE),
-        unrotated(0.3, 0.0, ON_CUBE),
-        None,
-        unrotated(0.0, 0.0, ON_CUBE + CUBE_SIZE + 0.03),
-    ]
-    scene = floor_scene(*(cube(f"c{i}") for i in range(len(poses))))
+    poses, scene = five_cubes()
     shapes = [o.shape for o in scene.objects]
     assert held_up(poses, shapes, scene.static, TAU) == {0, 1}
     assert [holding(poses, shapes, i, TAU) for i in (1, 2, 4)] == [{0}, set(), set()]
