@@ -144,8 +144,7 @@ def put_back_supports(
         for i, rank in most_probable.items()
         if not any(inside_static(body, (left_out_boxes[i][0] + left_out_boxes[i][1]) / 2.0) for body in static)
     }
-    supports = _corners([body_box(body.shape, body.pose) for body in static if not isinstance(body.shape, Plane)])
-    planes = [body for body in static if isinstance(body.shape, Plane)]
+    supports, planes = _static_supports(static)
     while left_out:
         lows, highs = _corners(list(boxes.values()))
         falling = _falling(lows, highs, supports, planes, jitter_threshold)
@@ -170,8 +169,7 @@ def held_up(
         i: body_box(shape, pose) for i, (shape, pose) in enumerate(zip(shapes, poses, strict=True)) if pose is not None
     }
     lows, highs = _corners(list(boxes.values()))
-    supports = _corners([body_box(body.shape, body.pose) for body in static if not isinstance(body.shape, Plane)])
-    planes = [body for body in static if isinstance(body.shape, Plane)]
+    supports, planes = _static_supports(static)
     falling = _falling(lows, highs, supports, planes, jitter_threshold)
     indices = list(boxes)
     return frozenset(indices[k] for k in np.flatnonzero(~falling))
@@ -328,6 +326,13 @@ def _corners(boxes: Sequence[_Box]) -> tuple[FloatArray, FloatArray]:
     lows = np.array([low for low, _ in boxes], dtype=float).reshape(-1, 3)
     highs = np.array([high for _, high in boxes], dtype=float).reshape(-1, 3)
     return lows, highs
+
+
+def _static_supports(static: Sequence[StaticBody]) -> tuple[tuple[FloatArray, FloatArray], list[StaticBody]]:
+    """What may hold an object up among ``static``: the box corners of the bodies that are not planes, and the
+    planes."""
+    boxes = [body_box(body.shape, body.pose) for body in static if not isinstance(body.shape, Plane)]
+    return _corners(boxes), [body for body in static if isinstance(body.shape, Plane)]
 
 
 def _falling(
