@@ -136,7 +136,7 @@ from dataclasses import dataclass, replace
 
 from physics_mapper.model.geometry import Pose
 from physics_mapper.model.hypotheses import Hypothesis, RankedHypotheses, existence_probability
-from physics_mapper.model.scene import SearchParams
+from physics_mapper.model.scene import ObjectShape, SearchParams
 from physics_mapper.physics.checker import PhysicsChecker
 from physics_mapper.physics.settling import Settling, early_exit_rule
 from physics_mapper.physics.support import TOUCHING, held_up, holding, present_where_likelier, within_reach
@@ -331,10 +331,10 @@ def check_previous_map(
             return ended(outcome)
         moved = {i for i, jitter in enumerate(outcome.jitters) if jitter > params.jitter_threshold}
         retried: set[int] = set()
-        if not _time_up(stop_at, 2.0 * longest):  # time to confirm a pose found, and to leave it out if it tips
-            standing = held_up(poses, shapes, checker.scene.static, params.jitter_threshold)
-            tipped = {i for i in moved & droppable & standing if code[i] == start[i]}
-            retried = _next_standing_pose(checker, hypotheses, code, tipped, others, params, stop_at)
+        tipped = {i for i in moved & droppable if code[i] == start[i] and others.get(i)}
+        if tipped and not _time_up(stop_at, 2.0 * longest):  # time to confirm a pose found, and to leave one out
+            tipped &= held_up(poses, shapes, checker.scene.static, params.jitter_threshold)
+            retried = _next_standing_pose(checker, hypotheses, shapes, code, tipped, others, params, stop_at)
         culprits = moved - retried
         reached = within_reach(poses, shapes, culprits, TOUCHING)
         # What else moved takes no other pose: each costs a settling.
@@ -380,6 +380,7 @@ def _next_pose(code: list[int], objects: Collection[int], untried: dict[int, lis
 def _next_standing_pose(
     checker: PhysicsChecker,
     hypotheses: tuple[RankedHypotheses, ...],
+    shapes: Sequence[ObjectShape],
     code: list[int],
     tipped: Collection[int],
     others: dict[int, list[int]],
@@ -395,7 +396,7 @@ def _next_standing_pose(
         while others.get(i) and not _time_up(stop_at):
             rank = others[i].pop(0)
             poses[i] = hypotheses[i].pose(rank)
-            if _stands_locally(checker, poses, i, params, stop_at):
+            if _stands_locally(checker, poses, shapes, i, params, stop_at):
                 code[i] = rank
                 found.add(i)
                 break
@@ -404,13 +405,17 @@ def _next_standing_pose(
 
 
 def _stands_locally(
-    checker: PhysicsChecker, poses: Sequence[Pose], index: int, params: SearchParams, stop_at: float | None
+    checker: PhysicsChecker,
+    poses: Sequence[Pose],
+    shapes: Sequence[ObjectShape],
+    index: int,
+    params: SearchParams,
+    stop_at: float | None,
 ) -> bool:
     """Whether object ``index`` stays within the jitter threshold where it is at ``poses``, settled with the objects
     that hold it up (:func:`~physics_mapper.physics.support.holding`) and those its body box comes within
     :data:`TOUCHING` of (they may give way under it), those they touch held fixed: a few bodies, not the bin
     (module docstring)."""
-    shapes = [model.shape for model in checker.scene.objects]
     touched = sorted(
         within_reach(poses, shapes, {index}, TOUCHING) | holding(poses, shapes, index, params.jitter_threshold)
     )

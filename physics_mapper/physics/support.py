@@ -165,26 +165,18 @@ def held_up(
 ) -> frozenset[int]:
     """The objects of a map (``poses`` of the objects of ``shapes``, None for one the map leaves out) that stand
     (module docstring) on a static plane, on the other static bodies or on another object of the map, by index."""
-    boxes = {
-        i: body_box(shape, pose) for i, (shape, pose) in enumerate(zip(shapes, poses, strict=True)) if pose is not None
-    }
-    lows, highs = _corners(list(boxes.values()))
+    indices, lows, highs = _map_boxes(poses, shapes)
     supports, planes = _static_supports(static)
     falling = _falling(lows, highs, supports, planes, jitter_threshold)
-    indices = list(boxes)
     return frozenset(indices[k] for k in np.flatnonzero(~falling))
 
 
 def holding_up(poses: Sequence[Pose | None], shapes: Sequence[ObjectShape], jitter_threshold: float) -> tuple[int, ...]:
     """The objects of a map (``poses`` of the objects of ``shapes``, None for one the map leaves out) that hold
     another object of the map up (module docstring), by index."""
-    boxes = {
-        i: body_box(shape, pose) for i, (shape, pose) in enumerate(zip(shapes, poses, strict=True)) if pose is not None
-    }
-    lows, highs = _corners(list(boxes.values()))
+    indices, lows, highs = _map_boxes(poses, shapes)
     holds = _holds_up_pairs(lows, highs, lows, highs, jitter_threshold)
     np.fill_diagonal(holds, False)
-    indices = list(boxes)
     return tuple(indices[k] for k in np.flatnonzero(holds.any(axis=1)))
 
 
@@ -192,19 +184,11 @@ def holding(
     poses: Sequence[Pose | None], shapes: Sequence[ObjectShape], above: int, jitter_threshold: float
 ) -> frozenset[int]:
     """The objects of a map (``poses`` of the objects of ``shapes``, None for one the map leaves out) that hold object
-    ``above`` (in the map) up (module docstring), by index."""
-    boxes = {
-        i: body_box(shape, pose)
-        for i, (shape, pose) in enumerate(zip(shapes, poses, strict=True))
-        if pose is not None and i != above
-    }
-    lows, highs = _corners(list(boxes.values()))
-    pose = poses[above]
-    assert pose is not None  # the object held up is in the map
-    low, high = _corners([body_box(shapes[above], pose)])
-    holds = _holds_up_pairs(lows, highs, low, high, jitter_threshold)[:, 0]
-    indices = list(boxes)
-    return frozenset(indices[k] for k in np.flatnonzero(holds))
+    ``above`` (in the map) up (module docstring), by index. No body is below itself: ``above`` is not among them."""
+    indices, lows, highs = _map_boxes(poses, shapes)
+    k = indices.index(above)
+    holds = _holds_up_pairs(lows, highs, lows[k : k + 1], highs[k : k + 1], jitter_threshold)[:, 0]
+    return frozenset(indices[j] for j in np.flatnonzero(holds))
 
 
 def within_reach(
@@ -326,6 +310,16 @@ def _corners(boxes: Sequence[_Box]) -> tuple[FloatArray, FloatArray]:
     lows = np.array([low for low, _ in boxes], dtype=float).reshape(-1, 3)
     highs = np.array([high for _, high in boxes], dtype=float).reshape(-1, 3)
     return lows, highs
+
+
+def _map_boxes(poses: Sequence[Pose | None], shapes: Sequence[ObjectShape]) -> tuple[list[int], FloatArray, FloatArray]:
+    """The objects of a map (``poses`` of the objects of ``shapes``, None for one the map leaves out), by index, and
+    their body boxes' low and high corners, each K x 3 (m), in the same order."""
+    boxes = {
+        i: body_box(shape, pose) for i, (shape, pose) in enumerate(zip(shapes, poses, strict=True)) if pose is not None
+    }
+    lows, highs = _corners(list(boxes.values()))
+    return list(boxes), lows, highs
 
 
 def _static_supports(static: Sequence[StaticBody]) -> tuple[tuple[FloatArray, FloatArray], list[StaticBody]]:
